@@ -1,0 +1,1 @@
+"""MCAP recording and reading of runs as ROS 2 bags."""

@@ -1,0 +1,1 @@
+"""The rclpy layer: node, parameter declaration and message conversion."""
