@@ -1,0 +1,181 @@
+"""Nonlinear normal modes of the conservative system (eq. 33) by shooting, and V_o calibration.
+
+Method
+------
+Eq. (33), ``x'' + Omega^2 x = a_nl(x)``, is reversible: an orbit that starts at rest and is
+at rest again half a period later is periodic. For the n-theta mode at amplitude ``A`` the
+unknowns are the other coordinates at the start, ``x_j(0)`` (j != n), and the half period
+``T/2``; the equations are ``v(T/2) = 0`` (one per coordinate). They are solved with
+``scipy.optimize.fsolve`` on ``solve_ivp(DOP853, rtol=1e-11)`` trajectories, by continuation
+in amplitude from the linear mode. The frequency is ``1 / T`` and the amplitude is
+``max_t |x_n(t)|`` over the orbit (both turning points are checked).
+
+This gives the backbone of Fig. 4 on the configuration that is simulated (all its modes),
+which is what the default outer voltage is calibrated on (:func:`calibrate_outer_voltage`).
+"""
+
+from dataclasses import dataclass, replace
+import math
+from typing import List, Sequence
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq, fsolve
+
+from ring_gyro_sim.core import forces
+from ring_gyro_sim.core.errors import SimulationError
+from ring_gyro_sim.core.params import SimConfig
+
+
+@dataclass(frozen=True)
+class NonlinearModePoint:
+    """One periodic orbit of eq. (33).
+
+    Attributes
+    ----------
+    amplitude_m : float
+        max |x_n| over the orbit, m.
+    frequency_hz : float
+        1 / period, Hz.
+    initial_state_m : ndarray, shape (n,)
+        Coordinates at the turning point t = 0 (velocities are zero), m.
+    residual : float
+        max |v(T/2)| / (omega_n A), dimensionless (convergence check).
+    """
+
+    amplitude_m: float
+    frequency_hz: float
+    initial_state_m: np.ndarray
+    residual: float
+
+
+class _Model:
+    def __init__(self, config: SimConfig) -> None:
+        self.model = forces.build_force_model(config)
+        self.omega = 2.0 * math.pi * np.asarray(config.modes.coordinate_frequencies())
+        self.n = self.model.n_coordinates
+
+    def rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
+        x, v = y[:self.n], y[self.n:]
+        a = -self.omega ** 2 * x + forces.nonlinear_acceleration(x, self.model)
+        return np.concatenate([v, a])
+
+    def half_orbit(self, x0: np.ndarray, t_half: float, dense: bool = False):
+        y0 = np.concatenate([x0, np.zeros(self.n)])
+        return solve_ivp(self.rhs, (0.0, t_half), y0, method='DOP853', rtol=1e-11,
+                         atol=1e-18, dense_output=dense)
+
+
+def _solve_point(m: _Model, index: int, start: float, guess_others: np.ndarray,
+                 guess_half: float) -> NonlinearModePoint:
+    others = [j for j in range(m.n) if j != index]
+    scale = abs(start)
+
+    def unpack(z):
+        x0 = np.zeros(m.n)
+        x0[index] = start
+        x0[others] = z[:-1] * scale
+        return x0, z[-1] * guess_half
+
+    def residual(z):
+        x0, t_half = unpack(z)
+        try:
+            sol = m.half_orbit(x0, t_half)
+        except SimulationError:
+            return np.full(m.n, 1e3)
+        if sol.status != 0:
+            return np.full(m.n, 1e3)
+        return sol.y[m.n:, -1] / (m.omega[index] * scale)
+
+    z0 = np.concatenate([guess_others / scale, [1.0]])
+    z, _, ier, msg = fsolve(residual, z0, full_output=True, xtol=1e-12)
+    res = float(np.max(np.abs(residual(z))))
+    if ier != 1 and res > 1e-8:
+        raise SimulationError(f'nonlinear mode at {start:.3e} m did not converge: {msg}')
+    x0, t_half = unpack(z)
+    sol = m.half_orbit(x0, t_half, dense=True)
+    tt = np.linspace(0.0, t_half, 2001)
+    amplitude = float(np.max(np.abs(sol.sol(tt)[index])))
+    return NonlinearModePoint(amplitude_m=amplitude, frequency_hz=1.0 / (2.0 * t_half),
+                              initial_state_m=x0, residual=res)
+
+
+def nonlinear_mode(config: SimConfig, amplitudes_m: Sequence[float],
+                   mode: int = 1) -> List[NonlinearModePoint]:
+    """Points of the nonlinear normal mode (backbone) of the ``mode``-theta coordinate.
+
+    Parameters
+    ----------
+    config : SimConfig
+        All coordinates of the configuration take part (Ritz order, companions).
+    amplitudes_m : sequence of float
+        Increasing starting amplitudes ``x_n(0)``, m (continuation goes through them).
+    mode : int
+        n of the n-theta mode (its cos coordinate).
+
+    Returns
+    -------
+    list of NonlinearModePoint
+    """
+    m = _Model(config)
+    index = mode - 1
+    if not 0 <= index < config.modes.count:
+        raise ValueError(f'mode: must be between 1 and {config.modes.count}, got {mode}')
+    others = np.zeros(m.n - 1)
+    half = 0.5 / config.modes.frequencies[index]
+    points = []
+    for a in amplitudes_m:
+        p = _solve_point(m, index, float(a), others, half)
+        points.append(p)
+        others = np.delete(p.initial_state_m, index)
+        half = 0.5 / p.frequency_hz
+    return points
+
+
+def frequency_at_amplitude(config: SimConfig, amplitude_m: float, mode: int = 1,
+                           steps: int = 12) -> float:
+    """Backbone frequency (Hz) at ``max |x_n| = amplitude_m``, by continuation and secant."""
+    starts = list(np.linspace(amplitude_m / steps, amplitude_m, steps))
+    points = nonlinear_mode(config, starts, mode)
+    m = _Model(config)
+    index = mode - 1
+    p = points[-1]
+    others = np.delete(p.initial_state_m, index)
+    start = amplitude_m
+    # The orbit's max |x_n| can exceed its start when the other turning point is larger:
+    # adjust the start until the measured amplitude matches.
+    for _ in range(8):
+        if abs(p.amplitude_m - amplitude_m) < 1e-6 * amplitude_m:
+            break
+        start *= amplitude_m / p.amplitude_m
+        p = _solve_point(m, index, start, others, 0.5 / p.frequency_hz)
+        others = np.delete(p.initial_state_m, index)
+    return p.frequency_hz
+
+
+def calibrate_outer_voltage(config: SimConfig, target_hz: float = 10.6e3,
+                            amplitude_m: float = 6e-6, bracket_v=(1.0, 12.0),
+                            mode: int = 1) -> float:
+    """Outer voltage (V) at which the backbone passes through (amplitude, target frequency).
+
+    Parameters
+    ----------
+    config : SimConfig
+        Configuration to calibrate on (its N_R, N_T and electrodes; V_o is varied).
+    target_hz : float
+        Backbone frequency at ``amplitude_m``, Hz (Fig. 4: about 10.6 kHz at about 6 um).
+    bracket_v : (float, float)
+        Voltage bracket, V.
+    """
+    def miss(volts: float) -> float:
+        c = replace(config, electrodes=replace(config.electrodes, outer_voltage=volts))
+        return frequency_at_amplitude(c, amplitude_m, mode) - target_hz
+
+    return float(brentq(miss, bracket_v[0], bracket_v[1], xtol=1e-4))
+
+
+def describe(points: Sequence[NonlinearModePoint]) -> str:
+    """A small table of backbone points (amplitude um, frequency Hz)."""
+    return '\n'.join(f'{p.amplitude_m * 1e6:8.3f} um  {p.frequency_hz:10.2f} Hz'
+                     for p in points)
+

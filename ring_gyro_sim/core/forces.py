@@ -1,0 +1,254 @@
+"""Electrostatic generalised force of the ring (eqs. 18-26), evaluated by exact quadrature.
+
+Conventions
+-----------
+Coordinates ``x = [q_1 .. q_N, q_1^s .. q_N^s]`` (the companions only when enabled); the
+radial displacement is ``w(theta) = sum_n q_n cos(n theta) + q_n^s sin(n theta)`` (eq. 2) and
+``u = w / d_g``. Outward ``w`` closes the OUTER gap ``d_g - w`` and opens the inner one.
+
+The electrostatic energy (eq. 21) is ``E_c = A_eps * int_0^{2 pi} e(u(theta)) d theta`` with
+
+* truncated (``N_T >= 3``): ``e(u) = sum_{k=0}^{N_T} (r_o V_o^2 + (-1)^k r_i V_i^2) u^k``;
+* untruncated (``N_T = 0``): ``e(u) = r_o V_o^2 / (1 - u) + r_i V_i^2 / (1 + u)``.
+
+The generalised force is ``+dE_c/dq`` (eq. 23, right-hand side: it softens). The terms
+``k <= 2`` are removed when the Table 1 frequencies already contain the linear electrostatic
+stiffness (``fold_linear_stiffness``, the paper's choice, section 3.1): the k = 0, 1 terms give
+no force (the modes have zero mean), the k = 2 term is K_c of eq. (26). What remains is
+``-F_nl`` of eq. (28), divided by the modal mass of each coordinate.
+
+Quadrature
+----------
+``int_0^{2 pi} e'(u) phi_i d theta`` is evaluated by the trapezoidal rule on M equally spaced
+angles. It is exact for trigonometric polynomials of degree < M; with the Taylor series the
+integrand ``u^(k-1) cos(n theta)`` has degree at most ``N_T * N_R``, so
+``M = N_T * N_R + 1`` points give the exact polynomial force (the eq. 35 test checks every
+coefficient). The untruncated integrand is analytic for ``|u| < 1``; its Fourier coefficients
+fall like ``rho^m`` with ``rho = (1 - sqrt(1 - a^2)) / a`` for ``a = max |u|`` per harmonic,
+so ``M = 128 * N_R`` gives round-off accuracy up to ``|u| ~ 0.95``.
+
+Without companions every coordinate is a cosine, ``w`` is even in theta and only the angles
+in ``[0, pi]`` are kept, with trapezoidal weights 1 at 0 and pi and 2 elsewhere: the same sum
+for half the work (the integrator's inner loop).
+"""
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from ring_gyro_sim.core import kernels
+from ring_gyro_sim.core.errors import SimulationError
+from ring_gyro_sim.core.params import SimConfig
+
+
+@dataclass(frozen=True)
+class ForceModel:
+    """Flat arrays of the electrostatic force, as the kernels take them.
+
+    Attributes
+    ----------
+    harmonics : ndarray of int, shape (n,)
+        Harmonic number n of every coordinate.
+    sine : ndarray of bool, shape (n,)
+        True for the sin(n theta) companions.
+    theta : ndarray, shape (M,)
+        Quadrature angles, rad (only those in [0, pi] when w is even).
+    weights : ndarray, shape (M,)
+        Trapezoidal weights, rad, summing to 2 pi.
+    basis : ndarray, shape (M, n)
+        ``phi_i(theta_j)`` (cos or sin), so that ``w = basis @ x``.
+    projection : ndarray, shape (n, M)
+        ``(2 pi / M) phi_i(theta_j) / m_i``, 1/kg: acceleration = projection @ P(u).
+    poly : ndarray, shape (D + 1,)
+        Coefficients of ``P(u) = A_eps / d_g * e'(u)`` in powers of u, N (truncated model).
+    energy_poly : ndarray, shape (D + 2,)
+        Coefficients of ``A_eps * e(u)`` in powers of u, J/rad (truncated model).
+    outer, inner : float
+        ``A_eps r_o V_o^2`` and ``A_eps r_i V_i^2``, J/rad.
+    gap : float
+        d_g, m.
+    taylor_terms : int
+        N_T (0 = untruncated).
+    fold : bool
+        Linear (k <= 2) terms removed.
+    inner_contact : bool
+        An inner electrode is present (V_i != 0): ``u <= -1`` is contact there.
+    masses : ndarray, shape (n,)
+        Generalised masses, kg.
+    """
+
+    harmonics: np.ndarray
+    sine: np.ndarray
+    theta: np.ndarray
+    weights: np.ndarray
+    basis: np.ndarray
+    projection: np.ndarray
+    poly: np.ndarray
+    energy_poly: np.ndarray
+    outer: float
+    inner: float
+    gap: float
+    taylor_terms: int
+    fold: bool
+    inner_contact: bool
+    masses: np.ndarray
+
+    @property
+    def n_coordinates(self) -> int:
+        """Number of simulated coordinates."""
+        return int(self.harmonics.size)
+
+
+def coordinate_harmonics(n_modes: int, companions: bool):
+    """Harmonic numbers and sine flags of the coordinates ``[q_1..q_N, q_1^s..q_N^s]``."""
+    harmonics = np.arange(1, n_modes + 1, dtype=np.int64)
+    sine = np.zeros(n_modes, dtype=np.bool_)
+    if companions:
+        harmonics = np.concatenate([harmonics, harmonics])
+        sine = np.concatenate([sine, np.ones(n_modes, dtype=np.bool_)])
+    return harmonics, sine
+
+
+def mode_shapes(harmonics: np.ndarray, sine: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """``phi_i(theta_j)``, shape (len(theta), n): cos(n theta) or sin(n theta)."""
+    arg = np.outer(theta, harmonics)
+    return np.where(sine[None, :], np.sin(arg), np.cos(arg))
+
+
+def quadrature_points(n_modes: int, taylor_terms: int) -> int:
+    """Number M of quadrature angles (see module docstring)."""
+    if taylor_terms == 0:
+        return 128 * n_modes
+    return max(taylor_terms * n_modes + 1, 8 * n_modes + 1)
+
+
+def build_force_model(config: SimConfig) -> ForceModel:
+    """Assemble the :class:`ForceModel` of a configuration."""
+    e = config.electrodes
+    n_modes = config.modes.count
+    harmonics, sine = coordinate_harmonics(n_modes, config.modes.companions)
+    masses = np.asarray(config.modal_masses(), dtype=np.float64)
+    m_points = quadrature_points(n_modes, e.taylor_terms)
+    theta = 2.0 * np.pi * np.arange(m_points) / m_points
+    weights = np.full(m_points, 2.0 * np.pi / m_points)
+    if not np.any(sine):  # w even in theta: keep [0, pi], double the interior weights
+        keep = m_points // 2 + 1
+        theta, weights = theta[:keep], 2.0 * weights[:keep]
+        weights[0] *= 0.5
+        if m_points % 2 == 0:
+            weights[-1] *= 0.5
+    basis = mode_shapes(harmonics, sine, theta)
+    projection = np.ascontiguousarray(weights[None, :] * basis.T / masses[:, None])
+    a_eps = config.a_eps
+    outer = a_eps * config.outer_radius * e.outer_voltage ** 2
+    inner = a_eps * config.inner_radius * e.inner_voltage ** 2
+    fold = e.fold_linear_stiffness
+    k_min = 3 if fold else 1
+    n_t = e.taylor_terms
+    poly = np.zeros(max(n_t, 1), dtype=np.float64)
+    energy_poly = np.zeros(max(n_t, 1) + 1, dtype=np.float64)
+    for k in range(k_min, n_t + 1):
+        c_k = outer + (-1) ** k * inner
+        poly[k - 1] = k * c_k / e.gap
+        energy_poly[k] = c_k
+    return ForceModel(harmonics=harmonics, sine=sine, theta=theta, weights=weights, basis=basis,
+                      projection=projection, poly=poly, energy_poly=energy_poly,
+                      outer=outer, inner=inner, gap=e.gap, taylor_terms=n_t, fold=fold,
+                      inner_contact=e.inner_voltage != 0.0, masses=masses)
+
+
+def _check_state(x: np.ndarray, model: ForceModel) -> np.ndarray:
+    x = np.asarray(x, dtype=np.float64)
+    if x.shape != (model.n_coordinates,):
+        raise ValueError(f'x: expected shape ({model.n_coordinates},), got {x.shape}')
+    if not np.all(np.isfinite(x)):
+        raise ValueError('x: must be finite')
+    return np.ascontiguousarray(x)
+
+
+def nonlinear_acceleration(x: np.ndarray, model: ForceModel) -> np.ndarray:
+    """Electrostatic generalised force divided by the modal masses, m/s^2.
+
+    This is ``-F_nl`` of eq. (28) (the linear part excluded when folded).
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        Coordinates, m.
+    model : ForceModel
+
+    Returns
+    -------
+    ndarray, shape (n,)
+
+    Raises
+    ------
+    SimulationError
+        The state is out of the model's range (contact or ``|w| >= d_g`` for the series).
+    """
+    x = _check_state(x, model)
+    out = np.zeros_like(x)
+    u = np.empty(model.theta.size)
+    info = np.zeros(2, dtype=np.int64)
+    kernels.nl_accel(x, model.basis, model.projection, model.poly, model.taylor_terms,
+                     model.outer, model.inner, model.fold, model.inner_contact, model.gap,
+                     u, out, info)
+    if info[0] != 0:
+        raise SimulationError(kernels.describe_status(int(info[0]), model.theta[info[1]]))
+    return out
+
+
+def jacobian(x: np.ndarray, model: ForceModel) -> np.ndarray:
+    """d(nonlinear_acceleration)/dx, shape (n, n), 1/s^2 (exact by the same quadrature)."""
+    x = _check_state(x, model)
+    u = model.basis @ x / model.gap
+    dp = _poly_derivative(u, model)
+    return (model.projection * dp[None, :]) @ model.basis
+
+
+def _poly_derivative(u: np.ndarray, model: ForceModel) -> np.ndarray:
+    """dP/dw at the quadrature points, N/m."""
+    if model.taylor_terms:
+        d = np.polynomial.polynomial.polyder(model.poly)
+        return np.polynomial.polynomial.polyval(u, d) / model.gap
+    o, i = model.outer, model.inner
+    if model.fold:
+        val = o * (2.0 / (1.0 - u) ** 3 - 2.0) + i * (2.0 / (1.0 + u) ** 3 - 2.0)
+    else:
+        val = o * 2.0 / (1.0 - u) ** 3 + i * 2.0 / (1.0 + u) ** 3
+    return val / model.gap ** 2
+
+
+def electrostatic_energy(x: np.ndarray, model: ForceModel) -> float:
+    """Nonlinear electrostatic energy ``E_c`` (terms of the force only), J."""
+    x = _check_state(x, model)
+    u = model.basis @ x / model.gap
+    if model.taylor_terms:
+        e = np.polynomial.polynomial.polyval(u, model.energy_poly)
+    else:
+        if model.fold:
+            eo = u ** 3 / (1.0 - u)
+            ei = -u ** 3 / (1.0 + u)
+        else:
+            eo = 1.0 / (1.0 - u) - 1.0
+            ei = 1.0 / (1.0 + u) - 1.0
+        e = model.outer * eo + model.inner * ei
+    return float(np.dot(model.weights, e))
+
+
+def mechanical_energy(x: np.ndarray, v: np.ndarray, omega: np.ndarray,
+                      model: ForceModel) -> float:
+    """Conserved energy of the undamped, unforced system, J.
+
+    ``H = sum_i m_i (v_i^2 + omega_i^2 x_i^2) / 2 - E_c(x)``.
+    """
+    m = model.masses
+    return float(0.5 * np.sum(m * (v ** 2 + (omega * x) ** 2)) - electrostatic_energy(x, model))
+
+
+def check_finite(name: str, value: float) -> float:
+    """Return ``value`` or raise SimulationError if it is not finite."""
+    if not math.isfinite(value):
+        raise SimulationError(f'{name} is not finite')
+    return value

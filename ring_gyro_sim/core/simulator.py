@@ -1,0 +1,452 @@
+"""The Simulator: state, inputs at exact simulation times, and chunked advancing.
+
+Time
+----
+Simulation time is kept as an integer index of output samples (period ``P`` = integer ns,
+``output.rate``); the state always sits on a sample time between calls. Each sample period is
+integrated in ``n_sub`` equal steps ``h = P / n_sub`` (``h <= max_step``). Step times are
+computed from integers, so cutting a run into 1 ms or 50 ms calls gives bit-identical samples.
+
+Inputs and when they act
+------------------------
+* shock pulses (:meth:`Simulator.shock`): the half-sine starts at its exact time (ns), even
+  between samples; the steps it overlaps are sub-stepped (``core/kernels.py``);
+* base-acceleration samples (:meth:`Simulator.add_base_acceleration`): exact times, linear
+  interpolation between consecutive samples, zero before the first and after the last;
+* drive changes, reset and parameter changes: at the first sample time at or after the
+  requested time (the current time if none is given). Drive frequency changes keep the drive
+  phase continuous.
+
+An input for a time already simulated raises :class:`InputError` and changes nothing.
+
+Contact / pull-in
+-----------------
+When the outer (or an active inner) gap closes, or the Taylor series leaves its range
+(|w| >= d_g), the simulator stops integrating, sets :attr:`status` to ``'contact'`` with a
+message giving the time and the angle, and from then on holds the ring where it touched
+(velocities zero) while time still advances, as a pulled-in ring sticks. :meth:`reset`
+recovers. No output is ever NaN.
+"""
+
+from dataclasses import dataclass, replace
+import math
+from typing import Callable, List, Optional, Tuple
+
+import numpy as np
+
+from ring_gyro_sim.core import forces, kernels
+from ring_gyro_sim.core.errors import InputError, SimulationError
+from ring_gyro_sim.core.params import EPSILON_0, SimConfig
+
+STEPS_PER_PERIOD = 24
+"""Default steps per period of the fastest mode (see :func:`default_max_step`)."""
+
+PULSE_SUBSTEPS_PER_DURATION = 16
+GAP_GRID_POINTS_PER_MODE = 32
+"""Angles per mode for the smallest gap (refined by a parabola: error ~1e-4 of q_n)."""
+ELECTRODE_GAUSS_POINTS = 8
+GAP_FLOOR_RATIO = 1e-3
+"""In contact the capacitance integrand uses max(gap, 1e-3 d_g): finite, never inf."""
+
+
+def default_max_step(config: SimConfig) -> float:
+    """Largest step, s: ``integrator.max_step`` or 1/24 of the fastest period.
+
+    The linear part is exact, so the step is set by the accuracy of the nonlinear coupling;
+    1/24 of the fastest period keeps the error of ``bm6`` under 1e-4 of the peak q1 in the
+    20 ms accuracy test (``test/core/test_simulator.py``).
+    """
+    if config.integrator.max_step > 0.0:
+        return config.integrator.max_step
+    f_max = max(config.modes.coordinate_frequencies())
+    return 1.0 / (STEPS_PER_PERIOD * f_max)
+
+
+@dataclass(frozen=True)
+class Samples:
+    """Output samples of one stretch of simulation.
+
+    Attributes
+    ----------
+    t : ndarray, shape (K,)
+        Sample times, s.
+    q, v : ndarray, shape (K, n)
+        Coordinates (m) and their velocities (m/s), columns as :attr:`Simulator.coordinates`.
+    gap : ndarray, shape (K, E)
+        Outer gap at each electrode centre, m.
+    min_gap : ndarray, shape (K,)
+        Smallest outer gap around the ring, m.
+    capacitance : ndarray, shape (K, E)
+        Capacitance of each outer electrode, F (untruncated parallel plate).
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    gap: np.ndarray
+    min_gap: np.ndarray
+    capacitance: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+
+class Simulator:
+    """Coupled modal equations of the ring (eq. 28), advanced in chunks.
+
+    Parameters
+    ----------
+    config : SimConfig
+        Validated configuration. ``scenario.shock_times`` / ``shock_peaks`` are scheduled.
+    """
+
+    def __init__(self, config: SimConfig) -> None:
+        self._config = config
+        self.period_ns = config.run.output_period_ns
+        self.period_s = self.period_ns * 1e-9
+        self._build(config)
+        n = self.model.n_coordinates
+        self.q = np.zeros(n)
+        self.v = np.zeros(n)
+        self._acc = np.zeros(n)
+        self.sample_index = 0
+        self.status = 'running'
+        self.message = ''
+        self.contact_time_s = math.nan
+        self.contact_theta_rad = math.nan
+        self._pulses: List[Tuple[float, float, float, float]] = []
+        self._profile: List[Tuple[int, float, float]] = []
+        self._events: List[Tuple[int, int, Callable[[], None]]] = []
+        self._event_seq = 0
+        self._drive_amp = config.drive.amplitude
+        self._drive_omega = 2.0 * math.pi * config.drive.frequency
+        self._drive_t_ref = 0.0
+        self._drive_phase = 0.0
+        self._work = np.empty(self.model.theta.size)
+        self._fe = np.empty(n)
+        self._info = np.zeros(2, dtype=np.int64)
+        self._tinfo = np.zeros(1)
+        self.steps_taken = 0
+        for t_s, peak in zip(config.run.shock_times, config.run.shock_peaks):
+            self.shock(peak, 0.0, at_ns=int(round(t_s * 1e9)))
+
+    # ------------------------------------------------------------------ configuration
+    def _build(self, config: SimConfig) -> None:
+        self.model = forces.build_force_model(config)
+        f = np.asarray(config.modes.coordinate_frequencies())
+        qf = np.asarray(config.modes.coordinate_quality_factors())
+        self.omega = 2.0 * math.pi * f
+        self.zeta = 1.0 / (2.0 * qf)
+        h_max = default_max_step(config)
+        self.n_sub = max(1, int(math.ceil(self.period_s / h_max - 1e-9)))
+        self.h = self.period_s / self.n_sub
+        self._a, self._b = kernels.splitting_coefficients(config.integrator.method)
+        self._prop = kernels.linear_propagators(self.omega, self.zeta, self._a * self.h)
+        self._prop_sub = np.empty_like(self._prop)
+        names = [f'q{n}' for n in range(1, config.modes.count + 1)]
+        if config.modes.companions:
+            names += [f'q{n}s' for n in range(1, config.modes.count + 1)]
+        self.coordinates = names
+        self._y_index = config.modes.count if config.modes.companions else -1
+        self._drive_index = 1 if config.modes.count >= 2 else -1
+        self._build_outputs(config)
+
+    def _build_outputs(self, config: SimConfig) -> None:
+        e = config.electrodes
+        k = e.count
+        span = e.span or 2.0 * math.pi / k
+        centres = 2.0 * math.pi * np.arange(k) / k
+        h, s = self.model.harmonics, self.model.sine
+        self._centre_shapes = np.ascontiguousarray(forces.mode_shapes(h, s, centres))
+        g = GAP_GRID_POINTS_PER_MODE * config.modes.count
+        self._ring_shapes = np.ascontiguousarray(
+            forces.mode_shapes(h, s, 2.0 * math.pi * np.arange(g) / g))
+        x, wts = np.polynomial.legendre.leggauss(ELECTRODE_GAUSS_POINTS)
+        angles = (centres[:, None] + 0.5 * span * x[None, :]).ravel()
+        self._electrode_shapes = np.ascontiguousarray(forces.mode_shapes(h, s, angles))
+        self._electrode_weights = 0.5 * span * wts
+        self._cap_scale = (e.relative_permittivity * EPSILON_0 * config.ring.length
+                           * config.outer_radius)
+        self._n_electrodes = k
+
+    @property
+    def config(self) -> SimConfig:
+        """The configuration in force."""
+        return self._config
+
+    @property
+    def time_ns(self) -> int:
+        """Current simulation time, ns."""
+        return self.sample_index * self.period_ns
+
+    @property
+    def time_s(self) -> float:
+        """Current simulation time, s."""
+        return self.sample_index * self.period_s
+
+    @property
+    def channel_names(self):
+        """Channel names of the three block outputs (without the leading ``t``)."""
+        k = self._n_electrodes
+        electrodes = [f'e{i}' for i in range(k)]
+        return {'modal_displacement': list(self.coordinates),
+                'radial_gap': electrodes + ['min'],
+                'sense_electrodes': electrodes}
+
+    def reconfigure(self, config: SimConfig, at_ns: Optional[int] = None) -> None:
+        """Apply a new configuration (voltages, Q, drive, shock duration...) at a sample time.
+
+        The coordinates must stay the same (number of modes, companions).
+        """
+        if (config.modes.count != self._config.modes.count
+                or config.modes.companions != self._config.modes.companions):
+            raise InputError('modes: the number of coordinates cannot change at run time')
+        if config.run.output_rate != self._config.run.output_rate:
+            raise InputError('output.rate cannot change at run time')
+
+        def apply() -> None:
+            old = self._config
+            self._config = config
+            self._build(config)
+            if (config.drive.amplitude != old.drive.amplitude
+                    or config.drive.frequency != old.drive.frequency):
+                self._set_drive_now(config.drive.amplitude, config.drive.frequency)
+            self._work = np.empty(self.model.theta.size)
+            if self.status == 'running':
+                self._refresh_acceleration()
+        self._schedule(at_ns, apply)
+
+    # ------------------------------------------------------------------ inputs
+    def _at_index(self, at_ns: Optional[int], what: str) -> int:
+        if at_ns is None:
+            return self.sample_index
+        if at_ns < self.time_ns:
+            raise InputError(f'{what}: time {at_ns * 1e-9:.9f} s is in the past '
+                             f'(simulation time {self.time_s:.9f} s)')
+        return -(-int(at_ns) // self.period_ns)
+
+    def _schedule(self, at_ns: Optional[int], action: Callable[[], None]) -> None:
+        index = self._at_index(at_ns, 'input')
+        if index == self.sample_index:
+            action()
+            return
+        self._events.append((index, self._event_seq, action))
+        self._event_seq += 1
+        self._events.sort(key=lambda e: (e[0], e[1]))
+
+    def shock(self, peak_x: float, peak_y: float = 0.0, at_ns: Optional[int] = None,
+              duration_s: Optional[float] = None) -> None:
+        """Schedule a half-sine base-acceleration pulse (eq. 32).
+
+        Parameters
+        ----------
+        peak_x, peak_y : float
+            Peak base acceleration along x (theta = 0, drives q1) and y (drives q1s), m/s^2.
+            It enters the equations as ``-a_b`` (the ring lags the base).
+        at_ns : int, optional
+            Start time, ns (default: now). Exact, need not be on the sample grid.
+        duration_s : float, optional
+            T_s, s (default ``shock.duration`` or one tenth of the 2theta period).
+        """
+        for name, val in (('shock.x', peak_x), ('shock.y', peak_y)):
+            if not math.isfinite(val):
+                raise InputError(f'{name}: must be finite, got {val!r}')
+        if peak_y != 0.0 and self._y_index < 0:
+            raise InputError('shock.y: needs modes.companions (q1s) to act on')
+        dur = self._config.shock_duration_s if duration_s is None else duration_s
+        if not (math.isfinite(dur) and dur > 0.0):
+            raise InputError(f'shock.duration: must be > 0, got {dur!r}')
+        start_ns = self.time_ns if at_ns is None else int(at_ns)
+        if start_ns < self.time_ns:
+            raise InputError(f'shock: time {start_ns * 1e-9:.9f} s is in the past '
+                             f'(simulation time {self.time_s:.9f} s)')
+        self._pulses.append((start_ns * 1e-9, float(dur), float(peak_x), float(peak_y)))
+
+    def add_base_acceleration(self, at_ns: int, ax: float, ay: float = 0.0) -> None:
+        """Add one sample of a streamed base-acceleration profile (m/s^2) at ``at_ns``."""
+        for name, val in (('base_acceleration.x', ax), ('base_acceleration.y', ay)):
+            if not math.isfinite(val):
+                raise InputError(f'{name}: must be finite, got {val!r}')
+        if ay != 0.0 and self._y_index < 0:
+            raise InputError('base_acceleration.y: needs modes.companions (q1s) to act on')
+        if at_ns < self.time_ns:
+            raise InputError(f'base_acceleration: time {at_ns * 1e-9:.9f} s is in the past '
+                             f'(simulation time {self.time_s:.9f} s)')
+        if self._profile and at_ns <= self._profile[-1][0]:
+            raise InputError('base_acceleration: stamps must increase')
+        self._profile.append((int(at_ns), float(ax), float(ay)))
+
+    def set_drive(self, amplitude: Optional[float] = None, frequency_hz: Optional[float] = None,
+                  at_ns: Optional[int] = None) -> None:
+        """Change the drive amplitude (m/s^2) and/or frequency (Hz) at a sample time."""
+        if amplitude is not None and not math.isfinite(amplitude):
+            raise InputError(f'drive.amplitude: must be finite, got {amplitude!r}')
+        if frequency_hz is not None and not (math.isfinite(frequency_hz)
+                                             and frequency_hz >= 0.0):
+            raise InputError(f'drive.frequency: must be finite and >= 0, got {frequency_hz!r}')
+        if amplitude not in (None, 0.0) and self._drive_index < 0:
+            raise InputError('drive.amplitude: drives the 2theta mode, needs 2 modes')
+        self._at_index(at_ns, 'drive')
+
+        def apply() -> None:
+            amp = self._drive_amp if amplitude is None else amplitude
+            freq = (self._drive_omega / (2.0 * math.pi) if frequency_hz is None
+                    else frequency_hz)
+            self._set_drive_now(amp, freq)
+            self._config = replace(self._config,
+                                   drive=replace(self._config.drive, amplitude=amp,
+                                                 frequency=freq))
+        self._schedule(at_ns, apply)
+
+    def _set_drive_now(self, amplitude: float, frequency_hz: float) -> None:
+        t = self.time_s
+        phase = self._drive_omega * (t - self._drive_t_ref) + self._drive_phase
+        self._drive_phase = math.fmod(phase, 2.0 * math.pi)
+        self._drive_t_ref = t
+        self._drive_amp = float(amplitude)
+        self._drive_omega = 2.0 * math.pi * float(frequency_hz)
+
+    def reset(self, at_ns: Optional[int] = None) -> None:
+        """Put the ring back at rest (and clear a contact) at a sample time."""
+        def apply() -> None:
+            self.q[:] = 0.0
+            self.v[:] = 0.0
+            self._acc[:] = 0.0
+            now = self.time_s
+            self._pulses = [p for p in self._pulses if p[0] >= now]
+            self._profile = [p for p in self._profile if p[0] >= self.time_ns]
+            self.status = 'running'
+            self.message = ''
+            self.contact_time_s = math.nan
+            self.contact_theta_rad = math.nan
+        self._schedule(at_ns, apply)
+
+    def set_state(self, q: np.ndarray, v: np.ndarray) -> None:
+        """Set the coordinates (m) and velocities (m/s) now."""
+        q = np.asarray(q, dtype=np.float64)
+        v = np.asarray(v, dtype=np.float64)
+        n = self.model.n_coordinates
+        for name, arr in (('q', q), ('v', v)):
+            if arr.shape != (n,) or not np.all(np.isfinite(arr)):
+                raise InputError(f'{name}: expected {n} finite values')
+        old_q, old_v = self.q.copy(), self.v.copy()
+        self.q[:] = q
+        self.v[:] = v
+        try:
+            self._refresh_acceleration()
+        except SimulationError:
+            self.q[:] = old_q
+            self.v[:] = old_v
+            raise
+
+    def _refresh_acceleration(self) -> None:
+        self._acc[:] = forces.nonlinear_acceleration(self.q, self.model)
+
+    # ------------------------------------------------------------------ advancing
+    def advance(self, seconds: float) -> Samples:
+        """Advance by ``seconds`` (rounded to whole output samples) and return the samples."""
+        if not (math.isfinite(seconds) and seconds >= 0.0):
+            raise InputError(f'seconds: must be finite and >= 0, got {seconds!r}')
+        return self.advance_samples(int(round(seconds / self.period_s)))
+
+    def advance_to(self, t_ns: int) -> Samples:
+        """Advance to the last sample time <= ``t_ns`` and return the samples."""
+        return self.advance_samples(max(0, int(t_ns) // self.period_ns - self.sample_index))
+
+    def advance_samples(self, n_samples: int) -> Samples:
+        """Advance by ``n_samples`` output periods; returns samples at the new times."""
+        n = self.model.n_coordinates
+        out_q = np.empty((n_samples, n))
+        out_v = np.empty((n_samples, n))
+        done = 0
+        while done < n_samples:
+            self._run_due_events()
+            stop = n_samples - done
+            if self._events:
+                stop = min(stop, self._events[0][0] - self.sample_index)
+            self._integrate(stop, out_q[done:done + stop], out_v[done:done + stop])
+            done += stop
+        self._run_due_events()
+        t = (np.arange(self.sample_index - n_samples, self.sample_index) + 1) * self.period_s
+        return self._samples(t, out_q, out_v)
+
+    def _run_due_events(self) -> None:
+        while self._events and self._events[0][0] <= self.sample_index:
+            _, _, action = self._events.pop(0)
+            action()
+
+    def _integrate(self, count: int, out_q: np.ndarray, out_v: np.ndarray) -> None:
+        if count <= 0:
+            return
+        if self.status != 'running':
+            out_q[:] = self.q
+            out_v[:] = 0.0
+            self.sample_index += count
+            return
+        t_start = self.sample_index * self.period_s
+        t_end = (self.sample_index + count) * self.period_s
+        pulses = [p for p in self._pulses if p[0] + p[1] >= t_start]
+        self._pulses = pulses
+        active = [p for p in pulses if p[0] <= t_end]
+        pulse_arr = np.array(active, dtype=np.float64).reshape(-1, 4)
+        pulse_max_sub = (float(np.min(pulse_arr[:, 1])) / PULSE_SUBSTEPS_PER_DURATION
+                         if len(active) else self.h)
+        prof_t, prof_x, prof_y = self._profile_arrays(t_start)
+        m = self.model
+        self._info[:] = 0
+        completed = kernels.run_samples(
+            self.q, self.v, self._acc, self.sample_index, count, self.period_s, self.n_sub,
+            self.h, self._a, self._b, self._prop, pulse_max_sub, self.omega, self.zeta,
+            self._prop_sub, m.basis,
+            m.projection, m.poly, m.taylor_terms, m.outer, m.inner, m.fold, m.inner_contact,
+            m.gap, pulse_arr, prof_t, prof_x, prof_y, self._drive_amp, self._drive_omega,
+            self._drive_t_ref, self._drive_phase, self._drive_index, self._y_index, out_q,
+            out_v, self._work, self._fe, self._info, self._tinfo)
+        self.steps_taken += completed * self.n_sub
+        if self._info[0] != 0:
+            status = int(self._info[0])
+            theta = float(m.theta[self._info[1]])
+            self._enter_contact(status, theta, float(self._tinfo[0]))
+            out_q[completed:] = self.q
+            out_v[completed:] = 0.0
+        self.sample_index += count
+
+    def _enter_contact(self, status: int, theta: float, t: float) -> None:
+        self.status = 'contact' if status != kernels.STATUS_NONFINITE else 'failed'
+        self.contact_time_s = t
+        self.contact_theta_rad = theta
+        self.message = f'{kernels.describe_status(status, theta)}, t = {t:.9f} s'
+        if not np.all(np.isfinite(self.q)) or not np.all(np.isfinite(self.v)):
+            self.q[:] = 0.0  # never expose NaN; the status says it failed
+        self.v[:] = 0.0
+
+    def _profile_arrays(self, t_start: float):
+        prof = self._profile
+        keep = 0
+        for i, (t_ns, _, _) in enumerate(prof):
+            if t_ns * 1e-9 <= t_start:
+                keep = i
+        self._profile = prof[keep:]
+        if not self._profile:
+            empty = np.empty(0)
+            return empty, empty, empty
+        arr = np.array(self._profile, dtype=np.float64)
+        return (np.ascontiguousarray(arr[:, 0] * 1e-9), np.ascontiguousarray(arr[:, 1]),
+                np.ascontiguousarray(arr[:, 2]))
+
+    # ------------------------------------------------------------------ outputs
+    def _samples(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> Samples:
+        n_s = len(t)
+        k = self._n_electrodes
+        gap = np.empty((n_s, k))
+        min_gap = np.empty(n_s)
+        cap = np.empty((n_s, k))
+        d = self.model.gap
+        kernels.output_channels(q, d, self._centre_shapes, self._ring_shapes,
+                                self._electrode_shapes, self._electrode_weights,
+                                self._cap_scale, GAP_FLOOR_RATIO * d, gap, min_gap, cap)
+        return Samples(t=t, q=q, v=v, gap=gap, min_gap=min_gap, capacitance=cap)
+
+    def energy(self) -> float:
+        """Conserved energy of the undamped, unforced system at the current state, J."""
+        return forces.mechanical_energy(self.q, self.v, self.omega, self.model)

@@ -1,0 +1,582 @@
+"""Linear mechanical model of the supported ring: mass and stiffness matrices (eqs. 7-17).
+
+The ring is thin and inextensible (radial displacement w = -du/dtheta) and is described by the
+Ritz expansion of eqs. (2)-(4) with N_R pairs of generalised coordinates.
+
+Conventions
+-----------
+Coordinate ordering
+    Every matrix of this module is ``(2 N_R, 2 N_R)`` and acts on the paper's interleaved vector
+    (eq. 4)::
+
+        Lambda = [q_1^(1), q_1^(2), q_2^(1), q_2^(2), ..., q_N^(1), q_N^(2)]
+
+    so mode ``n`` (1-based) owns the zero-based rows and columns ``2 n - 2`` (the cosine
+    coordinate q_n^(1)) and ``2 n - 1`` (the sine companion q_n^(2)).
+Shape functions
+    ``Psi^T(theta)`` of eq. (3) is ``(2, 2 N_R)``: the radial row holds
+    ``[cos n theta, sin n theta]`` and the tangential row
+    ``[-(1/n) sin n theta, (1/n) cos n theta]`` for each ``n``, so that
+    ``[w, u]^T = Psi^T(theta) Lambda``.
+Support legs
+    ``N_l`` identical legs sit at ``theta_j = 2 j pi / N_l + alpha``, ``j = 1 .. N_l``; each is a
+    radial spring ``k_r``, a tangential spring ``k_t`` and a point mass ``m_l`` (eqs. 12-17).
+    Modes ``n`` and ``p`` couple through the legs iff ``(n - p) / N_l`` or ``(n + p) / N_l`` is
+    an integer (Appendix).
+Base
+    The hub is fixed: the ring-centre coupling blocks ``M_br`` (eq. 9) and ``M_bl`` (eq. 17) are
+    not part of these matrices; the base (shock) excitation is applied elsewhere as a force.
+Units
+    SI throughout: m, kg, Pa, N/m, rad; frequencies in Hz only where the name says ``_hz``.
+"""
+
+import math
+
+import numpy as np
+import scipy.linalg
+
+from ring_gyro_sim.core.errors import ParameterError
+
+# Entries smaller than this fraction of the largest |entry| count as zero (round-off of sums).
+_RELATIVE_ZERO = 1e-12
+
+# Generic, incommensurate leg stiffnesses used to reveal the structural sparsity of K_l: their
+# ratio is irrational, so k_r - k_t / (n p) never vanishes for integer n and p.
+_GENERIC_RADIAL_STIFFNESS = 1.0
+_GENERIC_TANGENTIAL_STIFFNESS = math.sqrt(2.0)
+
+
+# --------------------------------------------------------------------------- validation
+
+
+def _check_positive_int(value, name):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ParameterError(f'{name} must be an integer, got {value!r}')
+    if value < 1:
+        raise ParameterError(f'{name} must be >= 1, got {value}')
+    return int(value)
+
+
+def _check_float(value, name, *, positive=False, nonnegative=False):
+    if isinstance(value, bool):
+        raise ParameterError(f'{name} must be a real number, got {value!r}')
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f'{name} must be a real number, got {value!r}') from None
+    if not math.isfinite(number):
+        raise ParameterError(f'{name} must be finite, got {number}')
+    if positive and number <= 0.0:
+        raise ParameterError(f'{name} must be > 0, got {number}')
+    if nonnegative and number < 0.0:
+        raise ParameterError(f'{name} must be >= 0, got {number}')
+    return number
+
+
+# --------------------------------------------------------------------------- ring properties
+
+
+def ring_mass(radius_m, thickness_m, length_m, density_kg_m3):
+    """Physical mass of the ring, m_r = rho 2 pi r h l.
+
+    Parameters
+    ----------
+    radius_m : float
+        Mean radius r of the ring (m), > 0.
+    thickness_m : float
+        Radial thickness h (m), > 0.
+    length_m : float
+        Axial length l (m), > 0.
+    density_kg_m3 : float
+        Material density rho (kg/m^3), > 0.
+
+    Returns
+    -------
+    float
+        Ring mass m_r (kg).
+
+    Raises
+    ------
+    ParameterError
+        If an argument is not a finite positive number.
+
+    """
+    radius = _check_float(radius_m, 'radius_m', positive=True)
+    thickness = _check_float(thickness_m, 'thickness_m', positive=True)
+    length = _check_float(length_m, 'length_m', positive=True)
+    density = _check_float(density_kg_m3, 'density_kg_m3', positive=True)
+    return density * 2.0 * math.pi * radius * thickness * length
+
+
+def second_moment_of_area(thickness_m, length_m):
+    """In-plane second moment of area of the ring cross-section, I = l h^3 / 12.
+
+    The bending axis is parallel to the ring axis, so the radial thickness is cubed. E I is the
+    in-plane flexural rigidity of eq. (10).
+
+    Parameters
+    ----------
+    thickness_m : float
+        Radial thickness h (m), > 0.
+    length_m : float
+        Axial length l (m), > 0.
+
+    Returns
+    -------
+    float
+        Second moment of area I (m^4).
+
+    Raises
+    ------
+    ParameterError
+        If an argument is not a finite positive number.
+
+    """
+    thickness = _check_float(thickness_m, 'thickness_m', positive=True)
+    length = _check_float(length_m, 'length_m', positive=True)
+    return length * thickness**3 / 12.0
+
+
+def modal_mass_factor(n):
+    """Generalised mass of the n-theta mode per unit ring mass, (n^2 + 1) / (2 n^2) (eq. 7).
+
+    Parameters
+    ----------
+    n : int
+        Mode number (number of nodal diameters), >= 1. n = 1 is the rigid-body translation.
+
+    Returns
+    -------
+    float
+        Dimensionless factor; 1 for n = 1, 5/8 for n = 2, tending to 1/2.
+
+    Raises
+    ------
+    ParameterError
+        If ``n`` is not an integer >= 1.
+
+    """
+    n = _check_positive_int(n, 'n')
+    return (n * n + 1) / (2.0 * n * n)
+
+
+def ring_mass_matrix(n_modes, ring_mass_kg):
+    """Ring mass matrix M_r of eqs. (7)-(8), without the ring-centre coupling M_br.
+
+    Parameters
+    ----------
+    n_modes : int
+        Ritz order N_R, >= 1.
+    ring_mass_kg : float
+        Physical ring mass m_r (kg), > 0 (see :func:`ring_mass`).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(2 N_R, 2 N_R)`` diagonal matrix (kg); entries ``2n-2`` and ``2n-1`` equal
+        ``m_r (n^2 + 1) / (2 n^2)``.
+
+    Raises
+    ------
+    ParameterError
+        If ``n_modes`` is not an integer >= 1 or ``ring_mass_kg`` not finite and > 0.
+
+    """
+    n_modes = _check_positive_int(n_modes, 'n_modes')
+    mass = _check_float(ring_mass_kg, 'ring_mass_kg', positive=True)
+    n = np.repeat(np.arange(1, n_modes + 1, dtype=float), 2)
+    return np.diag(mass * (n * n + 1.0) / (2.0 * n * n))
+
+
+def ring_stiffness_matrix(n_modes, youngs_modulus_pa, second_moment_m4, radius_m):
+    """Ring stiffness matrix K_r of eq. (11), from the strain energy of eq. (10).
+
+    Parameters
+    ----------
+    n_modes : int
+        Ritz order N_R, >= 1.
+    youngs_modulus_pa : float
+        Young's modulus E (Pa), > 0.
+    second_moment_m4 : float
+        In-plane second moment of area I (m^4), > 0 (see :func:`second_moment_of_area`).
+    radius_m : float
+        Mean ring radius r (m), > 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(2 N_R, 2 N_R)`` diagonal matrix (N/m); entries ``2n-2`` and ``2n-1`` equal
+        ``E I pi (n^2 - 1)^2 / r^3``, zero for the rigid-body mode n = 1.
+
+    Raises
+    ------
+    ParameterError
+        If ``n_modes`` is not an integer >= 1 or a material/geometry value is not finite and > 0.
+
+    """
+    n_modes = _check_positive_int(n_modes, 'n_modes')
+    modulus = _check_float(youngs_modulus_pa, 'youngs_modulus_pa', positive=True)
+    second_moment = _check_float(second_moment_m4, 'second_moment_m4', positive=True)
+    radius = _check_float(radius_m, 'radius_m', positive=True)
+    n = np.repeat(np.arange(1, n_modes + 1, dtype=float), 2)
+    return np.diag(modulus * second_moment * math.pi * (n * n - 1.0) ** 2 / radius**3)
+
+
+# --------------------------------------------------------------------------- support legs
+
+
+def _psi_transpose(theta_rad, n_modes):
+    """Psi^T(theta) of eq. (3): ``(2, 2 N_R)``, radial row then tangential row."""
+    n = np.arange(1, n_modes + 1, dtype=float)
+    cos_n = np.cos(n * theta_rad)
+    sin_n = np.sin(n * theta_rad)
+    psi_t = np.empty((2, 2 * n_modes))
+    psi_t[0, 0::2] = cos_n
+    psi_t[0, 1::2] = sin_n
+    psi_t[1, 0::2] = -sin_n / n
+    psi_t[1, 1::2] = cos_n / n
+    return psi_t
+
+
+def _check_leg_geometry(n_modes, n_legs, angle_rad):
+    return (
+        _check_positive_int(n_modes, 'n_modes'),
+        _check_positive_int(n_legs, 'n_legs'),
+        _check_float(angle_rad, 'angle_rad'),
+    )
+
+
+def leg_stiffness_matrix(n_modes, n_legs, angle_rad, radial_stiffness, tangential_stiffness):
+    """Total support-leg stiffness matrix K_l by direct summation of eq. (13) over the legs.
+
+    ``K_l = sum_{j=1}^{N_l} Psi(theta_j) diag(k_r, k_t) Psi^T(theta_j)`` with
+    ``theta_j = 2 j pi / N_l + alpha`` (eqs. 12-13). This is the reference implementation;
+    :func:`leg_stiffness_matrix_closed_form` gives the same matrix with exact zeros.
+
+    Parameters
+    ----------
+    n_modes : int
+        Ritz order N_R, >= 1.
+    n_legs : int
+        Number of identical, uniformly spaced support legs N_l, >= 1.
+    angle_rad : float
+        Angular position alpha of the last leg (j = N_l) in the reference frame (rad).
+    radial_stiffness : float
+        Radial stiffness k_r of one leg (N/m), >= 0.
+    tangential_stiffness : float
+        Tangential stiffness k_t of one leg (N/m), >= 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(2 N_R, 2 N_R)`` symmetric positive semi-definite matrix (N/m), ordered as the module
+        docstring says. Structural zeros carry round-off of order ``N_l`` machine epsilons.
+
+    Raises
+    ------
+    ParameterError
+        If an argument is out of range (see above).
+
+    """
+    n_modes, n_legs, angle = _check_leg_geometry(n_modes, n_legs, angle_rad)
+    k_r = _check_float(radial_stiffness, 'radial_stiffness', nonnegative=True)
+    k_t = _check_float(tangential_stiffness, 'tangential_stiffness', nonnegative=True)
+    leg = np.diag([k_r, k_t])
+    total = np.zeros((2 * n_modes, 2 * n_modes))
+    for j in range(1, n_legs + 1):
+        psi_t = _psi_transpose(2.0 * j * math.pi / n_legs + angle, n_modes)
+        total += psi_t.T @ leg @ psi_t
+    return total
+
+
+def _leg_sums(n, p, n_legs, angle):
+    """Sum a_cc, a_ss, a_cs and a_sc over the legs (eqs. 39-45 and the Appendix table).
+
+    Returns ``(S_cc, S_ss, S_cs, S_sc)``; all four are zero unless ``(n - p) / N_l`` or
+    ``(n + p) / N_l`` is an integer. The printed table stops before the a_sc row; it follows from
+    ``sin A cos B = [sin(A + B) + sin(A - B)] / 2`` and eq. (44) like the other three.
+    """
+    minus = (n - p) % n_legs == 0
+    plus = (n + p) % n_legs == 0
+    half = 0.5 * n_legs
+    if minus and plus:
+        # Intersection of the two diagonals: both halves of the product formulae survive.
+        c_n, s_n = math.cos(n * angle), math.sin(n * angle)
+        c_p, s_p = math.cos(p * angle), math.sin(p * angle)
+        # Products grouped so that S_cs(n, n) == S_sc(n, n) exactly.
+        return (n_legs * (c_n * c_p), n_legs * (s_n * s_p), n_legs * (c_n * s_p),
+                n_legs * (s_n * c_p))
+    if minus:
+        # 'Positive' diagonals: only the (n - p) harmonic survives.
+        c, s = math.cos((n - p) * angle), math.sin((n - p) * angle)
+        return (half * c, half * c, -half * s, half * s)
+    if plus:
+        # 'Negative' diagonals: only the (n + p) harmonic survives.
+        c, s = math.cos((n + p) * angle), math.sin((n + p) * angle)
+        return (half * c, -half * c, half * s, half * s)
+    return (0.0, 0.0, 0.0, 0.0)
+
+
+def _closed_form(n_modes, n_legs, angle, radial, tangential):
+    """Assemble the Appendix blocks (eq. 38 summed over j) for the two spring weights."""
+    total = np.zeros((2 * n_modes, 2 * n_modes))
+    for n in range(1, n_modes + 1):
+        # Upper blocks only, mirrored below: the matrix is then exactly symmetric.
+        for p in range(n, n_modes + 1):
+            s_cc, s_ss, s_cs, s_sc = _leg_sums(n, p, n_legs, angle)
+            # Eq. (38) as printed has k_r in the 1/(n p) terms: a typo. Those terms come from the
+            # tangential row of Psi^T, so they carry k_t: the direct sum of eq. (13) shows it, and
+            # the text of eq. (16), replacing 'k_r and k_t' by m_l, presumes k_t is there.
+            tan = tangential / (n * p)
+            rows = slice(2 * n - 2, 2 * n)
+            cols = slice(2 * p - 2, 2 * p)
+            total[rows, cols] = [
+                [radial * s_cc + tan * s_ss, radial * s_cs - tan * s_sc],
+                [radial * s_sc - tan * s_cs, radial * s_ss + tan * s_cc],
+            ]
+            total[cols, rows] = total[rows, cols].T
+    return total
+
+
+def leg_stiffness_matrix_closed_form(
+    n_modes, n_legs, angle_rad, radial_stiffness, tangential_stiffness
+):
+    """Total support-leg stiffness matrix K_l from the Appendix closed form (eqs. 37-45).
+
+    Block ``(n, p)`` (rows ``2n-2 .. 2n-1``, columns ``2p-2 .. 2p-1``) is eq. (38) summed over
+    the legs, with the sums of a_cc, a_ss, a_cs and a_sc taken from the Appendix table: non-zero
+    only on the 'positive diagonals' ``(n - p) / N_l`` integer, the 'negative diagonals'
+    ``(n + p) / N_l`` integer, and their intersections. Equals :func:`leg_stiffness_matrix`
+    to round-off, with exact zeros elsewhere.
+
+    Eqs. (15) and (38) as printed carry k_r in the tangential ``1/(n p)`` terms; the tangential
+    stiffness k_t belongs there and is used here (see the module tests for the demonstration).
+
+    Parameters
+    ----------
+    n_modes : int
+        Ritz order N_R, >= 1.
+    n_legs : int
+        Number of identical, uniformly spaced support legs N_l, >= 1.
+    angle_rad : float
+        Angular position alpha of the last leg (j = N_l) in the reference frame (rad).
+    radial_stiffness : float
+        Radial stiffness k_r of one leg (N/m), >= 0.
+    tangential_stiffness : float
+        Tangential stiffness k_t of one leg (N/m), >= 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(2 N_R, 2 N_R)`` symmetric positive semi-definite matrix (N/m).
+
+    Raises
+    ------
+    ParameterError
+        If an argument is out of range (see above).
+
+    Notes
+    -----
+    For ``n < N_l / 2`` the blocks are diagonal with equal entries ``(N_l / 2)(k_r + k_t / n^2)``
+    (eq. 15, corrected); the ``n = N_l / 2`` block is
+    ``[[N_l k_r c^2 + (4 k_t / N_l) s^2, (N_l k_r - 4 k_t / N_l) c s], [..., N_l k_r s^2 +
+    (4 k_t / N_l) c^2]]`` with ``c, s = cos, sin(N_l alpha / 2)``.
+
+    """
+    n_modes, n_legs, angle = _check_leg_geometry(n_modes, n_legs, angle_rad)
+    k_r = _check_float(radial_stiffness, 'radial_stiffness', nonnegative=True)
+    k_t = _check_float(tangential_stiffness, 'tangential_stiffness', nonnegative=True)
+    return _closed_form(n_modes, n_legs, angle, k_r, k_t)
+
+
+def leg_mass_matrix(n_modes, n_legs, angle_rad, leg_mass_kg):
+    """Total support-leg mass matrix M_l of eq. (16), without the ring-centre coupling M_bl.
+
+    Same structure as K_l with both k_r and k_t replaced by the point mass m_l of one leg
+    (each leg moves radially and tangentially with the ring at its attachment point).
+
+    Parameters
+    ----------
+    n_modes : int
+        Ritz order N_R, >= 1.
+    n_legs : int
+        Number of identical, uniformly spaced support legs N_l, >= 1.
+    angle_rad : float
+        Angular position alpha of the last leg (j = N_l) in the reference frame (rad).
+    leg_mass_kg : float
+        Point mass m_l of one leg (kg), >= 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(2 N_R, 2 N_R)`` symmetric positive semi-definite matrix (kg). For ``n < N_l / 2`` the
+        diagonal entries are ``N_l m_l (n^2 + 1) / (2 n^2)``.
+
+    Raises
+    ------
+    ParameterError
+        If an argument is out of range (see above).
+
+    """
+    n_modes, n_legs, angle = _check_leg_geometry(n_modes, n_legs, angle_rad)
+    mass = _check_float(leg_mass_kg, 'leg_mass_kg', nonnegative=True)
+    return _closed_form(n_modes, n_legs, angle, mass, mass)
+
+
+def couples_different_modes(n_modes, n_legs):
+    """Whether the legs can couple two different modes n != p <= N_R (Appendix).
+
+    True iff some ``1 <= p < n <= N_R`` has ``(n - p) / N_l`` or ``(n + p) / N_l`` integer. This
+    depends on N_R and N_l only; for special angles or stiffness ratios the coupling entries may
+    still happen to vanish.
+
+    Parameters
+    ----------
+    n_modes : int
+        Ritz order N_R, >= 1.
+    n_legs : int
+        Number of support legs N_l, >= 1.
+
+    Returns
+    -------
+    bool
+        True when K_l and M_l are not block diagonal in 2 x 2 blocks (generically).
+
+    Raises
+    ------
+    ParameterError
+        If an argument is not an integer >= 1.
+
+    """
+    n_modes = _check_positive_int(n_modes, 'n_modes')
+    n_legs = _check_positive_int(n_legs, 'n_legs')
+    return any(
+        (n - p) % n_legs == 0 or (n + p) % n_legs == 0
+        for n in range(2, n_modes + 1)
+        for p in range(1, n)
+    )
+
+
+def coupling_pattern(n_modes, n_legs, angle_rad):
+    """Non-zero pattern of K_l for generic, unequal leg stiffnesses (Fig. 2).
+
+    K_l is computed by direct summation (:func:`leg_stiffness_matrix`) with k_r = 1 and
+    k_t = sqrt(2) N/m (an irrational ratio, so no entry cancels by accident); an entry counts as
+    non-zero when its magnitude exceeds 1e-12 times the largest one. The pattern depends on
+    alpha: at special angles (e.g. alpha = 0) some entries of the coupled blocks vanish.
+
+    Parameters
+    ----------
+    n_modes : int
+        Ritz order N_R, >= 1.
+    n_legs : int
+        Number of support legs N_l, >= 1.
+    angle_rad : float
+        Angular position alpha of the last leg (rad).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(2 N_R, 2 N_R)`` boolean array, True where K_l is non-zero.
+
+    Raises
+    ------
+    ParameterError
+        If an argument is out of range (see above).
+
+    """
+    stiffness = leg_stiffness_matrix(
+        n_modes, n_legs, angle_rad, _GENERIC_RADIAL_STIFFNESS, _GENERIC_TANGENTIAL_STIFFNESS
+    )
+    magnitude = np.abs(stiffness)
+    return magnitude > _RELATIVE_ZERO * magnitude.max()
+
+
+# --------------------------------------------------------------------------- frequencies
+
+
+def natural_frequencies_hz(
+    n_modes,
+    ring_mass_kg,
+    youngs_modulus_pa,
+    second_moment_m4,
+    radius_m,
+    n_legs,
+    angle_rad,
+    radial_stiffness,
+    tangential_stiffness,
+    leg_mass_kg,
+):
+    """Linear natural frequencies of the supported ring on a fixed hub.
+
+    Solves the generalised eigenproblem ``(K_r + K_l) x = omega^2 (M_r + M_l) x``
+    (eqs. 7, 11, 13, 16). The ring-centre blocks M_br and M_bl (eqs. 9, 17) are left out: the
+    base is the fixed hub. Electrostatic stiffness is not included.
+
+    Ordering of the result:
+
+    - If the legs couple no two different modes (``couples_different_modes(n_modes, n_legs)``
+      is False, which for ``N_l >= 3`` means ``N_R <= N_l / 2``), each 2 x 2 block is solved
+      alone and the result is ordered as the coordinates: entry ``2n-2`` for the cosine
+      coordinate of mode n, entry ``2n-1`` for its sine companion. When a pair splits
+      (2n / N_l integer) and alpha rotates the mode shapes, each frequency goes to the
+      coordinate its mode shape is closer to (at alpha = 0 the assignment is exact: the cosine
+      slot is the mode aligned with the legs).
+    - Otherwise (``couples_different_modes`` True) the coordinates are mixed and the result is
+      simply all eigenfrequencies sorted ascending.
+
+    Parameters
+    ----------
+    n_modes : int
+        Ritz order N_R, >= 1.
+    ring_mass_kg : float
+        Physical ring mass m_r (kg), > 0.
+    youngs_modulus_pa : float
+        Young's modulus E (Pa), > 0.
+    second_moment_m4 : float
+        In-plane second moment of area I (m^4), > 0.
+    radius_m : float
+        Mean ring radius r (m), > 0.
+    n_legs : int
+        Number of support legs N_l, >= 1 (a free ring: set the leg stiffnesses and mass to 0).
+    angle_rad : float
+        Angular position alpha of the last leg (rad).
+    radial_stiffness : float
+        Radial stiffness k_r of one leg (N/m), >= 0.
+    tangential_stiffness : float
+        Tangential stiffness k_t of one leg (N/m), >= 0.
+    leg_mass_kg : float
+        Point mass m_l of one leg (kg), >= 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(2 N_R,)`` natural frequencies (Hz), ordered as described above. A free ring has a
+        zero frequency for the rigid-body mode n = 1.
+
+    Raises
+    ------
+    ParameterError
+        If an argument is out of range (see above).
+
+    """
+    stiffness = ring_stiffness_matrix(n_modes, youngs_modulus_pa, second_moment_m4, radius_m)
+    stiffness += leg_stiffness_matrix_closed_form(
+        n_modes, n_legs, angle_rad, radial_stiffness, tangential_stiffness
+    )
+    mass = ring_mass_matrix(n_modes, ring_mass_kg) + leg_mass_matrix(
+        n_modes, n_legs, angle_rad, leg_mass_kg
+    )
+    if couples_different_modes(n_modes, n_legs):
+        omega_sq = scipy.linalg.eigh(stiffness, mass, eigvals_only=True)
+    else:
+        omega_sq = np.empty(2 * n_modes)
+        for n in range(1, n_modes + 1):
+            block = slice(2 * n - 2, 2 * n)
+            values, vectors = scipy.linalg.eigh(stiffness[block, block], mass[block, block])
+            # The lower mode takes the slot of the coordinate it is mostly made of.
+            lower_is_cosine = abs(vectors[0, 0]) >= abs(vectors[1, 0])
+            omega_sq[block] = values if lower_is_cosine else values[::-1]
+    # K is positive semi-definite by construction: clip round-off below zero (free n = 1 mode).
+    omega_sq = np.clip(omega_sq, 0.0, None)
+    return np.sqrt(omega_sq) / (2.0 * math.pi)
