@@ -179,3 +179,117 @@ def describe(points: Sequence[NonlinearModePoint]) -> str:
     return '\n'.join(f'{p.amplitude_m * 1e6:8.3f} um  {p.frequency_hz:10.2f} Hz'
                      for p in points)
 
+
+
+@dataclass(frozen=True)
+class ForcedOrbit:
+    """Periodic response to the 2theta drive ``A_e cos(2 pi f t)`` (eq. 28, damped).
+
+    Attributes
+    ----------
+    frequency_hz : float
+        Drive frequency, Hz.
+    amplitude_m : ndarray, shape (n,)
+        max |x_i| over the period, m.
+    initial_state : ndarray, shape (2 n,)
+        ``[x, v]`` at a time where the drive phase is 0 (m, m/s).
+    floquet_multipliers : ndarray, shape (2 n,)
+        Eigenvalues of the monodromy matrix (stable iff all |mu| < 1).
+    """
+
+    frequency_hz: float
+    amplitude_m: np.ndarray
+    initial_state: np.ndarray
+    floquet_multipliers: np.ndarray
+
+    @property
+    def stable(self) -> bool:
+        """All Floquet multipliers inside the unit circle."""
+        return bool(np.all(np.abs(self.floquet_multipliers) < 1.0))
+
+
+def forced_orbit(config: SimConfig, frequency_hz: float, amplitude_guess_m: float,
+                 drive_amplitude: float) -> ForcedOrbit:
+    """Periodic orbit of the driven, damped system by shooting over one drive period.
+
+    Parameters
+    ----------
+    config : SimConfig
+        Modes, Q factors and electrodes of the model.
+    frequency_hz : float
+        Drive frequency, Hz.
+    amplitude_guess_m : float
+        Guess of the q2 amplitude, m: the start is ``q2 = a sin``-phased (resonant branch),
+        so a guess near the upper branch converges to it.
+    drive_amplitude : float
+        A_e, m/s^2.
+    """
+    m = _Model(config)
+    n = m.n
+    zeta = 1.0 / (2.0 * np.asarray(config.modes.coordinate_quality_factors()))
+    w = 2.0 * math.pi * frequency_hz
+    period = 1.0 / frequency_hz
+    scale = np.concatenate([np.full(n, amplitude_guess_m), np.full(n, amplitude_guess_m * w)])
+
+    def rhs(t, y):
+        x, v = y[:n], y[n:]
+        a = (-m.omega ** 2 * x - 2.0 * zeta * m.omega * v
+             + forces.nonlinear_acceleration(x, m.model))
+        a[1] += drive_amplitude * math.cos(w * t)
+        return np.concatenate([v, a])
+
+    def flow(y0):
+        return solve_ivp(rhs, (0.0, period), y0, method='DOP853', rtol=1e-12, atol=1e-20)
+
+    def residual(z):
+        y0 = z * scale
+        sol = flow(y0)
+        return (sol.y[:, -1] - y0) / scale
+
+    z0 = np.zeros(2 * n)
+    z0[n + 1] = 1.0  # q2 = a sin(w t): v2(0) = a w, the resonant (upper) branch at the peak
+    z, _, ier, msg = fsolve(residual, z0, full_output=True, xtol=1e-13)
+    if ier != 1 and np.max(np.abs(residual(z))) > 1e-9:
+        raise SimulationError(f'forced orbit at {frequency_hz} Hz did not converge: {msg}')
+    y0 = z * scale
+    # Monodromy matrix by finite differences of the period map (for the stability test).
+    mono = np.empty((2 * n, 2 * n))
+    base = flow(y0).y[:, -1]
+    for k in range(2 * n):
+        dy = np.zeros(2 * n)
+        dy[k] = 1e-6 * scale[k]
+        mono[:, k] = (flow(y0 + dy).y[:, -1] - base) / dy[k]
+    sol = solve_ivp(rhs, (0.0, period), y0, method='DOP853', rtol=1e-12, atol=1e-20,
+                    dense_output=True)
+    tt = np.linspace(0.0, period, 1001)
+    amp = np.max(np.abs(sol.sol(tt)[:n]), axis=1)
+    return ForcedOrbit(frequency_hz=frequency_hz, amplitude_m=amp, initial_state=y0,
+                       floquet_multipliers=np.linalg.eigvals(mono))
+
+
+def drive_initial_state(config: SimConfig):
+    """Initial ``(x, v)`` for ``drive.start_on`` (None for 'rest' or with the drive off).
+
+    The state is the stable periodic response to the initial drive at drive phase 0 (t = 0),
+    on the branch asked for: the shooting starts from the peak amplitude
+    ``A_e Q_2 / (omega omega_2)`` for the upper branch and from a tenth of it for the lower.
+
+    Raises
+    ------
+    SimulationError
+        No stable orbit was found on that branch (e.g. outside the bistable range).
+    """
+    d = config.drive
+    if d.start_on == 'rest' or d.amplitude == 0.0 or d.frequency == 0.0:
+        return None
+    w2 = 2.0 * math.pi * config.modes.frequencies[1]
+    w = 2.0 * math.pi * d.frequency
+    peak = abs(d.amplitude) * config.modes.quality_factors[1] / (w * w2)
+    guess = peak if d.start_on == 'upper_branch' else 0.1 * peak
+    orbit = forced_orbit(config, d.frequency, guess, d.amplitude)
+    if not orbit.stable:
+        raise SimulationError(f'drive.start_on: no stable {d.start_on} orbit found at '
+                              f'{d.frequency} Hz (found q2 = {orbit.amplitude_m[1]:.3e} m, '
+                              f'unstable)')
+    n = config.modes.count * (2 if config.modes.companions else 1)
+    return orbit.initial_state[:n].copy(), orbit.initial_state[n:].copy()

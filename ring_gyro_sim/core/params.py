@@ -27,11 +27,15 @@ EPSILON_0 = 8.8541878128e-12
 STANDARD_GRAVITY = 9.80665
 """Standard gravity, m/s^2 (only for conversions from g at the boundaries)."""
 
-# Calibrated outer voltage (V), see config/default.yaml and README "Calibration".
-DEFAULT_OUTER_VOLTAGE = 5.4
-# Drive amplitude per unit modal mass (m/s^2) giving q2 ~ 0.39 um on the upper branch.
-DEFAULT_DRIVE_AMPLITUDE = 0.0
+# Calibrated outer voltage (V), see config/default.yaml and README "Calibration": with
+# N_R = 3, N_T = 10 the 1theta backbone is at 10.655 kHz at 6 um (Fig. 4: ~10.6 kHz), and a
+# 10 000 g shock stays 3 V below the voltage (~82.5 V) where it pulls the ring in.
+DEFAULT_OUTER_VOLTAGE = 80.0
+# Drive amplitude per unit modal mass (m/s^2): at 15798.3 Hz the upper branch is at
+# q2 = 0.418 um and the lower one at 0.031 um (paper: ~0.39 um and ~0.03 um).
+DEFAULT_DRIVE_AMPLITUDE = 0.065
 DEFAULT_DRIVE_FREQUENCY = 15798.3
+DRIVE_START_CHOICES = ('rest', 'upper_branch', 'lower_branch')
 
 
 @dataclass(frozen=True)
@@ -105,7 +109,10 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               'harmonic drive on the 2theta mode per unit modal mass (A_e)', read_only=False),
     ParamSpec('drive.frequency', 'float', DEFAULT_DRIVE_FREQUENCY, 'Hz', 'drive frequency',
               0.0, read_only=False),
-    ParamSpec('integrator.method', 'str', 'bm6', '-',
+    ParamSpec('drive.start_on', 'str', 'upper_branch', '-',
+              'initial state: rest, or the periodic response to the initial drive on its '
+              'upper_branch or lower_branch (as the paper starts Cases 1-4)'),
+    ParamSpec('integrator.method', 'str', 'bm4', '-',
               'splitting method: y4 (order 4, 3 forces/step), bm4 (order 4, 6), bm6 (order 6, '
               '11) or strang (order 2, 1); see core/kernels.py'),
     ParamSpec('integrator.max_step', 'float', 0.0, 's',
@@ -345,8 +352,12 @@ class DriveParams:
 
     amplitude: float = DEFAULT_DRIVE_AMPLITUDE
     frequency: float = DEFAULT_DRIVE_FREQUENCY
+    start_on: str = 'upper_branch'
 
     def __post_init__(self) -> None:
+        if self.start_on not in DRIVE_START_CHOICES:
+            raise _fail('drive.start_on', f'must be one of {", ".join(DRIVE_START_CHOICES)}, '
+                        f'got {self.start_on!r}')
         _finite('drive.amplitude', self.amplitude)
         _finite('drive.frequency', self.frequency)
         if self.frequency < 0.0:
@@ -360,7 +371,7 @@ INTEGRATOR_METHODS = ('y4', 'bm4', 'bm6', 'strang')
 class IntegratorParams:
     """Choice of the splitting method and of the largest step, s."""
 
-    method: str = 'bm6'
+    method: str = 'bm4'
     max_step: float = 0.0
 
     def __post_init__(self) -> None:
@@ -542,7 +553,8 @@ def build_config(values: Mapping[str, Any], *, frequencies_from_legs=None) -> Si
         taylor_terms=flat['electrodes.taylor_terms'],
         fold_linear_stiffness=flat['electrodes.fold_linear_stiffness'],
         count=flat['electrodes.count'], span=flat['electrodes.span'])
-    drive = DriveParams(amplitude=flat['drive.amplitude'], frequency=flat['drive.frequency'])
+    drive = DriveParams(amplitude=flat['drive.amplitude'], frequency=flat['drive.frequency'],
+                        start_on=flat['drive.start_on'])
     integrator = IntegratorParams(method=flat['integrator.method'],
                                   max_step=flat['integrator.max_step'])
     run = RunParams(real_time_factor=flat['real_time_factor'], duration=flat['duration'],
@@ -598,6 +610,7 @@ def to_flat(config: SimConfig) -> Dict[str, Any]:
         'electrodes.count': c.electrodes.count, 'electrodes.span': c.electrodes.span,
         'shock.duration': c.run.shock_duration,
         'drive.amplitude': c.drive.amplitude, 'drive.frequency': c.drive.frequency,
+        'drive.start_on': c.drive.start_on,
         'integrator.method': c.integrator.method, 'integrator.max_step': c.integrator.max_step,
         'real_time_factor': c.run.real_time_factor, 'duration': c.run.duration,
         'output.rate': c.run.output_rate, 'output.block_duration': c.run.block_duration,
