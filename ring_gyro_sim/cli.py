@@ -1,0 +1,120 @@
+"""``ring_gyro``: the offline command line (run, replay, calibrate, ...).
+
+``main()`` only parses arguments; the work is done by importable functions
+(``ring_gyro_sim.offline``, ``ring_gyro_sim.replay``, ``ring_gyro_sim.analysis``).
+"""
+
+import argparse
+import json
+import sys
+from typing import List, Optional
+
+from ring_gyro_sim.core.errors import RingGyroError
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog='ring_gyro',
+        description='Offline tools of ring_gyro_sim (a MEMS ring gyroscope under shock).')
+    sub = p.add_subparsers(dest='verb', metavar='VERB')
+
+    run = sub.add_parser('run', help='run a scenario file offline, as fast as possible')
+    run.add_argument('scenario', nargs='?', help='params YAML (same file as the node takes)')
+    run.add_argument('-o', '--output', help='record the run to this MCAP file')
+    run.add_argument('--from', dest='source', metavar='FILE.mcap',
+                     help='re-simulate a recording from its parameters and inputs')
+    run.add_argument('--duration', type=float, help='simulated time, s (overrides duration)')
+    run.add_argument('--json', action='store_true', help='print one JSON summary on stdout')
+    run.add_argument('--no-progress', action='store_true', help='no progress bar')
+    run.add_argument('--node-name', default='ring_gyro',
+                     help='node name whose ros__parameters to read (default ring_gyro)')
+
+    rep = sub.add_parser('replay', help='publish a recording into ROS topics with its timing')
+    rep.add_argument('recording', help='MCAP file')
+    rep.add_argument('--rate', type=float, default=1.0, help='playback speed factor')
+    rep.add_argument('--clock', action='store_true', help='publish /clock from the log times')
+    rep.add_argument('--topics', nargs='+', help='only these topics')
+
+    cal = sub.add_parser('calibrate', help='outer voltage that puts the 1theta backbone '
+                                           'through a target point (Fig. 4)')
+    cal.add_argument('params', nargs='?', help='params YAML (default: the embedded default)')
+    cal.add_argument('--target-hz', type=float, default=10.6e3)
+    cal.add_argument('--amplitude', type=float, default=6e-6, help='m')
+    cal.add_argument('--low', type=float, default=40.0, help='voltage bracket low, V')
+    cal.add_argument('--high', type=float, default=120.0, help='voltage bracket high, V')
+    return p
+
+
+def _load(path: Optional[str], node_name: str = 'ring_gyro'):
+    from ring_gyro_sim.core.params import build_config, load_yaml
+    return load_yaml(path, node_name) if path else build_config({})
+
+
+def cmd_run(args) -> int:
+    """``ring_gyro run``."""
+    from ring_gyro_sim import offline
+    if args.source:
+        summary = offline.resimulate(args.source, args.output, progress=not args.no_progress)
+    else:
+        if not args.scenario:
+            raise RingGyroError('run: give a scenario file (or --from FILE.mcap)')
+        config = _load(args.scenario, args.node_name)
+        output = args.output or config.run.record_path or None
+        summary = offline.run_offline(config, args.duration, output=output,
+                                      progress=not args.no_progress)
+    if args.json:
+        print(summary.to_json())
+    else:
+        print(f'simulated {summary.sim_time_s:.4f} s in {summary.wall_time_s:.2f} s '
+              f'(x{summary.real_time_factor:.1f} real time), status {summary.status}')
+        for name, peak in summary.peak_abs_m.items():
+            print(f'  {name}: peak {peak * 1e6:.4f} um, last 10 ms '
+                  f'{summary.final_abs_m[name] * 1e6:.4f} um')
+        print(f'  smallest outer gap {summary.min_gap_m * 1e6:.4f} um')
+        if summary.message:
+            print(f'  {summary.message}')
+        if summary.output:
+            print(f'  recorded to {summary.output}')
+    return 0
+
+
+def cmd_replay(args) -> int:
+    """``ring_gyro replay``."""
+    from ring_gyro_sim.replay import replay
+    count = replay(args.recording, rate=args.rate, clock=args.clock, topics=args.topics)
+    print(f'replayed {count} messages', file=sys.stderr)
+    return 0
+
+
+def cmd_calibrate(args) -> int:
+    """``ring_gyro calibrate``."""
+    from ring_gyro_sim.analysis.nnm import calibrate_outer_voltage, frequency_at_amplitude
+    config = _load(args.params)
+    volts = calibrate_outer_voltage(config, args.target_hz, args.amplitude,
+                                    (args.low, args.high))
+    print(json.dumps({'outer_voltage_v': volts, 'target_hz': args.target_hz,
+                      'amplitude_m': args.amplitude,
+                      'frequency_at_default_hz': frequency_at_amplitude(config, args.amplitude),
+                      'default_outer_voltage_v': config.electrodes.outer_voltage}))
+    return 0
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    """Entry point of ``ring_gyro``."""
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if not args.verb:
+        parser.print_help()
+        return 2
+    handler = {'run': cmd_run, 'replay': cmd_replay, 'calibrate': cmd_calibrate}[args.verb]
+    try:
+        return handler(args)
+    except RingGyroError as exc:
+        print(f'ring_gyro {args.verb}: error: {exc}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,195 @@
+"""Tests of ring_gyro_sim.recording.reader, including files cut short by a killed recorder."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+
+import mcap.data_stream
+import mcap.reader
+import mcap.records
+import mcap.stream_reader
+import pytest
+import rclpy.serialization
+import recording_samples as samples
+
+import ring_gyro_sim
+from ring_gyro_sim.recording.errors import RecordingError
+from ring_gyro_sim.recording.reader import BagMessage, decode, read_messages, read_metadata
+from ring_gyro_sim.recording.writer import BagWriter
+
+REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(ring_gyro_sim.__file__)))
+BLOCK_PERIOD_NS = 40_000
+
+
+def write_blocks(path, count, chunk_size=2048):
+    """Record ``count`` blocks at increasing log times, in several chunks."""
+    with BagWriter(path, chunk_size=chunk_size) as bag:
+        bag.add_topic(samples.BLOCK_TOPIC, 'std_msgs/msg/Float64MultiArray')
+        bag.add_metadata('ring_gyro_sim', samples.RUN_METADATA)
+        for b in range(count):
+            time_ns = b * BLOCK_PERIOD_NS
+            bag.write(samples.BLOCK_TOPIC, samples.block_message(time_ns), time_ns)
+    return path
+
+
+def chunk_layout(path):
+    """Return [(start offset, end offset, message count)] of the chunks of a finished file."""
+    with open(path, 'rb') as stream:
+        summary = mcap.reader.make_reader(stream).get_summary()
+        layout = []
+        for index in sorted(summary.chunk_indexes, key=lambda i: i.chunk_start_offset):
+            stream.seek(index.chunk_start_offset + 1 + 8)
+            chunk = mcap.records.Chunk.read(mcap.data_stream.ReadDataStream(stream))
+            records = mcap.stream_reader.breakup_chunk(chunk)
+            count = sum(isinstance(record, mcap.records.Message) for record in records)
+            layout.append((index.chunk_start_offset,
+                           index.chunk_start_offset + index.chunk_length, count))
+    return layout
+
+
+def test_messages_in_log_time_order(sample_bag):
+    path, messages = sample_bag
+    read = list(read_messages(path))
+    assert all(isinstance(message, BagMessage) for message in read)
+    assert [(m.topic, m.log_time_ns) for m in read] == [(t, n) for t, _, n in messages]
+    for message, (topic, original, log_time_ns) in zip(read, messages):
+        assert message.type_name == samples.TOPIC_TYPES[topic]
+        assert message.data == rclpy.serialization.serialize_message(original)
+        assert message.publish_time_ns == log_time_ns
+        assert decode(message) == original
+
+
+def test_out_of_order_writes_come_back_sorted(tmp_path):
+    path = tmp_path / 'unordered.mcap'
+    with BagWriter(path, chunk_size=256) as bag:
+        bag.add_topic(samples.CLOCK_TOPIC, 'rosgraph_msgs/msg/Clock')
+        bag.add_topic(samples.SHOCK_TOPIC, 'geometry_msgs/msg/Vector3Stamped')
+        for time_ns in (50, 10, 40):
+            bag.write(samples.CLOCK_TOPIC, samples.clock_message(time_ns), time_ns)
+        bag.write(samples.SHOCK_TOPIC, samples.shock_message(20, 9.81), 20)
+    read = list(read_messages(path))
+    assert [m.log_time_ns for m in read] == [10, 20, 40, 50]
+    assert decode(read[1]) == samples.shock_message(20, 9.81)
+
+
+def test_topic_filter(sample_bag):
+    path, messages = sample_bag
+    expected = [t for topic, _, t in messages if topic == samples.BLOCK_TOPIC]
+    assert [m.log_time_ns for m in read_messages(path, samples.BLOCK_TOPIC)] == expected
+    both = {samples.BLOCK_TOPIC, samples.SHOCK_TOPIC}
+    assert {m.topic for m in read_messages(path, topics=sorted(both))} == both
+    assert list(read_messages(path, topics=[])) == []
+
+
+def test_read_metadata(sample_bag):
+    path, _ = sample_bag
+    assert read_metadata(path, 'ring_gyro_sim') == samples.RUN_METADATA
+    assert 'serialized_metadata' in read_metadata(path, 'rosbag2')
+    with pytest.raises(RecordingError, match="no metadata record 'missing'"):
+        read_metadata(path, 'missing')
+
+
+def test_multi_chunk_file_cut_mid_chunk(tmp_path):
+    path = write_blocks(tmp_path / 'full.mcap', 300)
+    layout = chunk_layout(path)
+    assert len(layout) >= 5
+    start, end, _ = layout[3]
+    cut = start + (end - start) // 2
+    expected = sum(count for _, chunk_end, count in layout if chunk_end <= cut)
+    truncated = tmp_path / 'cut.mcap'
+    truncated.write_bytes(path.read_bytes()[:cut])
+    read = list(read_messages(truncated))
+    assert len(read) == expected > 0
+    assert [m.log_time_ns for m in read] == [b * BLOCK_PERIOD_NS for b in range(expected)]
+    assert decode(read[-1]) == samples.block_message((expected - 1) * BLOCK_PERIOD_NS)
+    assert read_metadata(truncated, 'ring_gyro_sim') == samples.RUN_METADATA
+    with pytest.raises(RecordingError, match='rosbag2'):
+        read_metadata(truncated, 'rosbag2')
+
+
+@pytest.mark.parametrize('where', ['header', 'before_first_chunk_end', 'chunk_end',
+                                   'summary', 'footer'])
+def test_any_cut_reads_the_complete_chunks(tmp_path, where):
+    path = write_blocks(tmp_path / 'full.mcap', 120)
+    layout = chunk_layout(path)
+    size = path.stat().st_size
+    cut = {
+        'header': 20,
+        'before_first_chunk_end': layout[0][1] - 1,
+        'chunk_end': layout[1][1],
+        'summary': size - 60,
+        'footer': size - 3,
+    }[where]
+    expected = sum(count for _, chunk_end, count in layout if chunk_end <= cut)
+    truncated = tmp_path / 'cut.mcap'
+    truncated.write_bytes(path.read_bytes()[:cut])
+    read = list(read_messages(truncated, samples.BLOCK_TOPIC))
+    assert [m.log_time_ns for m in read] == [b * BLOCK_PERIOD_NS for b in range(expected)]
+
+
+def test_killed_writer_leaves_completed_chunks_readable(tmp_path):
+    path = tmp_path / 'killed.mcap'
+    script = textwrap.dedent(f"""
+        import os, signal
+        from std_msgs.msg import Float64MultiArray
+        from ring_gyro_sim.recording.writer import BagWriter
+        bag = BagWriter({str(path)!r}, chunk_size=4096)
+        bag.add_topic({samples.BLOCK_TOPIC!r}, 'std_msgs/msg/Float64MultiArray')
+        bag.add_metadata('ring_gyro_sim', {samples.RUN_METADATA!r})
+        for i in range(1000):
+            bag.write({samples.BLOCK_TOPIC!r}, Float64MultiArray(data=[float(i)] * 16), i * 1000)
+            if i == 700:
+                os.kill(os.getpid(), signal.SIGKILL)
+    """)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        filter(None, [REPOSITORY, os.environ.get('PYTHONPATH')])))
+    result = subprocess.run([sys.executable, '-c', script], env=env, timeout=120,
+                            capture_output=True, text=True)
+    assert result.returncode == -signal.SIGKILL, result.stderr
+    read = list(read_messages(path))
+    # Each message is ~ 200 B uncompressed: a 4 KiB chunk holds ~ 20 of them.
+    assert 600 < len(read) <= 701
+    assert [m.log_time_ns for m in read] == [i * 1000 for i in range(len(read))]
+    assert list(decode(read[-1]).data) == [float(len(read) - 1)] * 16
+    assert read_metadata(path, 'ring_gyro_sim') == samples.RUN_METADATA
+    with pytest.raises(RecordingError, match='rosbag2'):
+        read_metadata(path, 'rosbag2')
+
+
+def test_flush_bounds_the_loss(tmp_path):
+    path = tmp_path / 'flushed.mcap'
+    bag = BagWriter(path, chunk_size=1 << 20)
+    bag.add_topic(samples.CLOCK_TOPIC, 'rosgraph_msgs/msg/Clock')
+    for time_ns in range(5):
+        bag.write(samples.CLOCK_TOPIC, samples.clock_message(time_ns), time_ns)
+    assert list(read_messages(path)) == []  # still in the chunk in progress
+    bag.flush()
+    assert [m.log_time_ns for m in read_messages(path)] == list(range(5))
+    bag.finish()
+
+
+def test_unreadable_inputs(tmp_path):
+    with pytest.raises(RecordingError, match='No such file'):
+        read_messages(tmp_path / 'missing.mcap')
+    text = tmp_path / 'notes.mcap'
+    text.write_text('definitely not an MCAP file')
+    with pytest.raises(RecordingError, match='not an MCAP file'):
+        read_messages(text)
+    with pytest.raises(RecordingError, match='not an MCAP file'):
+        read_metadata(text, 'rosbag2')
+    empty = tmp_path / 'empty.mcap'
+    empty.write_bytes(b'')
+    assert list(read_messages(empty)) == []
+
+
+def test_decode_errors(sample_bag):
+    path, _ = sample_bag
+    message = next(iter(read_messages(path, samples.BLOCK_TOPIC)))
+    broken = BagMessage(message.topic, message.type_name, message.data[:6],
+                        message.log_time_ns, message.publish_time_ns)
+    with pytest.raises(RecordingError, match='cannot decode'):
+        decode(broken)
+    with pytest.raises(RecordingError, match='no schema'):
+        decode(BagMessage('/x', '', b'', 0, 0))
