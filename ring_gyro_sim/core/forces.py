@@ -27,9 +27,13 @@ coefficient). The untruncated integrand is analytic for ``|u| < 1``; its Fourier
 fall like ``rho^m`` with ``rho = (1 - sqrt(1 - a^2)) / a`` for ``a = max |u|`` per harmonic,
 so ``M = 128 * N_R`` gives round-off accuracy up to ``|u| ~ 0.95``.
 
-Without companions every coordinate is a cosine, ``w`` is even in theta and only the angles
-in ``[0, pi]`` are kept, with trapezoidal weights 1 at 0 and pi and 2 elsewhere: the same sum
-for half the work (the integrator's inner loop).
+The M angles (M a multiple of 4) fall into orbits ``{theta, -theta, pi - theta, pi + theta}``
+of the ring's symmetries; the kernel stores one representative per orbit in [0, pi/2] and
+assembles ``w`` and the force at the four members with exact sign flips (``parity`` of each
+coordinate). Sums that vanish by symmetry then vanish exactly in floating point: symmetric
+electrodes keep q2 = 0 bit for bit after a q1 shock from rest (eq. 36), an x shock keeps the
+sine companions at 0. Without companions the two members +-theta are equal and P is
+evaluated at two angles per orbit, which is the cost of the plain half-circle rule.
 """
 
 from dataclasses import dataclass
@@ -52,14 +56,22 @@ class ForceModel:
         Harmonic number n of every coordinate.
     sine : ndarray of bool, shape (n,)
         True for the sin(n theta) companions.
-    theta : ndarray, shape (M,)
-        Quadrature angles, rad (only those in [0, pi] when w is even).
-    weights : ndarray, shape (M,)
-        Trapezoidal weights, rad, summing to 2 pi.
-    basis : ndarray, shape (M, n)
-        ``phi_i(theta_j)`` (cos or sin), so that ``w = basis @ x``.
-    projection : ndarray, shape (n, M)
-        ``(2 pi / M) phi_i(theta_j) / m_i``, 1/kg: acceleration = projection @ P(u).
+    theta : ndarray, shape (R,)
+        Orbit representatives in [0, pi/2], rad (R = M/4 + 1).
+    weights : ndarray, shape (R,)
+        Trapezoidal weight per orbit member, rad (halved at 0 and pi/2, whose orbits have
+        two distinct members counted twice).
+    parity : ndarray of int, shape (n,)
+        Symmetry class of each coordinate: bit 0 = odd under theta -> -theta (sine),
+        bit 1 = odd under theta -> pi - theta.
+    signs : ndarray, shape (2, n)
+        The same as +-1.0: parity under theta -> -theta and under theta -> pi - theta.
+    m_points : int
+        M, the number of quadrature angles on the full circle.
+    basis : ndarray, shape (R, n)
+        ``phi_i(theta_j)`` (cos or sin) at the representatives.
+    projection : ndarray, shape (n, R)
+        ``weight_j phi_i(theta_j) / m_i``, rad/kg.
     poly : ndarray, shape (D + 1,)
         Coefficients of ``P(u) = A_eps / d_g * e'(u)`` in powers of u, N (truncated model).
     energy_poly : ndarray, shape (D + 2,)
@@ -82,6 +94,9 @@ class ForceModel:
     sine: np.ndarray
     theta: np.ndarray
     weights: np.ndarray
+    parity: np.ndarray
+    signs: np.ndarray
+    m_points: int
     basis: np.ndarray
     projection: np.ndarray
     poly: np.ndarray
@@ -117,10 +132,17 @@ def mode_shapes(harmonics: np.ndarray, sine: np.ndarray, theta: np.ndarray) -> n
 
 
 def quadrature_points(n_modes: int, taylor_terms: int) -> int:
-    """Number M of quadrature angles (see module docstring)."""
+    """Number M of quadrature angles on the full circle, a multiple of 4 (module docstring)."""
     if taylor_terms == 0:
         return 128 * n_modes
-    return max(taylor_terms * n_modes + 1, 8 * n_modes + 1)
+    m = max(taylor_terms * n_modes + 1, 8 * n_modes + 1)
+    return 4 * ((m + 3) // 4)
+
+
+def coordinate_parity(harmonics: np.ndarray, sine: np.ndarray) -> np.ndarray:
+    """Symmetry class of each coordinate (see :class:`ForceModel`)."""
+    odd_reflection = np.where(sine, harmonics % 2 == 0, harmonics % 2 == 1)
+    return (sine.astype(np.int64) + 2 * odd_reflection.astype(np.int64)).astype(np.int64)
 
 
 def build_force_model(config: SimConfig) -> ForceModel:
@@ -130,15 +152,15 @@ def build_force_model(config: SimConfig) -> ForceModel:
     harmonics, sine = coordinate_harmonics(n_modes, config.modes.companions)
     masses = np.asarray(config.modal_masses(), dtype=np.float64)
     m_points = quadrature_points(n_modes, e.taylor_terms)
-    theta = 2.0 * np.pi * np.arange(m_points) / m_points
-    weights = np.full(m_points, 2.0 * np.pi / m_points)
-    if not np.any(sine):  # w even in theta: keep [0, pi], double the interior weights
-        keep = m_points // 2 + 1
-        theta, weights = theta[:keep], 2.0 * weights[:keep]
-        weights[0] *= 0.5
-        if m_points % 2 == 0:
-            weights[-1] *= 0.5
-    basis = mode_shapes(harmonics, sine, theta)
+    parity = coordinate_parity(harmonics, sine)
+    signs = np.ascontiguousarray(np.stack([np.where(parity & 1, -1.0, 1.0),
+                                           np.where(parity & 2, -1.0, 1.0)]))
+    reps = m_points // 4 + 1
+    theta = 2.0 * np.pi * np.arange(reps) / m_points
+    weights = np.full(reps, 2.0 * np.pi / m_points)
+    weights[0] *= 0.5
+    weights[-1] *= 0.5
+    basis = np.ascontiguousarray(mode_shapes(harmonics, sine, theta))
     projection = np.ascontiguousarray(weights[None, :] * basis.T / masses[:, None])
     a_eps = config.a_eps
     outer = a_eps * config.outer_radius * e.outer_voltage ** 2
@@ -152,7 +174,8 @@ def build_force_model(config: SimConfig) -> ForceModel:
         c_k = outer + (-1) ** k * inner
         poly[k - 1] = k * c_k / e.gap
         energy_poly[k] = c_k
-    return ForceModel(harmonics=harmonics, sine=sine, theta=theta, weights=weights, basis=basis,
+    return ForceModel(harmonics=harmonics, sine=sine, theta=theta, weights=weights,
+                      parity=parity, signs=signs, m_points=m_points, basis=basis,
                       projection=projection, poly=poly, energy_poly=energy_poly,
                       outer=outer, inner=inner, gap=e.gap, taylor_terms=n_t, fold=fold,
                       inner_contact=e.inner_voltage != 0.0, masses=masses)
@@ -189,22 +212,40 @@ def nonlinear_acceleration(x: np.ndarray, model: ForceModel) -> np.ndarray:
     """
     x = _check_state(x, model)
     out = np.zeros_like(x)
-    u = np.empty(model.theta.size)
+    work = np.empty(scratch_size(model))
     info = np.zeros(2, dtype=np.int64)
-    kernels.nl_accel(x, model.basis, model.projection, model.poly, model.taylor_terms,
-                     model.outer, model.inner, model.fold, model.inner_contact, model.gap,
-                     u, out, info)
+    kernels.nl_accel(x, model.basis, model.projection, model.signs, model.poly,
+                     model.taylor_terms, model.outer, model.inner, model.fold,
+                     model.inner_contact, model.gap, work, out, info)
     if info[0] != 0:
-        raise SimulationError(kernels.describe_status(int(info[0]), model.theta[info[1]]))
+        raise SimulationError(kernels.describe_status(int(info[0]), contact_angle(model, info)))
     return out
+
+
+def scratch_size(model: ForceModel) -> int:
+    """Floats of scratch the force kernel needs."""
+    return 8 * model.theta.size
+
+
+def contact_angle(model: ForceModel, info) -> float:
+    """Angle (rad) encoded in a kernel's ``info[1]`` (representative and orbit member)."""
+    return kernels.orbit_angle(float(model.theta[int(info[1]) // 4]), int(info[1]) % 4)
+
+
+def full_grid(model: ForceModel):
+    """All M quadrature angles (rad), their weights (rad) and mode shapes (M, n)."""
+    theta = 2.0 * np.pi * np.arange(model.m_points) / model.m_points
+    weights = np.full(model.m_points, 2.0 * np.pi / model.m_points)
+    return theta, weights, mode_shapes(model.harmonics, model.sine, theta)
 
 
 def jacobian(x: np.ndarray, model: ForceModel) -> np.ndarray:
     """d(nonlinear_acceleration)/dx, shape (n, n), 1/s^2 (exact by the same quadrature)."""
     x = _check_state(x, model)
-    u = model.basis @ x / model.gap
+    _, weights, basis = full_grid(model)
+    u = basis @ x / model.gap
     dp = _poly_derivative(u, model)
-    return (model.projection * dp[None, :]) @ model.basis
+    return ((basis.T * (weights * dp)[None, :]) @ basis) / model.masses[:, None]
 
 
 def _poly_derivative(u: np.ndarray, model: ForceModel) -> np.ndarray:
@@ -223,7 +264,8 @@ def _poly_derivative(u: np.ndarray, model: ForceModel) -> np.ndarray:
 def electrostatic_energy(x: np.ndarray, model: ForceModel) -> float:
     """Nonlinear electrostatic energy ``E_c`` (terms of the force only), J."""
     x = _check_state(x, model)
-    u = model.basis @ x / model.gap
+    _, weights, basis = full_grid(model)
+    u = basis @ x / model.gap
     if model.taylor_terms:
         e = np.polynomial.polynomial.polyval(u, model.energy_poly)
     else:
@@ -234,7 +276,7 @@ def electrostatic_energy(x: np.ndarray, model: ForceModel) -> float:
             eo = 1.0 / (1.0 - u) - 1.0
             ei = 1.0 / (1.0 + u) - 1.0
         e = model.outer * eo + model.inner * ei
-    return float(np.dot(model.weights, e))
+    return float(np.dot(weights, e))
 
 
 def mechanical_energy(x: np.ndarray, v: np.ndarray, omega: np.ndarray,

@@ -15,8 +15,7 @@ Because the B-flow depends on positions only and A is at most linear in velociti
 optimised symmetric RKN splittings of Blanes & Moan (2002, J. Comput. Appl. Math. 142,
 313-330) apply, in BAB form with the last kick's force reused as the next step's first
 (FSAL): ``bm6`` = SRKN_11^b (order 6, 11 force evaluations per step), ``bm4`` = SRKN_6^b
-(order 4, 6 evaluations), ``y4`` = Yoshida's triple jump (order 4, 3 evaluations, larger
-error constant), ``strang`` (order 2, 1 evaluation). Undamped, the method is
+(order 4, 6 evaluations), ``strang`` (order 2, 1 evaluation). Undamped, the method is
 symplectic: the energy error stays bounded (no drift), which the tests check.
 
 Error budget (measured in ``test/core/test_simulator.py`` and ``benchmarks/``): the error is
@@ -50,6 +49,12 @@ _STATUS_TEXT = {
 }
 
 
+def orbit_angle(theta_rep: float, member: int) -> float:
+    """Angle (rad, in [0, 2 pi)) of orbit member k of a representative angle."""
+    angle = (theta_rep, -theta_rep, math.pi - theta_rep, math.pi + theta_rep)[member]
+    return angle % (2.0 * math.pi)
+
+
 def describe_status(status: int, theta_rad: float) -> str:
     """Human text for a kernel status and the angle where it happened."""
     text = _STATUS_TEXT.get(status, f'unknown status {status}')
@@ -64,11 +69,6 @@ def splitting_coefficients(method: str):
     """
     if method == 'strang':
         return np.array([1.0]), np.array([0.5, 0.5])
-    if method == 'y4':  # Yoshida (1990) triple jump of Strang: order 4, 3 evaluations
-        w1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
-        w0 = 1.0 - 2.0 * w1
-        return (np.array([w1, w0, w1]),
-                np.array([0.5 * w1, 0.5 * (w1 + w0), 0.5 * (w0 + w1), 0.5 * w1]))
     if method == 'bm4':  # Blanes & Moan 2002, SRKN_6^b
         b = [0.0829844064174052, 0.396309801498368, -0.0390563049223486]
         a = [0.245298957184271, 0.604872665711080]
@@ -118,67 +118,132 @@ def linear_propagators(omega: np.ndarray, zeta: np.ndarray, taus: np.ndarray) ->
 
 
 @njit(cache=True)
-def nl_accel(x, basis, projection, poly, taylor_terms, outer, inner, fold, inner_contact,
-             gap, work, out, info):
-    """Electrostatic generalised force / modal mass at ``x`` (see ``core/forces.py``).
-
-    ``work`` (M,) receives P(u) at the quadrature points; ``out`` (n,) the accelerations
-    (m/s^2). On a state out of range ``info[0]`` gets the status, ``info[1]`` the angle index,
-    and ``out`` is left unchanged.
-    """
-    m = basis.shape[0]
-    n = x.size
-    for j in range(m):
-        w = 0.0
-        for i in range(n):
-            w += basis[j, i] * x[i]
-        u = w / gap
-        if not math.isfinite(u):
-            info[0] = STATUS_NONFINITE
-            info[1] = j
-            return
-        if u >= 1.0:
-            info[0] = STATUS_OUTER_CONTACT
-            info[1] = j
-            return
-        if u <= -1.0:
-            if inner_contact:
-                info[0] = STATUS_INNER_CONTACT
-                info[1] = j
-                return
-            if taylor_terms > 0:
-                info[0] = STATUS_SERIES_RANGE
-                info[1] = j
-                return
-        if taylor_terms > 0:
-            p = 0.0
-            for d in range(poly.size - 1, -1, -1):
-                p = p * u + poly[d]
-        else:
-            uo = 1.0 - u
-            ui = 1.0 + u
-            if fold:
-                go = u * u * (3.0 - 2.0 * u) / (uo * uo)
-                gi = u * u * (3.0 + 2.0 * u) / (ui * ui)
-            else:
-                go = 1.0 / (uo * uo) - 1.0
-                gi = 1.0 / (ui * ui) - 1.0
-            p = (outer * go - inner * gi) / gap
-        work[j] = p
-    for i in range(n):
-        s = 0.0
-        for j in range(m):
-            s += projection[i, j] * work[j]
-        out[i] = s
+def _p_of_u(u, poly, taylor_terms, outer, inner, fold, gap):
+    """P(u) = dE/dw per radian at ``u = w / d_g`` (see ``core/forces.py``), N/rad."""
+    if taylor_terms > 0:
+        p = 0.0
+        for d in range(poly.size - 1, -1, -1):
+            p = p * u + poly[d]
+        return p
+    uo = 1.0 - u
+    ui = 1.0 + u
+    if fold:
+        go = u * u * (3.0 - 2.0 * u) / (uo * uo)
+        gi = u * u * (3.0 + 2.0 * u) / (ui * ui)
+    else:
+        go = 1.0 / (uo * uo) - 1.0
+        gi = 1.0 / (ui * ui) - 1.0
+    return (outer * go - inner * gi) / gap
 
 
 @njit(cache=True)
-def _external(t, pulses, profile_t, profile_x, profile_y, drive_amp, drive_omega,
+def _range_status(u, inner_contact, taylor_terms):
+    if not math.isfinite(u):
+        return STATUS_NONFINITE
+    if u >= 1.0:
+        return STATUS_OUTER_CONTACT
+    if u <= -1.0:
+        if inner_contact:
+            return STATUS_INNER_CONTACT
+        if taylor_terms > 0:
+            return STATUS_SERIES_RANGE
+    return STATUS_OK
+
+
+@njit(cache=True)
+def nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold,
+             inner_contact, gap, work, out, info):
+    """Electrostatic generalised force / modal mass at ``x`` (see ``core/forces.py``).
+
+    The quadrature angles come in orbits ``{theta, -theta, pi - theta, pi + theta}``; only a
+    representative ``theta_j`` in [0, pi/2] is stored (R of them). ``signs[0, i]``
+    (``signs[1, i]``) is the parity, +1 or -1, of coordinate i under theta -> -theta
+    (theta -> pi - theta). ``w`` at the four members is summed with those signs in the same
+    order, and the force on a coordinate combines the four values of P as
+    ``(P1 + b P3) + a (P2 + b P4)``, so a sum that is zero by symmetry (symmetric electrodes,
+    a state without sine or without even coordinates) is exactly 0.0, not round-off. The
+    loops run over the angles innermost so that they vectorise.
+
+    ``work`` is scratch of at least ``8 R`` floats; ``out`` (n,) receives the accelerations
+    (m/s^2). On a state out of range ``info[0]`` gets the status, ``info[1]`` the index
+    ``4 * j + k`` (representative j, member k in the order above), and ``out`` is left
+    unchanged.
+    """
+    r = basis.shape[0]
+    n = x.size
+    u = work[:4 * r]
+    p = work[4 * r:8 * r]
+    for k in range(4 * r):
+        u[k] = 0.0
+    for i in range(n):
+        xi = x[i] / gap
+        sa = signs[0, i]
+        sb = signs[1, i]
+        sab = sa * sb
+        for j in range(r):
+            v = basis[j, i] * xi
+            u[j] += v
+            u[r + j] += sa * v
+            u[2 * r + j] += sb * v
+            u[3 * r + j] += sab * v
+    lo = 0.0
+    hi = 0.0
+    total = 0.0
+    for k in range(4 * r):
+        lo = min(lo, u[k])
+        hi = max(hi, u[k])
+        total += u[k]
+    if not (hi < 1.0 and lo > -1.0 and math.isfinite(total)):
+        for k in range(4 * r):
+            status = _range_status(u[k], inner_contact, taylor_terms)
+            if status != STATUS_OK:
+                info[0] = status
+                info[1] = 4 * (k % r) + k // r
+                return
+    has_odd_a = False
+    for i in range(n):
+        if signs[0, i] < 0.0 and x[i] != 0.0:
+            has_odd_a = True
+    # Without sine content, u(-theta) == u(theta) bit for bit: P2 = P1, P4 = P3.
+    members = 4 if has_odd_a else 2
+    stride = 2 if not has_odd_a else 1
+    for k in range(0, 4, stride):
+        base = k * r
+        if taylor_terms > 0:
+            top = poly[poly.size - 1]
+            for j in range(r):
+                p[base + j] = top
+            for d in range(poly.size - 2, -1, -1):
+                c = poly[d]
+                for j in range(r):
+                    p[base + j] = p[base + j] * u[base + j] + c
+        else:
+            for j in range(r):
+                p[base + j] = _p_of_u(u[base + j], poly, taylor_terms, outer, inner, fold, gap)
+    if members == 2:
+        for j in range(r):
+            p[r + j] = p[j]
+            p[3 * r + j] = p[2 * r + j]
+    for i in range(n):
+        sa = signs[0, i]
+        sb = signs[1, i]
+        acc = 0.0
+        for j in range(r):
+            acc += projection[i, j] * ((p[j] + sb * p[2 * r + j])
+                                       + sa * (p[r + j] + sb * p[3 * r + j]))
+        out[i] = acc
+
+
+@njit(cache=True)
+def _external(t, t_mid, pulses, profile_t, profile_x, profile_y, drive_amp, drive_omega,
               drive_t_ref, drive_phase, drive_index, y_index, fe):
     """External acceleration at time ``t`` (s) into ``fe`` (m/s^2).
 
     Base acceleration ``a_b`` enters as ``-a_b`` on q_1 (x) and q_1^s (y) (eq. 27); the drive
-    as ``A cos(omega (t - t_ref) + phase)`` on q_2.
+    as ``A cos(omega (t - t_ref) + phase)`` on q_2. Whether a pulse acts is decided at the
+    middle ``t_mid`` of the current (sub)step, which never straddles a pulse's start or end;
+    inside it the half-sine formula is used at every stage, so stages that some splittings
+    place outside the step (negative drifts) see the smooth continuation, not a kink.
     """
     for i in range(fe.size):
         fe[i] = 0.0
@@ -187,7 +252,7 @@ def _external(t, pulses, profile_t, profile_x, profile_y, drive_amp, drive_omega
     for p in range(pulses.shape[0]):
         start = pulses[p, 0]
         dur = pulses[p, 1]
-        if start <= t <= start + dur:
+        if start <= t_mid <= start + dur:
             s = math.sin(math.pi * (t - start) / dur)
             ax += pulses[p, 2] * s
             ay += pulses[p, 3] * s
@@ -209,14 +274,14 @@ def _external(t, pulses, profile_t, profile_x, profile_y, drive_amp, drive_omega
 
 
 @njit(cache=True)
-def _step(q, v, acc, t, h, a, b, prop, basis, projection, poly, taylor_terms, outer, inner,
+def _step(q, v, acc, t, h, a, b, prop, basis, projection, signs, poly, taylor_terms, outer, inner,
           fold, inner_contact, gap, pulses, profile_t, profile_x, profile_y, drive_amp,
           drive_omega, drive_t_ref, drive_phase, drive_index, y_index, work, fe, info, tinfo):
     """One BAB splitting step of length ``h`` from time ``t``; ``acc`` is FSAL."""
     n = q.size
     tt = t
     for i in range(a.size):
-        _external(tt, pulses, profile_t, profile_x, profile_y, drive_amp, drive_omega,
+        _external(tt, t + 0.5 * h, pulses, profile_t, profile_x, profile_y, drive_amp, drive_omega,
                   drive_t_ref, drive_phase, drive_index, y_index, fe)
         kick = b[i] * h
         for c in range(n):
@@ -226,25 +291,17 @@ def _step(q, v, acc, t, h, a, b, prop, basis, projection, poly, taylor_terms, ou
             v0 = v[c]
             q[c] = prop[i, c, 0] * x0 + prop[i, c, 1] * v0
             v[c] = prop[i, c, 2] * x0 + prop[i, c, 3] * v0
-        tt = t + h * _partial_sum(a, i)
-        nl_accel(q, basis, projection, poly, taylor_terms, outer, inner, fold, inner_contact,
-                 gap, work, acc, info)
+        tt += h * a[i]
+        nl_accel(q, basis, projection, signs, poly, taylor_terms, outer, inner, fold,
+                 inner_contact, gap, work, acc, info)
         if info[0] != 0:
             tinfo[0] = tt
             return
-    _external(t + h, pulses, profile_t, profile_x, profile_y, drive_amp, drive_omega,
+    _external(t + h, t + 0.5 * h, pulses, profile_t, profile_x, profile_y, drive_amp, drive_omega,
               drive_t_ref, drive_phase, drive_index, y_index, fe)
     kick = b[a.size] * h
     for c in range(n):
         v[c] += kick * (acc[c] + fe[c])
-
-
-@njit(cache=True)
-def _partial_sum(a, i):
-    s = 0.0
-    for k in range(i + 1):
-        s += a[k]
-    return s
 
 
 @njit(cache=True)
@@ -266,7 +323,7 @@ def _fill_propagators(omega, zeta, a, tau, prop):
 
 @njit(cache=True)
 def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_max_sub,
-                omega, zeta, prop_sub, basis, projection, poly, taylor_terms, outer, inner,
+                omega, zeta, prop_sub, basis, projection, signs, poly, taylor_terms, outer, inner,
                 fold, inner_contact, gap, pulses, profile_t, profile_x, profile_y, drive_amp,
                 drive_omega, drive_t_ref, drive_phase, drive_index, y_index, out_q, out_v,
                 work, fe, info, tinfo):
@@ -316,14 +373,15 @@ def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_
                     _fill_propagators(omega, zeta, a, hs, prop_sub)
                     for r in range(m):
                         _step(q, v, acc, seg[g] + r * hs, hs, a, b, prop_sub, basis,
-                              projection, poly, taylor_terms, outer, inner, fold,
+                              projection, signs, poly, taylor_terms, outer, inner, fold,
                               inner_contact, gap, pulses, profile_t, profile_x, profile_y,
                               drive_amp, drive_omega, drive_t_ref, drive_phase, drive_index,
                               y_index, work, fe, info, tinfo)
                         if info[0] != 0:
                             return s
             else:
-                _step(q, v, acc, t, h, a, b, prop, basis, projection, poly, taylor_terms,
+                _step(q, v, acc, t, h, a, b, prop, basis, projection, signs, poly,
+                      taylor_terms,
                       outer, inner, fold, inner_contact, gap, pulses, profile_t, profile_x,
                       profile_y, drive_amp, drive_omega, drive_t_ref, drive_phase,
                       drive_index, y_index, work, fe, info, tinfo)

@@ -112,9 +112,9 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
     ParamSpec('drive.start_on', 'str', 'upper_branch', '-',
               'initial state: rest, or the periodic response to the initial drive on its '
               'upper_branch or lower_branch (as the paper starts Cases 1-4)'),
-    ParamSpec('integrator.method', 'str', 'bm4', '-',
-              'splitting method: y4 (order 4, 3 forces/step), bm4 (order 4, 6), bm6 (order 6, '
-              '11) or strang (order 2, 1); see core/kernels.py'),
+    ParamSpec('integrator.method', 'str', 'bm6', '-',
+              'splitting method: bm6 (order 6, 11 forces per step), bm4 (order 4, 6) or strang '
+              '(order 2, 1); see core/kernels.py'),
     ParamSpec('integrator.max_step', 'float', 0.0, 's',
               'largest integration step (0 = automatic, see core/kernels.py)', 0.0),
     ParamSpec('real_time_factor', 'float', 1.0, '-',
@@ -364,14 +364,14 @@ class DriveParams:
             raise _fail('drive.frequency', f'must be >= 0, got {self.frequency!r}')
 
 
-INTEGRATOR_METHODS = ('y4', 'bm4', 'bm6', 'strang')
+INTEGRATOR_METHODS = ('bm6', 'bm4', 'strang')
 
 
 @dataclass(frozen=True)
 class IntegratorParams:
     """Choice of the splitting method and of the largest step, s."""
 
-    method: str = 'bm4'
+    method: str = 'bm6'
     max_step: float = 0.0
 
     def __post_init__(self) -> None:

@@ -1,0 +1,31 @@
+"""ament_python setup of ring_gyro_sim (rclpy and message packages come from ROS, not pip)."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'ring_gyro_sim'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*', 'benchmarks']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', glob('config/*.yaml')),
+    ],
+    install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'mcap', 'PyYAML', 'zstandard'],
+    zip_safe=True,
+    maintainer='ring_gyro_sim developers',
+    maintainer_email='dev@ring-gyro-sim.invalid',
+    description='Emulator of a capacitive MEMS vibrating-ring gyroscope under severe shock.',
+    license='Apache-2.0',
+    tests_require=['pytest'],
+    entry_points={
+        'console_scripts': [
+            'ring_gyro_node = ring_gyro_sim.ros.node:main',
+            'ring_gyro = ring_gyro_sim.cli:main',
+        ],
+    },
+)
