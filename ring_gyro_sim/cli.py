@@ -1,4 +1,19 @@
-"""``ring_gyro``: the offline command line (run, replay, calibrate, ...).
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+``ring_gyro``: the offline command line (run, replay, calibrate, ...).
 
 ``main()`` only parses arguments; the work is done by importable functions
 (``ring_gyro_sim.offline``, ``ring_gyro_sim.replay``, ``ring_gyro_sim.analysis``).
@@ -46,7 +61,8 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _load(path: Optional[str], node_name: str = 'ring_gyro'):
-    from ring_gyro_sim.core.params import build_config, load_yaml
+    from ring_gyro_sim.core.params import build_config
+    from ring_gyro_sim.paramfile import load_yaml
     return load_yaml(path, node_name) if path else build_config({})
 
 

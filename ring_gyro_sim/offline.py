@@ -1,4 +1,19 @@
-"""Offline runs: a scenario file in, samples (and optionally a recording) out, no ROS graph.
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Offline runs: a scenario file in, samples (and optionally a recording) out, no ROS graph.
 
 :func:`run_offline` advances the same :class:`~ring_gyro_sim.core.simulator.Simulator` as the
 node, in the node's blocks (``output.block_duration``), as fast as possible, and returns a
@@ -104,7 +119,7 @@ class _Progress:
 
 
 def initial_state(config: SimConfig) -> Optional[Tuple[np.ndarray, np.ndarray]]:
-    """The start state for ``drive.start_on`` (None = rest)."""
+    """Return the start state for ``drive.start_on`` (None = rest)."""
     from ring_gyro_sim.analysis.nnm import drive_initial_state
     return drive_initial_state(config)
 
@@ -114,7 +129,8 @@ def run_offline(config: SimConfig, duration_s: Optional[float] = None,
                 namespace: str = '/ring_gyro', start_state=None,
                 inputs: Optional[list] = None, block_sizes: Optional[List[int]] = None
                 ) -> RunSummary:
-    """Run a scenario as fast as possible.
+    """
+    Run a scenario as fast as possible.
 
     Parameters
     ----------
@@ -132,6 +148,9 @@ def run_offline(config: SimConfig, duration_s: Optional[float] = None,
         Recorded inputs ``(t_ns, kind, payload)`` to apply (re-simulation).
     block_sizes : list of int, optional
         Samples per recorded block (re-simulation: the same cuts as the original).
+    namespace : str
+        Node namespace written into the recorded topic names and metadata.
+
     """
     duration = config.run.duration if duration_s is None else duration_s
     if not (math.isfinite(duration) and duration > 0.0):
@@ -233,21 +252,22 @@ def _apply_input(sim: Simulator, recorder, t_ns: int, kind: str, payload) -> Non
 
 
 def load_recording(path: str):
-    """Parameters, initial state, inputs and block sizes of a recording (for re-simulation).
+    """
+    Parameters, initial state, inputs and block sizes of a recording (for re-simulation).
 
     Returns
     -------
     (SimConfig, (q, v), inputs, block_sizes, namespace)
-    """
-    import yaml
 
+    """
     from ring_gyro_sim.core.params import build_config
+    from ring_gyro_sim.paramfile import load_text
     from ring_gyro_sim.recording.reader import decode, read_messages, read_metadata
     from ring_gyro_sim.ros import conversions
     from ring_gyro_sim.ros.recorder import INPUT_TOPICS, METADATA_NAME
 
     meta = read_metadata(path, METADATA_NAME)
-    flat = yaml.safe_load(meta['parameters'])
+    flat = load_text(meta['parameters'])
     config = build_config(flat)
     state = json.loads(meta['initial_state'])
     namespace = meta.get('namespace', '/ring_gyro')
@@ -279,7 +299,7 @@ def load_recording(path: str):
         elif kind == 'events/reset':
             inputs.append((m.log_time_ns, kind, None))
         elif kind == 'events/parameters':
-            inputs.append((m.log_time_ns, kind, yaml.safe_load(msg.data)))
+            inputs.append((m.log_time_ns, kind, load_text(msg.data)))
     return config, start, inputs, sizes, namespace
 
 

@@ -1,4 +1,19 @@
-"""``ring_gyro replay``: publish a recording into ROS topics with its original timing.
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+``ring_gyro replay``: publish a recording into ROS topics with its original timing.
 
 Messages are published in log-time order, already serialized (no decode / re-encode), each at
 ``wall_start + (log_time - first_log_time) / rate``. Publishers are reliable / volatile,
@@ -19,7 +34,8 @@ DISCOVERY_WAIT_S = 3.0
 def replay(path: str, rate: float = 1.0, clock: bool = False,
            topics: Optional[Iterable[str]] = None, discovery_wait_s: float = DISCOVERY_WAIT_S,
            node_name: str = 'ring_gyro_replay') -> int:
-    """Publish the messages of ``path``; returns how many were published.
+    """
+    Publish the messages of ``path``; returns how many were published.
 
     Parameters
     ----------
@@ -31,6 +47,11 @@ def replay(path: str, rate: float = 1.0, clock: bool = False,
         Also publish /clock with the log times.
     topics : iterable of str, optional
         Only these topics.
+    discovery_wait_s : float
+        Wall time to wait after creating the publishers, so that subscribers discover them, s.
+    node_name : str
+        Name of the publishing node.
+
     """
     if not rate > 0.0:
         raise InputError(f'rate: must be > 0, got {rate!r}')

@@ -1,4 +1,19 @@
-"""Nonlinear normal modes of the conservative system (eq. 33) by shooting, and V_o calibration.
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Nonlinear normal modes of the conservative system (eq. 33) by shooting, and V_o calibration.
 
 Method
 ------
@@ -19,17 +34,17 @@ import math
 from typing import List, Sequence
 
 import numpy as np
-from scipy.integrate import solve_ivp
-from scipy.optimize import brentq, fsolve
-
 from ring_gyro_sim.core import forces
 from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.params import SimConfig
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq, fsolve
 
 
 @dataclass(frozen=True)
 class NonlinearModePoint:
-    """One periodic orbit of eq. (33).
+    """
+    One periodic orbit of eq. (33).
 
     Attributes
     ----------
@@ -41,6 +56,7 @@ class NonlinearModePoint:
         Coordinates at the turning point t = 0 (velocities are zero), m.
     residual : float
         max |v(T/2)| / (omega_n A), dimensionless (convergence check).
+
     """
 
     amplitude_m: float
@@ -102,7 +118,8 @@ def _solve_point(m: _Model, index: int, start: float, guess_others: np.ndarray,
 
 def nonlinear_mode(config: SimConfig, amplitudes_m: Sequence[float],
                    mode: int = 1) -> List[NonlinearModePoint]:
-    """Points of the nonlinear normal mode (backbone) of the ``mode``-theta coordinate.
+    """
+    Points of the nonlinear normal mode (backbone) of the ``mode``-theta coordinate.
 
     Parameters
     ----------
@@ -116,6 +133,7 @@ def nonlinear_mode(config: SimConfig, amplitudes_m: Sequence[float],
     Returns
     -------
     list of NonlinearModePoint
+
     """
     m = _Model(config)
     index = mode - 1
@@ -156,7 +174,8 @@ def frequency_at_amplitude(config: SimConfig, amplitude_m: float, mode: int = 1,
 def calibrate_outer_voltage(config: SimConfig, target_hz: float = 10.6e3,
                             amplitude_m: float = 6e-6, bracket_v=(1.0, 12.0),
                             mode: int = 1) -> float:
-    """Outer voltage (V) at which the backbone passes through (amplitude, target frequency).
+    """
+    Outer voltage (V) at which the backbone passes through (amplitude, target frequency).
 
     Parameters
     ----------
@@ -164,8 +183,13 @@ def calibrate_outer_voltage(config: SimConfig, target_hz: float = 10.6e3,
         Configuration to calibrate on (its N_R, N_T and electrodes; V_o is varied).
     target_hz : float
         Backbone frequency at ``amplitude_m``, Hz (Fig. 4: about 10.6 kHz at about 6 um).
+    amplitude_m : float
+        Amplitude (max |q_mode| over the period) at which the frequency is matched, m.
     bracket_v : (float, float)
         Voltage bracket, V.
+    mode : int
+        n of the calibrated n-theta mode (1: the 1theta mode).
+
     """
     def miss(volts: float) -> float:
         c = replace(config, electrodes=replace(config.electrodes, outer_voltage=volts))
@@ -175,15 +199,15 @@ def calibrate_outer_voltage(config: SimConfig, target_hz: float = 10.6e3,
 
 
 def describe(points: Sequence[NonlinearModePoint]) -> str:
-    """A small table of backbone points (amplitude um, frequency Hz)."""
+    """Format a small table of backbone points (amplitude um, frequency Hz)."""
     return '\n'.join(f'{p.amplitude_m * 1e6:8.3f} um  {p.frequency_hz:10.2f} Hz'
                      for p in points)
 
 
-
 @dataclass(frozen=True)
 class ForcedOrbit:
-    """Periodic response to the 2theta drive ``A_e cos(2 pi f t)`` (eq. 28, damped).
+    """
+    Periodic response to the 2theta drive ``A_e cos(2 pi f t)`` (eq. 28, damped).
 
     Attributes
     ----------
@@ -195,6 +219,7 @@ class ForcedOrbit:
         ``[x, v]`` at a time where the drive phase is 0 (m, m/s).
     floquet_multipliers : ndarray, shape (2 n,)
         Eigenvalues of the monodromy matrix (stable iff all |mu| < 1).
+
     """
 
     frequency_hz: float
@@ -210,7 +235,8 @@ class ForcedOrbit:
 
 def forced_orbit(config: SimConfig, frequency_hz: float, amplitude_guess_m: float,
                  drive_amplitude: float) -> ForcedOrbit:
-    """Periodic orbit of the driven, damped system by shooting over one drive period.
+    """
+    Periodic orbit of the driven, damped system by shooting over one drive period.
 
     Parameters
     ----------
@@ -223,6 +249,7 @@ def forced_orbit(config: SimConfig, frequency_hz: float, amplitude_guess_m: floa
         so a guess near the upper branch converges to it.
     drive_amplitude : float
         A_e, m/s^2.
+
     """
     m = _Model(config)
     n = m.n
@@ -268,7 +295,8 @@ def forced_orbit(config: SimConfig, frequency_hz: float, amplitude_guess_m: floa
 
 
 def drive_initial_state(config: SimConfig):
-    """Initial ``(x, v)`` for ``drive.start_on`` (None for 'rest' or with the drive off).
+    """
+    Return the initial ``(x, v)`` for ``drive.start_on`` (None for 'rest' or with the drive off).
 
     The state is the stable periodic response to the initial drive at drive phase 0 (t = 0),
     on the branch asked for: the shooting starts from the peak amplitude
@@ -278,6 +306,7 @@ def drive_initial_state(config: SimConfig):
     ------
     SimulationError
         No stable orbit was found on that branch (e.g. outside the bistable range).
+
     """
     d = config.drive
     if d.start_on == 'rest' or d.amplitude == 0.0 or d.frequency == 0.0:

@@ -1,4 +1,19 @@
-"""Electrostatic generalised force of the ring (eqs. 18-26), evaluated by exact quadrature.
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Electrostatic generalised force of the ring (eqs. 18-26), evaluated by exact quadrature.
 
 Conventions
 -----------
@@ -46,9 +61,16 @@ from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.params import SimConfig
 
 
+SYMMETRY_TOLERANCE = 1e-12
+"""r_o V_o^2 and r_i V_i^2 closer than this (relative) are taken as equal: users write
+symmetric voltages as ``V_i = V_o sqrt(r_o / r_i)``, which rounds; treating them as exactly
+symmetric makes the even terms vanish exactly (q2 stays 0 bit for bit, eq. 36)."""
+
+
 @dataclass(frozen=True)
 class ForceModel:
-    """Flat arrays of the electrostatic force, as the kernels take them.
+    """
+    Flat arrays of the electrostatic force, as the kernels take them.
 
     Attributes
     ----------
@@ -88,6 +110,7 @@ class ForceModel:
         An inner electrode is present (V_i != 0): ``u <= -1`` is contact there.
     masses : ndarray, shape (n,)
         Generalised masses, kg.
+
     """
 
     harmonics: np.ndarray
@@ -132,7 +155,7 @@ def mode_shapes(harmonics: np.ndarray, sine: np.ndarray, theta: np.ndarray) -> n
 
 
 def quadrature_points(n_modes: int, taylor_terms: int) -> int:
-    """Number M of quadrature angles on the full circle, a multiple of 4 (module docstring)."""
+    """Return the number M of quadrature angles on the circle (a multiple of 4, see the module)."""
     if taylor_terms == 0:
         return 128 * n_modes
     m = max(taylor_terms * n_modes + 1, 8 * n_modes + 1)
@@ -165,6 +188,8 @@ def build_force_model(config: SimConfig) -> ForceModel:
     a_eps = config.a_eps
     outer = a_eps * config.outer_radius * e.outer_voltage ** 2
     inner = a_eps * config.inner_radius * e.inner_voltage ** 2
+    if inner != outer and abs(inner - outer) <= SYMMETRY_TOLERANCE * max(inner, outer):
+        inner = outer  # symmetric electrodes up to the rounding of the inputs (eq. 36)
     fold = e.fold_linear_stiffness
     k_min = 3 if fold else 1
     n_t = e.taylor_terms
@@ -191,7 +216,8 @@ def _check_state(x: np.ndarray, model: ForceModel) -> np.ndarray:
 
 
 def nonlinear_acceleration(x: np.ndarray, model: ForceModel) -> np.ndarray:
-    """Electrostatic generalised force divided by the modal masses, m/s^2.
+    """
+    Electrostatic generalised force divided by the modal masses, m/s^2.
 
     This is ``-F_nl`` of eq. (28) (the linear part excluded when folded).
 
@@ -200,6 +226,7 @@ def nonlinear_acceleration(x: np.ndarray, model: ForceModel) -> np.ndarray:
     x : ndarray, shape (n,)
         Coordinates, m.
     model : ForceModel
+        Precomputed basis, projection and electrode data (:func:`build_force_model`).
 
     Returns
     -------
@@ -209,6 +236,7 @@ def nonlinear_acceleration(x: np.ndarray, model: ForceModel) -> np.ndarray:
     ------
     SimulationError
         The state is out of the model's range (contact or ``|w| >= d_g`` for the series).
+
     """
     x = _check_state(x, model)
     out = np.zeros_like(x)
@@ -281,7 +309,8 @@ def electrostatic_energy(x: np.ndarray, model: ForceModel) -> float:
 
 def mechanical_energy(x: np.ndarray, v: np.ndarray, omega: np.ndarray,
                       model: ForceModel) -> float:
-    """Conserved energy of the undamped, unforced system, J.
+    """
+    Conserved energy of the undamped, unforced system, J.
 
     ``H = sum_i m_i (v_i^2 + omega_i^2 x_i^2) / 2 - E_c(x)``.
     """

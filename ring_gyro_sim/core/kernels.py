@@ -1,4 +1,19 @@
-"""Compiled kernels: the electrostatic force and the time stepper.
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Compiled kernels: the electrostatic force and the time stepper.
 
 Method
 ------
@@ -62,7 +77,8 @@ def describe_status(status: int, theta_rad: float) -> str:
 
 
 def splitting_coefficients(method: str):
-    """Drift (``a``) and kick (``b``) coefficients of a BAB splitting, ``len(b) = len(a) + 1``.
+    """
+    Drift (``a``) and kick (``b``) coefficients of a BAB splitting, ``len(b) = len(a) + 1``.
 
     The last coefficient of each half is derived from the consistency conditions
     (``sum a = sum b = 1``) rather than copied.
@@ -87,7 +103,8 @@ def splitting_coefficients(method: str):
 
 
 def linear_propagators(omega: np.ndarray, zeta: np.ndarray, taus: np.ndarray) -> np.ndarray:
-    """Exact flow of ``x'' + 2 zeta omega x' + omega^2 x = 0`` over each time ``tau``.
+    """
+    Exact flow of ``x'' + 2 zeta omega x' + omega^2 x = 0`` over each time ``tau``.
 
     Parameters
     ----------
@@ -102,6 +119,7 @@ def linear_propagators(omega: np.ndarray, zeta: np.ndarray, taus: np.ndarray) ->
     -------
     ndarray, shape (s, n, 4)
         ``[xx, xv, vx, vv]`` with ``x1 = xx x0 + xv v0`` and ``v1 = vx x0 + vv v0``.
+
     """
     wd = omega * np.sqrt(1.0 - zeta ** 2)
     out = np.empty((taus.size, omega.size, 4))
@@ -153,7 +171,8 @@ def _range_status(u, inner_contact, taylor_terms):
 @njit(cache=True)
 def nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold,
              inner_contact, gap, work, out, info):
-    """Electrostatic generalised force / modal mass at ``x`` (see ``core/forces.py``).
+    """
+    Electrostatic generalised force / modal mass at ``x`` (see ``core/forces.py``).
 
     The quadrature angles come in orbits ``{theta, -theta, pi - theta, pi + theta}``; only a
     representative ``theta_j`` in [0, pi/2] is stored (R of them). ``signs[0, i]``
@@ -237,7 +256,8 @@ def nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold
 @njit(cache=True)
 def _external(t, t_mid, pulses, profile_t, profile_x, profile_y, drive_amp, drive_omega,
               drive_t_ref, drive_phase, drive_index, y_index, fe):
-    """External acceleration at time ``t`` (s) into ``fe`` (m/s^2).
+    """
+    External acceleration at time ``t`` (s) into ``fe`` (m/s^2).
 
     Base acceleration ``a_b`` enters as ``-a_b`` on q_1 (x) and q_1^s (y) (eq. 27); the drive
     as ``A cos(omega (t - t_ref) + phase)`` on q_2. Whether a pulse acts is decided at the
@@ -327,7 +347,8 @@ def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_
                 fold, inner_contact, gap, pulses, profile_t, profile_x, profile_y, drive_amp,
                 drive_omega, drive_t_ref, drive_phase, drive_index, y_index, out_q, out_v,
                 work, fe, info, tinfo):
-    """Advance ``n_samples`` output periods from sample index ``k0``.
+    """
+    Advance ``n_samples`` output periods from sample index ``k0``.
 
     Step times are computed from integer indices (``k period + j h``), so the result does not
     depend on how a run is cut into calls. A step that overlaps a shock pulse is cut at the
@@ -396,7 +417,8 @@ def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_
 @njit(cache=True)
 def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electrode_weights,
                     cap_scale, gap_floor, out_gap, out_min, out_cap):
-    """Outer gaps, smallest gap and electrode capacitances of every sample.
+    """
+    Outer gaps, smallest gap and electrode capacitances of every sample.
 
     Parameters
     ----------
@@ -419,6 +441,7 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
         Smallest gap used in 1 / gap (contact keeps the capacitance finite), m.
     out_gap, out_min, out_cap : ndarray
         (S, K) gaps (m), (S,) smallest gap (m), (S, K) capacitances (F).
+
     """
     n_s, n = q.shape
     n_k = centre_shapes.shape[0]

@@ -1,9 +1,25 @@
-"""Parameters of a run: one table, frozen dataclasses, one loader.
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Parameters of a run: one table, frozen dataclasses, one loader.
 
 The single table :data:`PARAMETERS` lists every parameter once: its dotted ROS name, type,
 default, unit, description, allowed range and whether a change needs a restart. The ROS node
 declares its parameters from this table (``ros/parameters.py``) and the offline command line
-reads the same YAML file through :func:`load_yaml`, so one file drives both.
+reads the same YAML file through :func:`ring_gyro_sim.paramfile.load_yaml`, so one file drives
+both.
 
 :func:`build_config` turns a flat ``{dotted name: value}`` mapping into a :class:`SimConfig`
 of frozen dataclasses grouped by concern; each dataclass validates itself in
@@ -153,7 +169,8 @@ def _positive(name: str, value: float) -> None:
 
 
 def coerce(name: str, value: Any) -> Any:
-    """Convert a raw YAML / ROS value to the kind of parameter ``name``.
+    """
+    Convert a raw YAML / ROS value to the kind of parameter ``name``.
 
     Integer literals are accepted for floats; ``None`` (rcl's "not set", e.g. an empty YAML
     list) gives the empty list for list parameters and the default otherwise.
@@ -162,6 +179,7 @@ def coerce(name: str, value: Any) -> Any:
     ------
     ParameterError
         Unknown name or a value of the wrong kind.
+
     """
     spec = SPECS.get(name)
     if spec is None:
@@ -251,7 +269,8 @@ class LegParams:
 
 @dataclass(frozen=True)
 class ModeParams:
-    """Linear modes: frequency (Hz) and Q of every coordinate.
+    """
+    Linear modes: frequency (Hz) and Q of every coordinate.
 
     ``frequencies[i]`` is the (n = i + 1)-theta mode. With companions the sin(n theta)
     coordinates follow, with their own frequencies (for split pairs such as 4theta with 8 legs).
@@ -515,7 +534,8 @@ def defaults() -> Dict[str, Any]:
 
 
 def build_config(values: Mapping[str, Any], *, frequencies_from_legs=None) -> SimConfig:
-    """Build and validate a :class:`SimConfig` from a flat ``{dotted name: value}`` mapping.
+    """
+    Build and validate a :class:`SimConfig` from a flat ``{dotted name: value}`` mapping.
 
     Missing names take their defaults. ``modes.frequencies`` empty means: compute them from
     ring and legs (eqs. 7-17), which needs ``legs.radial_stiffness`` > 0.
@@ -525,6 +545,7 @@ def build_config(values: Mapping[str, Any], *, frequencies_from_legs=None) -> Si
     ParameterError
         Unknown name, wrong kind, out of range, or an inconsistent set; the message starts with
         the parameter name.
+
     """
     flat = defaults()
     for name, raw in values.items():
@@ -584,7 +605,7 @@ def _frequencies_from_structure(ring: RingParams, legs: LegParams,
 
 
 def to_flat(config: SimConfig) -> Dict[str, Any]:
-    """The flat ``{dotted name: value}`` mapping that rebuilds ``config`` (for metadata)."""
+    """Return the flat ``{dotted name: value}`` mapping that rebuilds ``config`` (for metadata)."""
     c = config
     return {
         'modes.frequencies': list(c.modes.frequencies),
@@ -630,43 +651,3 @@ def flatten(tree: Mapping[str, Any], prefix: str = '') -> Dict[str, Any]:
         else:
             out[name] = value
     return out
-
-
-def parameters_from_yaml_text(text: str, node_name: str = 'ring_gyro') -> Dict[str, Any]:
-    """Flat parameters from the text of a ROS 2 ``--params-file`` YAML.
-
-    Accepts the ROS layout (``<node>: ros__parameters: ...``, ``/**:`` or the fully
-    qualified node name) and, for convenience, a bare mapping of parameters.
-    """
-    import yaml
-    try:
-        tree = yaml.safe_load(text) or {}
-    except yaml.YAMLError as exc:
-        raise ParameterError(f'params file: not valid YAML ({exc})') from None
-    if not isinstance(tree, Mapping):
-        raise ParameterError('params file: the top level must be a mapping')
-    sections = []
-    for key, value in tree.items():
-        if isinstance(value, Mapping) and 'ros__parameters' in value:
-            bare = str(key).lstrip('/').split('/')[-1]
-            if key in ('/**', '**') or bare == node_name or bare == '*':
-                sections.append(value['ros__parameters'] or {})
-    if not sections:
-        if any(isinstance(v, Mapping) and 'ros__parameters' in v for v in tree.values()):
-            raise ParameterError(f'params file: no ros__parameters section for node '
-                                 f'{node_name!r} or /**')
-        sections = [tree]
-    flat: Dict[str, Any] = {}
-    for section in sections:
-        flat.update(flatten(section))
-    return flat
-
-
-def load_yaml(path: str, node_name: str = 'ring_gyro') -> SimConfig:
-    """Load and validate a :class:`SimConfig` from a ``--params-file`` YAML file."""
-    try:
-        with open(path, 'r', encoding='utf-8') as fh:
-            text = fh.read()
-    except OSError as exc:
-        raise ParameterError(f'params file {path!r}: {exc.strerror}') from None
-    return build_config(parameters_from_yaml_text(text, node_name))

@@ -1,4 +1,19 @@
-"""The Simulator: state, inputs at exact simulation times, and chunked advancing.
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The Simulator: state, inputs at exact simulation times, and chunked advancing.
 
 Time
 ----
@@ -50,7 +65,8 @@ GAP_FLOOR_RATIO = 1e-3
 
 
 def default_max_step(config: SimConfig) -> float:
-    """Largest step, s: ``integrator.max_step`` or 1/8 of the fastest period.
+    """
+    Largest step, s: ``integrator.max_step`` or 1/8 of the fastest period.
 
     The linear part is exact, so the step is set by the accuracy of the nonlinear coupling
     only: at 1/8 of the fastest period (5 us for the paper's 22 kHz 3theta mode) ``bm4``
@@ -65,7 +81,8 @@ def default_max_step(config: SimConfig) -> float:
 
 @dataclass(frozen=True)
 class Samples:
-    """Output samples of one stretch of simulation.
+    """
+    Output samples of one stretch of simulation.
 
     Attributes
     ----------
@@ -79,6 +96,7 @@ class Samples:
         Smallest outer gap around the ring, m.
     capacitance : ndarray, shape (K, E)
         Capacitance of each outer electrode, F (untruncated parallel plate).
+
     """
 
     t: np.ndarray
@@ -93,12 +111,14 @@ class Samples:
 
 
 class Simulator:
-    """Coupled modal equations of the ring (eq. 28), advanced in chunks.
+    """
+    Coupled modal equations of the ring (eq. 28), advanced in chunks.
 
     Parameters
     ----------
     config : SimConfig
         Validated configuration. ``scenario.shock_times`` / ``shock_peaks`` are scheduled.
+
     """
 
     def __init__(self, config: SimConfig) -> None:
@@ -195,7 +215,8 @@ class Simulator:
                 'sense_electrodes': electrodes}
 
     def reconfigure(self, config: SimConfig, at_ns: Optional[int] = None) -> None:
-        """Apply a new configuration (voltages, Q, drive, shock duration...) at a sample time.
+        """
+        Apply a new configuration (voltages, Q, drive, shock duration...) at a sample time.
 
         The coordinates must stay the same (number of modes, companions).
         """
@@ -237,7 +258,8 @@ class Simulator:
 
     def shock(self, peak_x: float, peak_y: float = 0.0, at_ns: Optional[int] = None,
               duration_s: Optional[float] = None) -> None:
-        """Schedule a half-sine base-acceleration pulse (eq. 32).
+        """
+        Schedule a half-sine base-acceleration pulse (eq. 32).
 
         Parameters
         ----------
@@ -248,6 +270,7 @@ class Simulator:
             Start time, ns (default: now). Exact, need not be on the sample grid.
         duration_s : float, optional
             T_s, s (default ``shock.duration`` or one tenth of the 2theta period).
+
         """
         for name, val in (('shock.x', peak_x), ('shock.y', peak_y)):
             if not math.isfinite(val):
@@ -398,7 +421,8 @@ class Simulator:
         completed = kernels.run_samples(
             self.q, self.v, self._acc, self.sample_index, count, self.period_s, self.n_sub,
             self.h, self._a, self._b, self._prop, pulse_max_sub, self.omega, self.zeta,
-            self._prop_sub, m.basis, m.projection, m.signs, m.poly, m.taylor_terms, m.outer, m.inner, m.fold, m.inner_contact,
+            self._prop_sub, m.basis, m.projection, m.signs, m.poly, m.taylor_terms, m.outer,
+            m.inner, m.fold, m.inner_contact,
             m.gap, pulse_arr, prof_t, prof_x, prof_y, self._drive_amp, self._drive_omega,
             self._drive_t_ref, self._drive_phase, self._drive_index, self._y_index, out_q,
             out_v, self._work, self._fe, self._info, self._tinfo)

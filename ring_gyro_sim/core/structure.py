@@ -1,4 +1,19 @@
-"""Linear mechanical model of the supported ring: mass and stiffness matrices (eqs. 7-17).
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Linear mechanical model of the supported ring: mass and stiffness matrices (eqs. 7-17).
 
 The ring is thin and inextensible (radial displacement w = -du/dtheta) and is described by the
 Ritz expansion of eqs. (2)-(4) with N_R pairs of generalised coordinates.
@@ -33,9 +48,8 @@ Units
 import math
 
 import numpy as np
-import scipy.linalg
-
 from ring_gyro_sim.core.errors import ParameterError
+import scipy.linalg
 
 # Entries smaller than this fraction of the largest |entry| count as zero (round-off of sums).
 _RELATIVE_ZERO = 1e-12
@@ -77,7 +91,8 @@ def _check_float(value, name, *, positive=False, nonnegative=False):
 
 
 def ring_mass(radius_m, thickness_m, length_m, density_kg_m3):
-    """Physical mass of the ring, m_r = rho 2 pi r h l.
+    """
+    Physical mass of the ring, m_r = rho 2 pi r h l.
 
     Parameters
     ----------
@@ -109,7 +124,8 @@ def ring_mass(radius_m, thickness_m, length_m, density_kg_m3):
 
 
 def second_moment_of_area(thickness_m, length_m):
-    """In-plane second moment of area of the ring cross-section, I = l h^3 / 12.
+    """
+    In-plane second moment of area of the ring cross-section, I = l h^3 / 12.
 
     The bending axis is parallel to the ring axis, so the radial thickness is cubed. E I is the
     in-plane flexural rigidity of eq. (10).
@@ -138,7 +154,8 @@ def second_moment_of_area(thickness_m, length_m):
 
 
 def modal_mass_factor(n):
-    """Generalised mass of the n-theta mode per unit ring mass, (n^2 + 1) / (2 n^2) (eq. 7).
+    """
+    Generalised mass of the n-theta mode per unit ring mass, (n^2 + 1) / (2 n^2) (eq. 7).
 
     Parameters
     ----------
@@ -161,7 +178,8 @@ def modal_mass_factor(n):
 
 
 def ring_mass_matrix(n_modes, ring_mass_kg):
-    """Ring mass matrix M_r of eqs. (7)-(8), without the ring-centre coupling M_br.
+    """
+    Ring mass matrix M_r of eqs. (7)-(8), without the ring-centre coupling M_br.
 
     Parameters
     ----------
@@ -189,7 +207,8 @@ def ring_mass_matrix(n_modes, ring_mass_kg):
 
 
 def ring_stiffness_matrix(n_modes, youngs_modulus_pa, second_moment_m4, radius_m):
-    """Ring stiffness matrix K_r of eq. (11), from the strain energy of eq. (10).
+    """
+    Ring stiffness matrix K_r of eq. (11), from the strain energy of eq. (10).
 
     Parameters
     ----------
@@ -247,7 +266,8 @@ def _check_leg_geometry(n_modes, n_legs, angle_rad):
 
 
 def leg_stiffness_matrix(n_modes, n_legs, angle_rad, radial_stiffness, tangential_stiffness):
-    """Total support-leg stiffness matrix K_l by direct summation of eq. (13) over the legs.
+    """
+    Total support-leg stiffness matrix K_l by direct summation of eq. (13) over the legs.
 
     ``K_l = sum_{j=1}^{N_l} Psi(theta_j) diag(k_r, k_t) Psi^T(theta_j)`` with
     ``theta_j = 2 j pi / N_l + alpha`` (eqs. 12-13). This is the reference implementation;
@@ -290,7 +310,8 @@ def leg_stiffness_matrix(n_modes, n_legs, angle_rad, radial_stiffness, tangentia
 
 
 def _leg_sums(n, p, n_legs, angle):
-    """Sum a_cc, a_ss, a_cs and a_sc over the legs (eqs. 39-45 and the Appendix table).
+    """
+    Sum a_cc, a_ss, a_cs and a_sc over the legs (eqs. 39-45 and the Appendix table).
 
     Returns ``(S_cc, S_ss, S_cs, S_sc)``; all four are zero unless ``(n - p) / N_l`` or
     ``(n + p) / N_l`` is an integer. The printed table stops before the a_sc row; it follows from
@@ -341,7 +362,8 @@ def _closed_form(n_modes, n_legs, angle, radial, tangential):
 def leg_stiffness_matrix_closed_form(
     n_modes, n_legs, angle_rad, radial_stiffness, tangential_stiffness
 ):
-    """Total support-leg stiffness matrix K_l from the Appendix closed form (eqs. 37-45).
+    """
+    Total support-leg stiffness matrix K_l from the Appendix closed form (eqs. 37-45).
 
     Block ``(n, p)`` (rows ``2n-2 .. 2n-1``, columns ``2p-2 .. 2p-1``) is eq. (38) summed over
     the legs, with the sums of a_cc, a_ss, a_cs and a_sc taken from the Appendix table: non-zero
@@ -390,7 +412,8 @@ def leg_stiffness_matrix_closed_form(
 
 
 def leg_mass_matrix(n_modes, n_legs, angle_rad, leg_mass_kg):
-    """Total support-leg mass matrix M_l of eq. (16), without the ring-centre coupling M_bl.
+    """
+    Total support-leg mass matrix M_l of eq. (16), without the ring-centre coupling M_bl.
 
     Same structure as K_l with both k_r and k_t replaced by the point mass m_l of one leg
     (each leg moves radially and tangentially with the ring at its attachment point).
@@ -424,7 +447,8 @@ def leg_mass_matrix(n_modes, n_legs, angle_rad, leg_mass_kg):
 
 
 def couples_different_modes(n_modes, n_legs):
-    """Whether the legs can couple two different modes n != p <= N_R (Appendix).
+    """
+    Whether the legs can couple two different modes n != p <= N_R (Appendix).
 
     True iff some ``1 <= p < n <= N_R`` has ``(n - p) / N_l`` or ``(n + p) / N_l`` integer. This
     depends on N_R and N_l only; for special angles or stiffness ratios the coupling entries may
@@ -458,7 +482,8 @@ def couples_different_modes(n_modes, n_legs):
 
 
 def coupling_pattern(n_modes, n_legs, angle_rad):
-    """Non-zero pattern of K_l for generic, unequal leg stiffnesses (Fig. 2).
+    """
+    Non-zero pattern of K_l for generic, unequal leg stiffnesses (Fig. 2).
 
     K_l is computed by direct summation (:func:`leg_stiffness_matrix`) with k_r = 1 and
     k_t = sqrt(2) N/m (an irrational ratio, so no entry cancels by accident); an entry counts as
@@ -507,7 +532,8 @@ def natural_frequencies_hz(
     tangential_stiffness,
     leg_mass_kg,
 ):
-    """Linear natural frequencies of the supported ring on a fixed hub.
+    """
+    Linear natural frequencies of the supported ring on a fixed hub.
 
     Solves the generalised eigenproblem ``(K_r + K_l) x = omega^2 (M_r + M_l) x``
     (eqs. 7, 11, 13, 16). The ring-centre blocks M_br and M_bl (eqs. 9, 17) are left out: the

@@ -1,4 +1,19 @@
-"""What rosbag2 (Jazzy) stores besides the messages: QoS profiles and the bag metadata.
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+What rosbag2 (Jazzy) stores besides the messages: QoS profiles and the bag metadata.
 
 Layouts follow rosbag2_storage (Jazzy, metadata version 9): ``qos.cpp``
 (``convert<rclcpp::QoS>::encode``, ``serialize_rclcpp_qos_vector``) and ``yaml.hpp``
@@ -40,7 +55,8 @@ def qos_profile(*, reliable: bool, durability: str, depth: int) -> dict:
 
 def bag_metadata(*, file_name, topics, message_count, start_ns, end_ns, custom_data,
                  ros_distro) -> dict:
-    """Return the BagMetadata mapping of a single-file bag in rosbag2's key order.
+    """
+    Return the BagMetadata mapping of a single-file bag in rosbag2's key order.
 
     ``topics`` holds (name, type, qos_profile, type_hash, message_count) tuples; times are
     integer ns (0 for an empty bag).

@@ -1,4 +1,19 @@
-"""Read ROS 2 bags (MCAP), including what a killed recorder left behind.
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Read ROS 2 bags (MCAP), including what a killed recorder left behind.
 
 A finished file is read through its summary and indexes (seeking, in log-time order). A file
 without a valid summary, such as one truncated by ``kill -9``, is read linearly from the start:
@@ -33,7 +48,8 @@ _TRUNCATION_ERRORS = (McapError, ValueError, struct.error, EOFError, ZstdError)
 
 @dataclasses.dataclass(frozen=True, slots=True)
 class BagMessage:
-    """One recorded message.
+    """
+    One recorded message.
 
     Attributes
     ----------
@@ -49,6 +65,7 @@ class BagMessage:
         Publish (send) time in ns.
     sequence : int
         Per-channel sequence number as written (0 if the writer did not set one).
+
     """
 
     topic: str
@@ -146,7 +163,8 @@ def _iter_messages(path, topics):
 
 
 def read_messages(path, topics=None):
-    """Iterate over the messages of a bag in log-time order.
+    """
+    Iterate over the messages of a bag in log-time order.
 
     Parameters
     ----------
@@ -165,12 +183,14 @@ def read_messages(path, topics=None):
     ------
     RecordingError
         Immediately, if the file cannot be opened or is not an MCAP file.
+
     """
     return _iter_messages(_checked_path(path), _topic_set(topics))
 
 
 def read_metadata(path, name):
-    """Return the metadata record ``name`` of a bag as a dict[str, str].
+    """
+    Return the metadata record ``name`` of a bag as a dict[str, str].
 
     Works on truncated files too (metadata records written before the cut are kept). If
     several records have this name, the last one is returned.
@@ -179,6 +199,7 @@ def read_metadata(path, name):
     ------
     RecordingError
         If the file cannot be read or holds no metadata record of that name.
+
     """
     path = _checked_path(path)
     records = []
@@ -202,12 +223,14 @@ def read_metadata(path, name):
 
 
 def decode(message: BagMessage):
-    """Deserialize a :class:`BagMessage` into an instance of its rclpy message class.
+    """
+    Deserialize a :class:`BagMessage` into an instance of its rclpy message class.
 
     Raises
     ------
     RecordingError
         If the type cannot be imported or the data is not a valid message of that type.
+
     """
     if not message.type_name:
         raise RecordingError(f'message on {message.topic!r} has no schema to decode it with')

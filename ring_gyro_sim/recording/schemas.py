@@ -1,4 +1,19 @@
-"""ROS 2 message definitions and type hashes, as rosbag2 (Jazzy) stores them in a bag.
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+ROS 2 message definitions and type hashes, as rosbag2 (Jazzy) stores them in a bag.
 
 The schema text reproduces ``rosbag2_cpp::LocalMessageDefinitionSource::get_full_text`` for the
 ``ros2msg`` encoding: the type's own ``.msg`` file verbatim (comments included), then every
@@ -104,7 +119,8 @@ def _msg_spec(type_name):
 
 @functools.lru_cache(maxsize=None)
 def message_definition(type_name: str) -> str:
-    r"""Return the full ``ros2msg`` schema text of a message type, as rosbag2 Jazzy writes it.
+    r"""
+    Return the full ``ros2msg`` schema text of a message type, as rosbag2 Jazzy writes it.
 
     Parameters
     ----------
@@ -121,6 +137,7 @@ def message_definition(type_name: str) -> str:
     ------
     RecordingError
         If the type or one of its dependencies is not installed.
+
     """
     seen = set()
 
@@ -146,7 +163,8 @@ def message_definition(type_name: str) -> str:
 
 @functools.lru_cache(maxsize=None)
 def type_description_hash(type_name: str) -> str:
-    """Return the REP-2011 type hash ('RIHS01_<64 hex>') of a message type, '' if unavailable.
+    """
+    Return the REP-2011 type hash ('RIHS01_<64 hex>') of a message type, '' if unavailable.
 
     The hash is read from ``share/<pkg>/msg/<Type>.json``, the type description that
     rosidl_generator_type_description installs and from which the hash compiled into the type
@@ -157,6 +175,7 @@ def type_description_hash(type_name: str) -> str:
     ----------
     type_name : str
         'pkg/msg/Type' (or 'pkg/Type').
+
     """
     package, namespace, name = _split_type_name(type_name)
     path = _interface_file(package, namespace, name, '.json')
@@ -176,12 +195,14 @@ def type_description_hash(type_name: str) -> str:
 
 
 def message_type_name(message_or_class) -> str:
-    """Return 'pkg/msg/Type' of an rclpy message instance or class.
+    """
+    Return 'pkg/msg/Type' of an rclpy message instance or class.
 
     Raises
     ------
     TypeError
         If the argument is not a generated ROS 2 message (instance or class).
+
     """
     cls = message_or_class if isinstance(message_or_class, type) else type(message_or_class)
     parts = getattr(cls, '__module__', '').split('.')
@@ -193,12 +214,14 @@ def message_type_name(message_or_class) -> str:
 
 @functools.lru_cache(maxsize=None)
 def message_class(type_name: str) -> type:
-    """Return the rclpy message class of 'pkg/msg/Type' (or 'pkg/Type').
+    """
+    Return the rclpy message class of 'pkg/msg/Type' (or 'pkg/Type').
 
     Raises
     ------
     RecordingError
         If the Python module of the type cannot be imported.
+
     """
     package, namespace, name = _split_type_name(type_name)
     try:

@@ -1,4 +1,19 @@
-"""Write a run as a ROS 2 bag in a single MCAP file, laid out as rosbag2 (Jazzy) writes it.
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Write a run as a ROS 2 bag in a single MCAP file, laid out as rosbag2 (Jazzy) writes it.
 
 What rosbag2_storage_mcap (Jazzy) writes and this writer reproduces:
 
@@ -113,7 +128,8 @@ class _Topic:
 
 
 class BagWriter:
-    """A ROS 2 bag (profile ros2, ros2msg schemas, cdr messages) in one MCAP file.
+    """
+    A ROS 2 bag (profile ros2, ros2msg schemas, cdr messages) in one MCAP file.
 
     Use as a context manager: :meth:`finish` runs on exit, also when the body raises, so the file
     is always finalised. The file is created (or truncated) at construction.
@@ -141,6 +157,7 @@ class BagWriter:
     >>> with BagWriter('run.mcap') as bag:  # doctest: +SKIP
     ...     bag.add_topic('/clock', 'rosgraph_msgs/msg/Clock')
     ...     bag.write('/clock', clock_msg, log_time_ns=1_000_000)
+
     """
 
     def __init__(self, path, *, chunk_size=DEFAULT_CHUNK_SIZE, ros_distro='jazzy',
@@ -223,7 +240,8 @@ class BagWriter:
             raise RecordingError(f'recording {str(self._path)!r} is already finished')
 
     def add_topic(self, topic, type_name, *, reliable=True, durability='volatile', depth=10):
-        """Register a topic (its schema once per type, and a channel).
+        """
+        Register a topic (its schema once per type, and a channel).
 
         Registering the same topic again with the same type and QoS does nothing.
 
@@ -246,6 +264,7 @@ class BagWriter:
         RecordingError
             If the type is unknown, the topic is already registered differently, or the
             writer is finished.
+
         """
         if not isinstance(topic, str) or not topic.startswith('/') or len(topic) < 2:
             raise ValueError(f'topic must be a fully qualified name like /ns/name, got {topic!r}')
@@ -293,7 +312,8 @@ class BagWriter:
             self._topics[topic] = _Topic(topic, type_name, channel_id, profile, type_hash)
 
     def write(self, topic, message, log_time_ns, publish_time_ns=None):
-        """Write one message.
+        """
+        Write one message.
 
         Parameters
         ----------
@@ -313,6 +333,7 @@ class BagWriter:
             written.
         TypeError
             If ``message`` is neither bytes nor a message of the topic's type.
+
         """
         log_time_ns = _time_ns(log_time_ns, 'log_time_ns')
         publish_time_ns = (log_time_ns if publish_time_ns is None
@@ -353,7 +374,8 @@ class BagWriter:
                     self._end_ns = max(self._end_ns, log_time_ns)
 
     def add_metadata(self, name, data):
-        """Write a metadata record (name -> dict[str, str]) now, outside the chunks.
+        """
+        Write a metadata record (name -> dict[str, str]) now, outside the chunks.
 
         Written immediately, so it survives a killed process. The name 'rosbag2' is reserved
         for the record :meth:`finish` writes.
@@ -390,7 +412,8 @@ class BagWriter:
             ros_distro=self._ros_distro))
 
     def finish(self):
-        """Write the last chunk, the rosbag2 metadata and the summary, and close the file.
+        """
+        Write the last chunk, the rosbag2 metadata and the summary, and close the file.
 
         Safe to call more than once; later calls do nothing.
 
@@ -398,6 +421,7 @@ class BagWriter:
         ------
         RecordingError
             If the file cannot be written (it is closed anyway).
+
         """
         with self._lock:
             if self._closed:

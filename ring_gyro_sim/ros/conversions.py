@@ -1,4 +1,19 @@
-"""Message conversion, in one pure module: ROS messages <-> core inputs and outputs.
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Message conversion, in one pure module: ROS messages <-> core inputs and outputs.
 
 No node, no publisher here: functions take and return messages and plain values, so the node,
 the offline recorder and the tests share them. Times are integer ns (``*_ns``) everywhere;
@@ -36,7 +51,7 @@ def stamp_to_ns(stamp: Time) -> int:
 
 
 def block_message(columns: Sequence[np.ndarray], labels: Sequence[str]) -> Float64MultiArray:
-    """A Float64MultiArray block from equal-length columns (first one is ``t``, s)."""
+    """Build a Float64MultiArray block from equal-length columns (first one is ``t``, s)."""
     data = np.ascontiguousarray(np.column_stack(columns), dtype=np.float64)
     n_samples, n_channels = data.shape
     msg = Float64MultiArray()
@@ -53,13 +68,13 @@ def block_message(columns: Sequence[np.ndarray], labels: Sequence[str]) -> Float
 def block_arrays(msg: Float64MultiArray) -> Tuple[List[str], np.ndarray]:
     """Labels and the (K, C) array of a block message (inverse of :func:`block_message`)."""
     labels = msg.layout.dim[1].label.split(',')
-    data = np.asarray(msg.data, dtype=np.float64).reshape(msg.layout.dim[0].size,
-                                                           msg.layout.dim[1].size)
+    shape = (msg.layout.dim[0].size, msg.layout.dim[1].size)
+    data = np.asarray(msg.data, dtype=np.float64).reshape(shape)
     return labels, data
 
 
 def output_blocks(samples, channel_names: Dict[str, List[str]]) -> Dict[str, Float64MultiArray]:
-    """The three block messages of a :class:`~ring_gyro_sim.core.simulator.Samples`."""
+    """Build the three block messages of a :class:`~ring_gyro_sim.core.simulator.Samples`."""
     t = samples.t
     return {
         'modal_displacement': block_message([t, samples.q],
@@ -73,7 +88,8 @@ def output_blocks(samples, channel_names: Dict[str, List[str]]) -> Dict[str, Flo
 
 @dataclass(frozen=True)
 class AccelerationInput:
-    """An in-plane base acceleration from a message.
+    """
+    An in-plane base acceleration from a message.
 
     Attributes
     ----------
@@ -84,6 +100,7 @@ class AccelerationInput:
     z : float
         Out-of-plane component, m/s^2: not modelled (in-plane ring), reported so the node can
         say it was ignored.
+
     """
 
     at_ns: Optional[int]
@@ -111,7 +128,7 @@ def base_acceleration_input(msg: AccelStamped) -> AccelerationInput:
 
 
 def shock_message(at_ns: int, x: float, y: float = 0.0, frame_id: str = '') -> Vector3Stamped:
-    """A ``~/shock`` message (used to record scheduled shocks as if they had arrived)."""
+    """Build a ``~/shock`` message (used to record scheduled shocks as if they had arrived)."""
     msg = Vector3Stamped()
     msg.header.stamp = ns_to_stamp(at_ns)
     msg.header.frame_id = frame_id
@@ -122,7 +139,7 @@ def shock_message(at_ns: int, x: float, y: float = 0.0, frame_id: str = '') -> V
 
 def base_acceleration_message(at_ns: int, x: float, y: float = 0.0,
                               frame_id: str = '') -> AccelStamped:
-    """A ``~/base_acceleration`` message."""
+    """Build a ``~/base_acceleration`` message."""
     msg = AccelStamped()
     msg.header.stamp = ns_to_stamp(at_ns)
     msg.header.frame_id = frame_id
@@ -147,7 +164,7 @@ LEVELS = {'OK': DiagnosticStatus.OK, 'WARN': DiagnosticStatus.WARN,
 
 def diagnostics_message(t_ns: int, name: str, hardware_id: str, level: str, message: str,
                         values: Dict[str, object]) -> DiagnosticArray:
-    """A /diagnostics array with one status; values are formatted with ``str``."""
+    """Build a /diagnostics array with one status; values are formatted with ``str``."""
     status = DiagnosticStatus(level=LEVELS[level], name=name, message=message,
                               hardware_id=hardware_id)
     status.values = [KeyValue(key=k, value=_format(v)) for k, v in values.items()]

@@ -1,4 +1,19 @@
-"""Recording of one run to a ROS 2 bag, shared by the node and the offline command line.
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Recording of one run to a ROS 2 bag, shared by the node and the offline command line.
 
 What a recording holds (interface.md, Recording):
 
@@ -22,13 +37,12 @@ import subprocess
 from typing import Dict, Optional, Sequence
 
 import numpy as np
-from std_msgs.msg import Empty, String
-import yaml
-
 from ring_gyro_sim import __version__
 from ring_gyro_sim.core.params import SimConfig, to_flat
 from ring_gyro_sim.recording.writer import BagWriter
 from ring_gyro_sim.ros import conversions
+from std_msgs.msg import Empty, String
+import yaml
 
 METADATA_NAME = 'ring_gyro_sim'
 BLOCK_TYPE = 'std_msgs/msg/Float64MultiArray'
@@ -54,7 +68,8 @@ def git_revision() -> str:
 
 
 class RunRecorder:
-    """Writes one run to ``path`` (a context manager; the file is finalised on exit).
+    """
+    Writes one run to ``path`` (a context manager; the file is finalised on exit).
 
     Parameters
     ----------
@@ -70,6 +85,7 @@ class RunRecorder:
         Initial coordinates and velocities (m, m/s); zeros when None.
     publish_clock : bool
         Also record ``/clock``.
+
     """
 
     def __init__(self, path: str, config: SimConfig, channel_names: Dict[str, Sequence[str]],

@@ -1,3 +1,17 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """Tests of ring_gyro_sim.recording.writer, read back with independent readers."""
 
 import collections
@@ -9,13 +23,12 @@ import mcap_ros2.decoder
 import pytest
 import rclpy.serialization
 import recording_samples as samples
-from rosbags.highlevel import AnyReader
-from rosbags.interfaces import QosDurability, QosHistory, QosLiveliness, QosReliability
-from yaml import safe_load
-
 from ring_gyro_sim.recording.errors import RecordingError
 from ring_gyro_sim.recording.schemas import message_definition, type_description_hash
 from ring_gyro_sim.recording.writer import BagWriter
+from rosbags.highlevel import AnyReader
+from rosbags.interfaces import QosDurability, QosHistory, QosLiveliness, QosReliability
+from yaml import safe_load
 
 # The offered_qos_profiles channel metadata of a reliable, volatile, keep-last-10 publisher as
 # rosbag2 Jazzy serializes it (string enums, RMW_DURATION_INFINITE, no trailing newline).

@@ -1,0 +1,460 @@
+# Copyright 2025 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Tests of ring_gyro_sim.ros.node with one node process shared by the tests of this module.
+
+The tests run in file order and build on each other (a shock, then parameter changes, a
+reset, rejected inputs, a flood, and SIGTERM at the end, which also checks the recording).
+The node is paced to the wall clock (real_time_factor 1); outputs at 100 kHz.
+"""
+
+# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# isort: off
+import math
+import re
+import signal
+import threading
+import time
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from node_harness import Probe, start_node
+import numpy as np
+import pytest
+from ring_gyro_sim.core.params import build_config, to_flat
+from ring_gyro_sim.core.simulator import Simulator
+from ring_gyro_sim.offline import resimulate
+from ring_gyro_sim.paramfile import parameters_from_yaml_text
+from ring_gyro_sim.recording.reader import decode, read_messages, read_metadata
+from ring_gyro_sim.ros import conversions
+import yaml
+# isort: on
+
+PEAK = 98066.5
+"""10 000 g, m/s^2."""
+PERIOD_NS = 10_000
+CONFIG = {
+    'drive.amplitude': 0.065,
+    'drive.frequency': 15798.3,
+    'drive.start_on': 'rest',
+    'output.rate': 100000,  # integer literal for a float parameter
+    'output.block_duration': 0.01,
+    'real_time_factor': 1.0,
+    'publish_clock': True,
+    'modes.quality_factors': [120000, 64700, 170000],  # integers in a float list
+    'scenario.shock_times': [],  # an empty list reaches the node as "not set"
+    'scenario.shock_peaks': [],
+}
+LABELS = {
+    'modal_displacement': 't,q1,q2,q3',
+    'radial_gap': 't,' + ','.join(f'e{i}' for i in range(8)) + ',min',
+    'sense_electrodes': 't,' + ','.join(f'e{i}' for i in range(8)),
+}
+
+
+class Run:
+    """The shared node process, its probe and what the tests learn along the way."""
+
+    def __init__(self, node, probe, yaml_text, record_path):
+        self.node = node
+        self.probe = probe
+        self.yaml_text = yaml_text
+        self.record_path = record_path
+        self.shocks = []  # (at_ns, x) sent and expected to be accepted
+        self.reset_ns = None
+        self.base_acceleration = []  # (at_ns, x) sent and expected to be accepted
+
+
+@pytest.fixture(scope='module')
+def run(ros, tmp_path_factory):
+    workdir = tmp_path_factory.mktemp('node_run')
+    record = workdir / 'run.mcap'
+    node = start_node(workdir, {**CONFIG, 'record.path': str(record)})
+    probe = None
+    try:
+        probe = Probe()
+        probe.wait_connected()
+        yield Run(node, probe, (workdir / 'params.yaml').read_text(), record)
+    finally:
+        if probe is not None:
+            probe.destroy_node()
+        node.stop()
+        print(node.output()[-3000:])
+
+
+def offline_config(yaml_text, **changes):
+    flat = parameters_from_yaml_text(yaml_text)
+    config = build_config(flat)
+    if changes:
+        flat = to_flat(config)
+        flat.update(changes)
+        config = build_config(flat)
+    return config
+
+
+def offline_samples(sim, end_index, block=1000):
+    """Advance ``sim`` to sample ``end_index`` in blocks; return {index: row} arrays."""
+    start = sim.sample_index + 1
+    q, gap = [], []
+    while sim.sample_index < end_index:
+        s = sim.advance_samples(min(block, end_index - sim.sample_index))
+        q.append(s.q)
+        gap.append(np.column_stack([s.gap, s.min_gap]))
+    return start, np.concatenate(q), np.concatenate(gap)
+
+
+def sample_indices(t_s):
+    return np.rint(np.asarray(t_s) * 1e9 / PERIOD_NS).astype(np.int64)
+
+
+def assert_contiguous(probe):
+    for topic, blocks in probe.blocks.items():
+        index = sample_indices(np.concatenate([b.t for b in blocks]))
+        assert np.all(np.diff(index) == 1), f'{topic}: blocks not contiguous'
+
+
+def compare_with_offline(probe, sim, from_ns):
+    """
+    Compare the node's blocks after ``from_ns`` with ``sim`` advanced over the same samples.
+
+    Returns (peak |q1| node, offline, smallest gap node, offline, bitwise equal).
+    """
+    _, node_q = probe.stacked('modal_displacement', from_ns * 1e-9 - 0.05)
+    _, node_gap = probe.stacked('radial_gap', from_ns * 1e-9 - 0.05)
+    index = sample_indices(node_q[:, 0])
+    # The subscriptions matched at different times: compare the samples both topics have.
+    index, in_q, in_gap = np.intersect1d(index, sample_indices(node_gap[:, 0]),
+                                         assume_unique=True, return_indices=True)
+    node_q, node_gap = node_q[in_q], node_gap[in_gap]
+    keep = index * PERIOD_NS > from_ns
+    index, node_q, node_gap = index[keep], node_q[keep, 1:], node_gap[keep, 1:]
+    start, off_q, off_gap = offline_samples(sim, int(index[-1]))
+    rows = index - start
+    assert rows[0] >= 0
+    off_q, off_gap = off_q[rows], off_gap[rows]
+    scale = np.max(np.abs(off_q))
+    assert np.max(np.abs(node_q - off_q)) <= 1e-12 * scale
+    assert np.max(np.abs(node_gap - off_gap)) <= 1e-12 * np.max(off_gap)
+    bitwise = np.array_equal(node_q, off_q) and np.array_equal(node_gap, off_gap)
+    return (np.max(np.abs(node_q[:, 0])), np.max(np.abs(off_q[:, 0])),
+            np.min(node_gap[:, -1]), np.min(off_gap[:, -1]), bitwise)
+
+
+def future_stamp_ns(probe, ahead_s=0.3, not_before_ns=0):
+    """Return a stamp ``ahead_s`` after the node's current time, between two samples."""
+    probe.spin_for(0.1)  # take what is queued: the last block received is then recent
+    now = max(probe.last_time_ns(), not_before_ns)
+    return (now // 1_000_000 + int(ahead_s * 1000)) * 1_000_000 + 3_333
+
+
+def test_blocks_are_labelled_contiguous_and_finite(run):
+    probe = run.probe
+    probe.spin_until(lambda: all(len(b) >= 20 for b in probe.blocks.values()), 10,
+                     '20 blocks per topic')
+    for topic, blocks in probe.blocks.items():
+        for b in blocks:
+            dims = b.msg.layout.dim
+            assert dims[1].label == LABELS[topic]
+            assert dims[0].label == 'sample'
+            assert (dims[0].size, dims[0].stride) == (b.data.shape[0], b.data.size)
+            assert (dims[1].size, dims[1].stride) == (b.data.shape[1], b.data.shape[1])
+            assert b.data.shape[0] == 1000  # output.block_duration * output.rate
+            assert np.all(np.isfinite(b.data))
+    assert_contiguous(probe)
+    # The three topics carry the same sample times.
+    n = min(len(b) for b in probe.blocks.values())
+    times = [np.concatenate([b.t for b in probe.blocks[topic][-n:]]) for topic in LABELS]
+    assert np.array_equal(times[0], times[1]) and np.array_equal(times[0], times[2])
+    _, gap = probe.stacked('radial_gap')
+    assert np.all((gap[:, 1:] > 9e-6) & (gap[:, 1:] < 11e-6))  # driven from rest: near d_g
+    _, cap = probe.stacked('sense_electrodes')
+    assert np.all(cap[:, 1:] > 0.0)
+    # /clock: the end of every block, in order.
+    assert len(probe.clock) >= 10 and np.all(np.diff(probe.clock) == 10_000_000)
+    assert probe.clock[0] % 10_000_000 == 0
+
+
+def test_shock_matches_offline_simulator(run):
+    probe = run.probe
+    at_ns = future_stamp_ns(probe)
+    probe.shock(PEAK, at_ns=at_ns)
+    run.shocks.append((at_ns, PEAK))
+    probe.wait_sim_time(at_ns + 20_000_000, 10)
+
+    sim = Simulator(offline_config(run.yaml_text))
+    sim.shock(PEAK, 0.0, at_ns=at_ns)
+    t0 = time.monotonic()
+    peak, peak_off, gap, gap_off, bitwise = compare_with_offline(probe, sim, 0)
+    print(f'\nshock at {at_ns * 1e-9:.9f} s: peak |q1| node {peak:.15e} m, offline '
+          f'{peak_off:.15e} m; smallest gap node {gap:.15e} m, offline {gap_off:.15e} m; '
+          f'bitwise equal: {bitwise} (offline {sim.time_s:.2f} s in '
+          f'{time.monotonic() - t0:.1f} s)')
+    assert peak > 3e-6  # the shock arrived: a few um of q1
+    assert abs(peak - peak_off) <= 1e-12 * peak_off
+    assert abs(gap - gap_off) <= 1e-12 * gap_off
+    _, q = probe.stacked('modal_displacement')
+    before = q[sample_indices(q[:, 0]) * PERIOD_NS <= at_ns]
+    assert np.max(np.abs(before[:, 1])) < 1e-3 * peak  # and it acted at its stamp, not before
+
+
+def test_parameters_are_declared_with_descriptors(run):
+    voltage, rate, start, quality = run.probe.remote_describe(
+        'electrodes.outer_voltage', 'output.rate', 'drive.start_on', 'modes.quality_factors')
+    assert voltage.description.endswith('[V]') and not voltage.read_only
+    assert rate.description.endswith('[Hz]') and rate.read_only
+    assert rate.floating_point_range[0].from_value == 0.0
+    assert 'upper_branch' in start.additional_constraints and start.read_only
+    assert not quality.read_only and 'list of numbers' in quality.additional_constraints
+    assert list(run.probe.remote_get('modes.quality_factors')) == [120000, 64700, 170000]
+    assert run.probe.remote_get('scenario.shock_times') is None  # [] in the file: not set
+
+
+def test_invalid_parameters_are_refused_and_the_run_continues(run):
+    probe = run.probe
+    refused = [
+        (('electrodes.outer_voltage', math.nan), 'electrodes.outer_voltage'),
+        (('modes.quality_factors', [-1.0, 64700.0, 170000.0]), 'modes.quality_factors'),
+        (('electrodes.outer_voltage', 'eighty'), 'electrodes.outer_voltage'),
+        (('modes.quality_factors', [1e5, 6e4]), 'modes.quality_factors'),  # length 2, not 3
+        (('drive.frequency', -5.0), 'drive.frequency'),
+        (('real_time_factor', -1.0), 'real_time_factor'),
+        (('output.rate', 50000.0), 'output.rate'),  # read-only
+    ]
+    before = probe.last_time_ns()
+    for change, name in refused:
+        result = probe.remote_set(change)[0]
+        print(f'\n{change}: refused: {result.reason}')
+        assert not result.successful
+        assert name in result.reason
+    assert probe.remote_get('electrodes.outer_voltage') == 80.0
+    probe.wait_sim_time(before + 100_000_000, 5)
+    assert_contiguous(probe)
+
+
+def test_valid_voltage_change_takes_effect(run):
+    probe = run.probe
+    result = probe.remote_set(('electrodes.outer_voltage', 75))[0]  # an integer literal
+    assert result.successful, result.reason
+    assert probe.remote_get('electrodes.outer_voltage') == 75
+    response = probe.reset()
+    assert response.success
+    reset_s = float(re.search(r'simulation time ([0-9.]+) s', response.message).group(1))
+    run.reset_ns = int(round(reset_s * 1e9))
+    at_ns = future_stamp_ns(probe, not_before_ns=run.reset_ns)
+    probe.shock(PEAK, at_ns=at_ns)
+    run.shocks.append((at_ns, PEAK))
+    probe.wait_sim_time(at_ns + 20_000_000, 10)
+
+    results = {}
+    for volts in (75.0, 80.0):
+        # After reset() the Simulator holds exactly the state of a fresh one (rest, no
+        # pulses, the drive phase depends on the time only): start it at the reset's sample.
+        sim = Simulator(offline_config(run.yaml_text, **{'electrodes.outer_voltage': volts}))
+        sim.sample_index = run.reset_ns // PERIOD_NS
+        sim.shock(PEAK, 0.0, at_ns=at_ns)
+        if volts == 75.0:
+            results[volts] = compare_with_offline(probe, sim, run.reset_ns)
+        else:
+            _, q, _ = offline_samples(sim, probe.last_time_ns() // PERIOD_NS)
+            results[volts] = (np.max(np.abs(q[:, 0])),)
+    peak, peak_off, gap, gap_off, bitwise = results[75.0]
+    print(f'\n75 V from {reset_s:.6f} s: peak |q1| node {peak:.15e} m, offline at 75 V '
+          f'{peak_off:.15e} m, at 80 V {results[80.0][0]:.15e} m; bitwise equal: {bitwise}')
+    assert abs(peak - peak_off) <= 1e-12 * peak_off
+    assert abs(gap - gap_off) <= 1e-12 * gap_off
+    assert abs(peak - results[80.0][0]) > 1e-4 * peak  # the voltage did change the response
+
+
+def test_rejected_inputs_are_counted_and_change_nothing(run):
+    probe = run.probe
+    probe.spin_until(lambda: probe.latest_diagnostics() is not None, 5, 'diagnostics')
+    before = probe.latest_diagnostics()
+    sent = time.monotonic()
+    probe.shock(math.nan)
+    probe.shock(PEAK, at_ns=probe.last_time_ns() - 500_000_000)  # >= 0.5 s in the past
+    accel = conversions.base_acceleration_message(0, math.inf)
+    probe.accel_pub.publish(accel)
+    probe.frequency_pub.publish(conversions.float_message(-5.0))
+    probe.amplitude_pub.publish(conversions.float_message(math.nan))
+
+    def counted():
+        values = probe.latest_diagnostics(sent)
+        return values is not None and \
+            int(values['rejected_inputs']) >= int(before['rejected_inputs']) + 5
+    probe.spin_until(counted, 5, 'the rejections on /diagnostics')
+    values = probe.latest_diagnostics(sent)
+    print('\ndiagnostics:', values)
+    assert int(values['rejected_shock']) >= 2
+    assert int(values['rejected_base_acceleration']) >= 1
+    assert int(values['rejected_drive_frequency']) >= 1
+    assert int(values['rejected_drive_amplitude']) >= 1
+    assert int(values['rejected_parameter_changes']) >= 4
+    assert float(values['drive_frequency_hz']) == 15798.3
+    assert float(values['drive_amplitude']) == 0.065
+    for key in ('real_time_factor_target', 'real_time_factor_achieved', 'lag_s',
+                'sim_time_s', 'steps', 'min_gap_ratio', 'contact', 'pending_shocks'):
+        assert key in values
+    assert values['contact'] == 'False'
+    log = run.node.output()
+    assert 'rejected ~/shock: not finite' in log
+    assert 'in the past' in log
+    assert_contiguous(probe)
+    for blocks in probe.blocks.values():
+        assert all(np.all(np.isfinite(b.data)) for b in blocks)
+
+
+def test_drive_and_base_acceleration_inputs_are_applied(run):
+    probe = run.probe
+    sent = time.monotonic()
+    probe.amplitude_pub.publish(conversions.float_message(0.05))
+    probe.frequency_pub.publish(conversions.float_message(15790))
+    at_ns = future_stamp_ns(probe)
+    for k, ax in enumerate((0.0, 500.0, 0.0)):  # a 2 ms triangle of 500 m/s^2
+        probe.accel_pub.publish(conversions.base_acceleration_message(at_ns + k * 1_000_000, ax))
+        run.base_acceleration.append((at_ns + k * 1_000_000, ax))
+
+    def applied():
+        values = probe.latest_diagnostics(sent)
+        return values is not None and float(values['drive_amplitude']) == 0.05 \
+            and float(values['drive_frequency_hz']) == 15790.0
+    probe.spin_until(applied, 5, 'the new drive on /diagnostics')
+    probe.wait_sim_time(at_ns + 5_000_000, 5)
+
+
+def test_shock_flood_leaves_the_node_responsive(run):
+    probe = run.probe
+    rss_before = run.node.rss_bytes()
+    sim_before = probe.last_time_ns()
+    blocks_before = len(probe.blocks['modal_displacement'])
+    sent = [0]
+
+    def flood():
+        msg = conversions.shock_message(0, 1.0)  # 1 m/s^2, "now"
+        start = time.monotonic()
+        for batch in range(200):  # 10 000 per second for 2 s, in batches of 100
+            for _ in range(100):
+                probe.shock_pub.publish(msg)
+            sent[0] += 100
+            delay = start + 0.01 * (batch + 1) - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+
+    wall0 = time.monotonic()
+    thread = threading.Thread(target=flood)
+    thread.start()
+    probe.spin_for(1.0)
+    t_call = time.monotonic()
+    assert probe.remote_get('real_time_factor', timeout=2.0) == 1.0  # answers mid-flood
+    call_s = time.monotonic() - t_call
+    probe.spin_until(lambda: not thread.is_alive(), 10, 'the flood to end')
+    wall = time.monotonic() - wall0
+    sim_advance = (probe.last_time_ns() - sim_before) * 1e-9
+    blocks = len(probe.blocks['modal_displacement']) - blocks_before
+    rss_after = run.node.rss_bytes()
+    print(f'\nflood: {sent[0]} shocks in {wall:.2f} s ({sent[0] / wall:.0f}/s); the node '
+          f'simulated {sim_advance:.3f} s meanwhile ({blocks} blocks), a service call '
+          f'answered in {call_s * 1e3:.0f} ms, RSS {rss_before / 1e6:.1f} -> '
+          f'{rss_after / 1e6:.1f} MB')
+    assert sent[0] / wall > 8000
+    assert sim_advance > 0.5 * wall  # kept simulating (paced at 1)
+    assert rss_after - rss_before < 50e6
+    probe.wait_sim_time(probe.last_time_ns() + 50_000_000, 5)
+    assert_contiguous(probe)
+    assert probe.reset().success
+
+
+def test_contact_is_reported_and_reset_recovers(run):
+    probe = run.probe
+    sent = time.monotonic()
+    probe.shock(10 * PEAK)  # 100 000 g, now: the ring hits the outer electrodes
+
+    def status(level, contact):
+        return lambda: any(wall >= sent and st.level == level and values['contact'] == contact
+                           for wall, st, values in probe.diagnostics)
+    probe.spin_until(status(DiagnosticStatus.ERROR, 'True'), 5, 'an ERROR on /diagnostics')
+    message = next(st.message for wall, st, values in reversed(probe.diagnostics)
+                   if st.level == DiagnosticStatus.ERROR)
+    print(f'\ncontact: {message}')
+    assert 'contact' in message and 't = ' in message and 'theta = ' in message
+    probe.wait_sim_time(probe.last_time_ns() + 200_000_000, 5)  # still running
+    assert run.node.proc.poll() is None
+    assert probe.reset().success
+    sent = time.monotonic()
+    probe.spin_until(status(DiagnosticStatus.OK, 'False'), 5, 'OK again on /diagnostics')
+    _, gap = probe.stacked('radial_gap')
+    assert np.all(np.isfinite(gap)) and gap[-1, -1] > 9e-6  # at rest again, near d_g
+    assert_contiguous(probe)
+
+
+def test_sigterm_ends_the_node_and_finalises_the_recording(run):
+    probe = run.probe
+    received = probe.last_time_ns()
+    run.node.signal(signal.SIGTERM)
+    t0 = time.monotonic()
+    code = run.node.wait(10.0)
+    elapsed = time.monotonic() - t0
+    print(f'\nSIGTERM: exit code {code} after {elapsed:.2f} s')
+    assert code == 0
+    assert elapsed < 2.0
+    assert 'stopped (SIGTERM): ' in run.node.output()
+
+    data = run.record_path.read_bytes()
+    assert data.endswith(b'\x89MCAP0\r\n')  # finished: footer and closing magic
+    meta = read_metadata(run.record_path, 'ring_gyro_sim')
+    assert yaml.safe_load(meta['parameters'])['output.rate'] == 100000.0
+    topics = {}
+    for m in read_messages(run.record_path):
+        topics.setdefault(m.topic, []).append(m)
+    blocks = topics['/ring_gyro/modal_displacement']
+    assert blocks[-1].log_time_ns >= received
+    index = sample_indices(np.concatenate(
+        [conversions.block_arrays(decode(m))[1][:, 0] for m in blocks]))
+    assert index[0] == 1 and np.all(np.diff(index) == 1)  # every block from the start
+    shocks = [(m.log_time_ns, decode(m).vector.x) for m in topics['/ring_gyro/shock']]
+    assert all(math.isfinite(x) for _, x in shocks)
+    # The two shocks of the tests at their stamps; not the rejected one stamped in the past.
+    assert sorted(s for s in shocks if s[1] == PEAK) == sorted(run.shocks)
+    changes = [(m.log_time_ns, yaml.safe_load(decode(m).data))
+               for m in topics['/ring_gyro/events/parameters']]
+    assert changes[0][1] == {'electrodes.outer_voltage': 75.0}
+    resets = [m.log_time_ns for m in topics['/ring_gyro/events/reset']]
+    assert resets[0] == run.reset_ns
+    assert changes[0][0] <= run.reset_ns
+    assert '/diagnostics' in topics
+    accel = [(m.log_time_ns, decode(m).accel.linear.x)
+             for m in topics['/ring_gyro/base_acceleration']]
+    assert accel == run.base_acceleration
+    assert [decode(m).data for m in topics['/ring_gyro/drive/amplitude']] == [0.05]
+    assert [decode(m).data for m in topics['/ring_gyro/drive/frequency']] == [15790.0]
+    clock = [m.log_time_ns for m in topics['/clock']]
+    assert clock == [m.log_time_ns for m in blocks]
+
+
+def test_the_recording_resimulates_bit_for_bit(run, tmp_path):
+    # Every accepted input was recorded at the simulation time it acted at: re-simulating the
+    # recording (offline, same Simulator) gives the same output blocks, bit for bit. (Decoded:
+    # the CDR bytes differ in their alignment padding, which the serializer leaves as it is.)
+    t0 = time.monotonic()
+    summary = resimulate(str(run.record_path), output=str(tmp_path / 'again.mcap'),
+                         progress=False)
+    print(f'\nre-simulated {summary.sim_time_s:.2f} s in {time.monotonic() - t0:.1f} s')
+    for topic in ('/ring_gyro/modal_displacement', '/ring_gyro/radial_gap',
+                  '/ring_gyro/sense_electrodes'):
+        node, again = ([(m.log_time_ns, conversions.block_arrays(decode(m)))
+                        for m in read_messages(path, [topic])]
+                       for path in (run.record_path, tmp_path / 'again.mcap'))
+        assert [t for t, _ in node] == [t for t, _ in again]
+        for (_, (labels, data)), (_, (labels_again, data_again)) in zip(node, again):
+            assert labels == labels_again
+            assert np.array_equal(data.view(np.int64), data_again.view(np.int64)), topic

@@ -1,0 +1,102 @@
+# Copyright 2025 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Real-time pacing of ring_gyro_sim.ros.node on the paper configuration (config/default.yaml).
+
+The factor is measured here, from the simulation times of the blocks received against the
+wall clock, not taken from the node's own diagnostics (they are printed beside it).
+Run with ``pytest -s`` to see the numbers.
+"""
+
+# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# isort: off
+import signal
+import time
+
+from node_harness import NodeProcess, Probe, REPO_ROOT
+import numpy as np
+import pytest
+# isort: on
+
+MEASURE_S = 5.0
+
+
+@pytest.fixture(scope='module')
+def paced(ros, tmp_path_factory):
+    """Run the node on config/default.yaml as it is: 200 kHz, bm6, upper branch, paced at 1."""
+    node = NodeProcess(REPO_ROOT / 'config' / 'default.yaml',
+                       tmp_path_factory.mktemp('node_pacing'))
+    probe = None
+    try:
+        probe = Probe(topics=('modal_displacement',))
+        probe.wait_connected()
+        yield node, probe
+    finally:
+        if probe is not None:
+            probe.destroy_node()
+        node.stop()
+        print(node.output()[-2000:])
+
+
+def measured_factor(probe, seconds):
+    """Return (simulated s / wall s, simulated s) over ``seconds`` of received blocks."""
+    blocks = probe.blocks['modal_displacement']
+    first = len(blocks)
+    probe.spin_for(seconds)
+    got = blocks[first:]
+    assert len(got) > 10
+    sim = got[-1].t[-1] - got[0].t[-1]
+    return sim / (got[-1].wall - got[0].wall), sim
+
+
+def test_real_time_factor_one_on_the_paper_configuration(paced):
+    node, probe = paced
+    probe.spin_for(1.0)  # past the start-up
+    factor, sim = measured_factor(probe, MEASURE_S)
+    diag = probe.latest_diagnostics()
+    print(f'\nreal_time_factor 1 (200 kHz output, bm6, N_R = 3, N_T = 10): achieved '
+          f'{factor:.4f} over {sim:.2f} s of simulation; the node reports '
+          f'{float(diag["real_time_factor_achieved"]):.4f} (last second), average '
+          f'{float(diag["real_time_factor_average"]):.4f}, lag {float(diag["lag_s"]):.4f} s')
+    assert abs(factor - 1.0) < 0.05
+    assert float(diag['lag_s']) < 0.1
+    # drive.start_on = upper_branch: the run starts on the periodic orbit (q2 ~ 0.418 um).
+    q2 = np.concatenate([b.data[:, 2] for b in probe.blocks['modal_displacement'][-20:]])
+    assert 0.38e-6 < np.max(np.abs(q2)) < 0.46e-6
+
+
+def test_real_time_factor_zero_runs_faster_than_real_time(paced):
+    node, probe = paced
+    result = probe.remote_set(('real_time_factor', 0))[0]
+    assert result.successful, result.reason
+    probe.spin_for(0.5)
+    factor, sim = measured_factor(probe, 3.0)
+    diag = probe.latest_diagnostics()
+    print(f'\nreal_time_factor 0 (as fast as possible): achieved {factor:.4f} over {sim:.2f} s '
+          f'of simulation; the node reports {float(diag["real_time_factor_achieved"]):.4f}')
+    assert factor > 1.0
+    assert diag['real_time_factor_target'] == '0.0'
+
+
+def test_sigint_ends_the_node_within_two_seconds(paced):
+    node, _ = paced
+    node.signal(signal.SIGINT)
+    t0 = time.monotonic()
+    code = node.wait(10.0)
+    elapsed = time.monotonic() - t0
+    print(f'\nSIGINT: exit code {code} after {elapsed:.2f} s')
+    assert code == 0
+    assert elapsed < 2.0
+    assert 'stopped (SIGINT): ' in node.output()
