@@ -243,10 +243,7 @@ def _apply_input(sim: Simulator, recorder, t_ns: int, kind: str, payload) -> Non
         if recorder is not None:
             recorder.reset(t_ns)
     elif kind == 'events/parameters':
-        from ring_gyro_sim.core.params import build_config, to_flat
-        flat = to_flat(sim.config)
-        flat.update(payload)
-        sim.reconfigure(build_config(flat), at_ns=t_ns)
+        sim.update_parameters(payload, at_ns=t_ns)
         if recorder is not None:
             recorder.parameters(t_ns, payload)
 

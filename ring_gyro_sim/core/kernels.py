@@ -144,12 +144,17 @@ def _p_of_u(u, poly, taylor_terms, outer, inner, fold, gap):
             p = p * u + poly[d]
         return p
     uo = 1.0 - u
-    ui = 1.0 + u
     if fold:
         go = u * u * (3.0 - 2.0 * u) / (uo * uo)
-        gi = u * u * (3.0 + 2.0 * u) / (ui * ui)
     else:
         go = 1.0 / (uo * uo) - 1.0
+    if inner == 0.0:
+        # No inner electrode: w <= -d_g is a valid state, and (1 + u)^2 may be 0.
+        return outer * go / gap
+    ui = 1.0 + u
+    if fold:
+        gi = u * u * (3.0 + 2.0 * u) / (ui * ui)
+    else:
         gi = 1.0 / (ui * ui) - 1.0
     return (outer * go - inner * gi) / gap
 

@@ -470,7 +470,11 @@ class SimConfig:
         if self.drive.amplitude != 0.0 and self.modes.count < 2:
             raise _fail('drive.amplitude', 'drives the 2theta mode: needs at least 2 modes')
         # Static pull-in (linear stability): the softest coordinate must keep a positive
-        # linear stiffness once the electrostatic stiffness K_c (eq. 26) is in.
+        # linear stiffness once the electrostatic stiffness K_c (eq. 26) is in. With
+        # fold_linear_stiffness the frequencies are the electrically softened ones (the paper's
+        # Table 1), so a positive frequency is already linearly stable and no voltage is refused
+        # here: the mechanical stiffness implied is m omega^2 + K_c. What remains is dynamic
+        # pull-in (the well narrows as V_o grows), which the Simulator reports as contact.
         for i, (f_hz, ratio) in enumerate(zip(self.modes.coordinate_frequencies(),
                                               self.electrostatic_softening_ratios())):
             if ratio >= 1.0:
@@ -504,7 +508,12 @@ class SimConfig:
         return masses + (masses if self.modes.companions else [])
 
     def electrostatic_softening_ratios(self) -> List[float]:
-        """|K_c| / (m omega^2) per coordinate, eq. (26) (>= 1 means static pull-in)."""
+        """
+        Return K_c / k_mech per coordinate, eq. (26) (>= 1 means static pull-in).
+
+        k_mech = m omega^2, or m omega^2 + K_c when the frequencies already contain K_c
+        (``fold_linear_stiffness``), in which case the ratio is below 1 for any voltage.
+        """
         e = self.electrodes
         kc = 2.0 * math.pi * self.a_eps * (
             self.outer_radius * e.outer_voltage ** 2

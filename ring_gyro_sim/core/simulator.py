@@ -45,13 +45,13 @@ recovers. No output is ever NaN.
 
 from dataclasses import dataclass, replace
 import math
-from typing import Callable, List, Optional, Tuple
+from typing import Any, Callable, List, Mapping, Optional, Tuple
 
 import numpy as np
 
 from ring_gyro_sim.core import forces, kernels
 from ring_gyro_sim.core.errors import InputError, SimulationError
-from ring_gyro_sim.core.params import EPSILON_0, SimConfig
+from ring_gyro_sim.core.params import build_config, EPSILON_0, SimConfig, to_flat
 
 STEPS_PER_PERIOD = 8
 """Default steps per period of the fastest mode (see :func:`default_max_step`)."""
@@ -220,23 +220,44 @@ class Simulator:
 
         The coordinates must stay the same (number of modes, companions).
         """
+        self._check_reconfigurable(config)
+        self._schedule(at_ns, lambda: self._apply_config(config))
+
+    def update_parameters(self, changes: Mapping[str, Any], at_ns: Optional[int] = None) -> None:
+        """
+        Apply changed parameters ``{dotted name: value}`` at a sample time.
+
+        Unlike :meth:`reconfigure`, the changes are laid over the configuration in force *when
+        they act*, so several changes scheduled ahead compose as they would have live. They
+        are validated now against the current configuration (:class:`ParameterError` names
+        the field) and again when they act.
+        """
+        changes = dict(changes)
+        self._check_reconfigurable(build_config({**to_flat(self._config), **changes}))
+
+        def apply() -> None:
+            config = build_config({**to_flat(self._config), **changes})
+            self._check_reconfigurable(config)
+            self._apply_config(config)
+        self._schedule(at_ns, apply)
+
+    def _check_reconfigurable(self, config: SimConfig) -> None:
         if (config.modes.count != self._config.modes.count
                 or config.modes.companions != self._config.modes.companions):
             raise InputError('modes: the number of coordinates cannot change at run time')
         if config.run.output_rate != self._config.run.output_rate:
             raise InputError('output.rate cannot change at run time')
 
-        def apply() -> None:
-            old = self._config
-            self._config = config
-            self._build(config)
-            self._work = np.empty(forces.scratch_size(self.model))
-            if (config.drive.amplitude != old.drive.amplitude
-                    or config.drive.frequency != old.drive.frequency):
-                self._set_drive_now(config.drive.amplitude, config.drive.frequency)
-            if self.status == 'running':
-                self._refresh_acceleration()
-        self._schedule(at_ns, apply)
+    def _apply_config(self, config: SimConfig) -> None:
+        old = self._config
+        self._config = config
+        self._build(config)
+        self._work = np.empty(forces.scratch_size(self.model))
+        if (config.drive.amplitude != old.drive.amplitude
+                or config.drive.frequency != old.drive.frequency):
+            self._set_drive_now(config.drive.amplitude, config.drive.frequency)
+        if self.status == 'running':
+            self._refresh_acceleration()
 
     # ------------------------------------------------------------------ inputs
     def _at_index(self, at_ns: Optional[int], what: str) -> int:

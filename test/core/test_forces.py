@@ -450,9 +450,6 @@ def test_untruncated_force_without_inner_electrode_accepts_w_below_minus_gap():
     assert np.all(np.isfinite(a))
 
 
-@pytest.mark.xfail(strict=True, raises=ZeroDivisionError,
-                   reason='BUG kernels._p_of_u: u == -1 exactly with no inner electrode and '
-                          'N_T = 0 divides by (1 + u)^2 = 0 before multiplying by inner = 0')
 def test_untruncated_force_without_inner_electrode_at_w_equal_minus_gap():
     model = make_model(taylor_terms=0, inner_voltage=0.0)
     x = np.array([-0.5, -0.5, 0.0]) * GAP  # u(0) = -1 exactly, max u = 0.5625

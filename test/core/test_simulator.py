@@ -260,3 +260,28 @@ def test_drive_phase_is_continuous_across_frequency_change():
     kernels._external(t, t, *args, sim._drive_amp, sim._drive_omega, sim._drive_t_ref,
                       sim._drive_phase, 1, -1, fe_after)
     assert fe_after[1] == pytest.approx(fe_before[1], abs=1e-9)
+
+
+def test_parameter_changes_scheduled_ahead_compose_when_they_act():
+    """Two changes scheduled ahead both hold afterwards, as they would have live."""
+    sim = Simulator(paper_shock())
+    sim.update_parameters({'electrodes.outer_voltage': 70.0}, at_ns=2_000_000)
+    sim.update_parameters({'modes.quality_factors': [5e4, 6e4, 7e4]}, at_ns=3_000_000)
+    sim.advance(0.0015)
+    assert sim.config.electrodes.outer_voltage == 80.0  # not yet
+    sim.advance(0.001)
+    assert sim.config.electrodes.outer_voltage == 70.0
+    assert sim.config.modes.quality_factors == (120000.0, 64700.0, 170000.0)
+    sim.advance(0.001)
+    assert sim.config.electrodes.outer_voltage == 70.0  # kept by the second change
+    assert sim.config.modes.quality_factors == (5e4, 6e4, 7e4)
+
+
+def test_bad_parameter_change_is_refused_at_once_with_the_field():
+    sim = Simulator(paper_shock())
+    with pytest.raises(ValueError, match='electrodes.outer_voltage'):
+        sim.update_parameters({'electrodes.outer_voltage': math.nan}, at_ns=1_000_000)
+    with pytest.raises(InputError, match='modes'):
+        sim.update_parameters({'modes.count': 2, 'modes.frequencies': [1.0e4, 1.5e4],
+                               'modes.quality_factors': [1e5, 1e5]})
+    assert not sim._events

@@ -382,7 +382,13 @@ def test_contact_is_reported_and_reset_recovers(run):
     def status(level, contact):
         return lambda: any(wall >= sent and st.level == level and values['contact'] == contact
                            for wall, st, values in probe.diagnostics)
-    probe.spin_until(status(DiagnosticStatus.ERROR, 'True'), 5, 'an ERROR on /diagnostics')
+    try:
+        probe.spin_until(status(DiagnosticStatus.ERROR, 'True'), 5, 'an ERROR on /diagnostics')
+    except BaseException:
+        # Seen once in a full run (not reproduced since): the shock left no trace. Show why.
+        print('\nlast diagnostics:', probe.latest_diagnostics(),
+              '\nnode log tail:\n', run.node.output()[-3000:])
+        raise
     message = next(st.message for wall, st, values in reversed(probe.diagnostics)
                    if st.level == DiagnosticStatus.ERROR)
     print(f'\ncontact: {message}')
