@@ -26,7 +26,10 @@ Pacing
     last sample time has been reached. When the computer cannot keep up, simulation time falls
     behind but no block is ever skipped: the lag and the achieved factor are on
     ``/diagnostics``. One timer callback works at most ``TICK_BUDGET_S`` of wall time, so
-    inputs and services are served between blocks even when running as fast as possible.
+    inputs and services are served between blocks even when running as fast as possible;
+    before each block the input messages waiting in the queues are taken, at most
+    ``SHOCK_DRAIN_PER_BLOCK`` shocks (the executor alone takes one per subscription per wait,
+    which starves inputs while the node lags).
     ``duration`` > 0 ends the run after that much simulated time; SIGINT or SIGTERM end it
     at the next block boundary. Either way: final diagnostics, a summary in the log (peak
     |q1|, smallest gap, q2 amplitude before the first shock and over the last 10 ms), the
@@ -71,7 +74,7 @@ simulation time)
     ``blocks``, ``min_gap_m`` and ``min_gap_ratio`` (smallest outer gap since the last
     message, absolute and per d_g), ``min_gap_ratio_run`` (since the start), ``contact``,
     ``status``, ``rejected_inputs`` (all topics) and ``rejected_<topic>``,
-    ``rejected_parameter_changes``, ``pending_shocks``, ``drive_amplitude``,
+    ``rejected_parameter_changes``, ``pending_shocks``, ``accepted_shocks``, ``drive_amplitude``,
     ``drive_frequency_hz``.
 """
 
@@ -112,6 +115,9 @@ SHOCK_QUEUE_DEPTH = 100
 BASE_ACCELERATION_QUEUE_DEPTH = 1000
 DRIVE_QUEUE_DEPTH = 10
 MAX_PENDING_SHOCKS = 1000
+# Shocks taken from the queue per block besides the executor's one per wait: every shock
+# costs sub-steps (T_s / 16), so a flood must not buy unbounded work per block.
+SHOCK_DRAIN_PER_BLOCK = 10
 """Shocks accepted but not over yet; beyond this a shock is rejected."""
 MAX_PENDING_BASE_ACCELERATION = 100_000
 """Base-acceleration samples stamped in the future; beyond this one is rejected."""
@@ -240,6 +246,7 @@ class RingGyroNode(Node):
         self.finished = Future()
         self._done = False
         self._pending_shocks: List[int] = []  # heap of end times, ns
+        self._accepted_shocks = 0
         self._pending_profile: collections.deque = collections.deque()
         self._rejected: Dict[str, int] = {}
         self._reject_log: Dict[Tuple[str, str], Tuple[float, int]] = {}
@@ -271,14 +278,20 @@ class RingGyroNode(Node):
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.clock_pub = (self.create_publisher(ClockMsg, '/clock', 10)
                           if config.run.publish_clock else None)
-        self.create_subscription(Vector3Stamped, '~/shock', self._on_shock,
-                                 SHOCK_QUEUE_DEPTH)
-        self.create_subscription(AccelStamped, '~/base_acceleration',
-                                 self._on_base_acceleration, BASE_ACCELERATION_QUEUE_DEPTH)
-        self.create_subscription(Float64, '~/drive/amplitude', self._on_drive_amplitude,
-                                 DRIVE_QUEUE_DEPTH)
-        self.create_subscription(Float64, '~/drive/frequency', self._on_drive_frequency,
-                                 DRIVE_QUEUE_DEPTH)
+        self._input_subs = [
+            (self.create_subscription(Vector3Stamped, '~/shock', self._on_shock,
+                                      SHOCK_QUEUE_DEPTH), self._on_shock, SHOCK_DRAIN_PER_BLOCK),
+            (self.create_subscription(AccelStamped, '~/base_acceleration',
+                                      self._on_base_acceleration,
+                                      BASE_ACCELERATION_QUEUE_DEPTH),
+             self._on_base_acceleration, BASE_ACCELERATION_QUEUE_DEPTH),
+            (self.create_subscription(Float64, '~/drive/amplitude', self._on_drive_amplitude,
+                                      DRIVE_QUEUE_DEPTH), self._on_drive_amplitude,
+             DRIVE_QUEUE_DEPTH),
+            (self.create_subscription(Float64, '~/drive/frequency', self._on_drive_frequency,
+                                      DRIVE_QUEUE_DEPTH), self._on_drive_frequency,
+             DRIVE_QUEUE_DEPTH),
+        ]
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.tick_timer = None
@@ -349,10 +362,29 @@ class RingGyroNode(Node):
                     return
             if self.sim.time_ns + n * self.sim.period_ns > self._target_ns(now):
                 return
+            self._drain_inputs()
             self._step(n)
             now = time.monotonic()
             if now >= deadline:
                 return
+
+    def _drain_inputs(self) -> None:
+        """
+        Take the input messages waiting in the subscription queues, before a block.
+
+        All of them, but at most ``SHOCK_DRAIN_PER_BLOCK`` shocks (each costs sub-steps).
+
+        The executor takes one message per subscription per wait, and a node that lags
+        keeps its timer ready at every wait: without this a backlog (after a flood) would
+        drain at one message per tick and a later input would act seconds late.
+        """
+        for sub, handler, most in self._input_subs:
+            for _ in range(most):
+                with sub.handle:
+                    taken = sub.handle.take_message(sub.msg_type, sub.raw)
+                if taken is None:
+                    break
+                handler(taken[0])
 
     def _step(self, n: int) -> None:
         """Advance one block, publish and record it."""
@@ -447,6 +479,7 @@ class RingGyroNode(Node):
             return
         end_ns = at_ns + int(round(self.sim.config.shock_duration_s * 1e9))
         heapq.heappush(self._pending_shocks, end_ns)
+        self._accepted_shocks += 1
         self.stats.shock_at(at_ns)
         if self.recorder is not None:
             self.recorder.shock(at_ns, s.x, s.y)
@@ -552,6 +585,7 @@ class RingGyroNode(Node):
             values[f'rejected_{topic.replace("/", "_")}'] = self._rejected.get(topic, 0)
         values['rejected_parameter_changes'] = self._rejected_parameters
         values['pending_shocks'] = len(self._pending_shocks)
+        values['accepted_shocks'] = self._accepted_shocks
         drive = sim.config.drive
         values['drive_amplitude'] = drive.amplitude
         values['drive_frequency_hz'] = drive.frequency
