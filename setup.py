@@ -30,6 +30,7 @@ setup(
         ('share/' + package_name + '/config', glob('config/*.yaml')),
     ],
     install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'mcap', 'PyYAML', 'zstandard'],
+    extras_require={'plots': ['matplotlib']},
     zip_safe=True,
     maintainer='ring_gyro_sim developers',
     maintainer_email='dev@ring-gyro-sim.invalid',

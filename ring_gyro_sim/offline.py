@@ -90,7 +90,7 @@ class _Progress:
         self.total = total_s
         self.enabled = enabled
         self.start = time.monotonic()
-        self.last = self.start
+        self.last = -math.inf  # the first line as soon as the run passes 2 s
         self.tty = sys.stderr.isatty()
         self.shown = False
 

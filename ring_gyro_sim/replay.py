@@ -59,15 +59,19 @@ def replay(path: str, rate: float = 1.0, clock: bool = False,
     from rclpy.executors import ExternalShutdownException
     from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-    from ring_gyro_sim.recording.reader import read_messages
+    from ring_gyro_sim.recording.reader import read_messages, read_topics
     from ring_gyro_sim.recording.schemas import message_class
     from ring_gyro_sim.ros.conversions import clock_message
 
+    wanted = set(topics) if topics else None
+    types = {t: name for t, name in read_topics(path).items() if wanted is None or t in wanted}
     messages = read_messages(path, topics=list(topics) if topics else None)
     rclpy.init()
     node = rclpy.create_node(node_name)
     qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-    publishers = {}
+    # Every publisher before the discovery wait, so that no topic's first message is lost.
+    publishers = {t: node.create_publisher(message_class(name), t, qos)
+                  for t, name in types.items()}
     clock_pub = node.create_publisher(message_class('rosgraph_msgs/msg/Clock'), '/clock',
                                       qos) if clock else None
     count = 0

@@ -172,7 +172,7 @@ def frequency_at_amplitude(config: SimConfig, amplitude_m: float, mode: int = 1,
 
 
 def calibrate_outer_voltage(config: SimConfig, target_hz: float = 10.6e3,
-                            amplitude_m: float = 6e-6, bracket_v=(1.0, 12.0),
+                            amplitude_m: float = 6e-6, bracket_v=(40.0, 120.0),
                             mode: int = 1) -> float:
     """
     Outer voltage (V) at which the backbone passes through (amplitude, target frequency).

@@ -69,14 +69,19 @@ def default_max_step(config: SimConfig) -> float:
     Largest step, s: ``integrator.max_step`` or 1/8 of the fastest period.
 
     The linear part is exact, so the step is set by the accuracy of the nonlinear coupling
-    only: at 1/8 of the fastest period (5 us for the paper's 22 kHz 3theta mode) ``bm4``
-    stays within ~1e-8 of the peak q1 of a DOP853 reference 20 ms after a 10 000 g shock
-    (``test/core/test_simulator.py``; the issue asks for 1e-4).
+    only: at 1/8 of the fastest period (5 us for the paper's 22 kHz 3theta mode) the largest
+    error in any q, 20 ms after a 10 000 g shock, against a DOP853 reference is 3.4e-6 of the
+    peak q1 with ``bm6`` (the default) and 7.7e-5 with ``bm4`` (``test/core/test_simulator.py``
+    and ``benchmarks/``; the issue asks for 1e-4).
     """
     if config.integrator.max_step > 0.0:
         return config.integrator.max_step
     f_max = max(config.modes.coordinate_frequencies())
     return 1.0 / (STEPS_PER_PERIOD * f_max)
+
+
+# Marks a pulse whose duration is that of the configuration in force when it starts.
+_DURATION_AT_START = -1.0
 
 
 @dataclass(frozen=True)
@@ -290,7 +295,9 @@ class Simulator:
         at_ns : int, optional
             Start time, ns (default: now). Exact, need not be on the sample grid.
         duration_s : float, optional
-            T_s, s (default ``shock.duration`` or one tenth of the 2theta period).
+            T_s, s (default: ``shock.duration``, or one tenth of the 2theta period, of the
+            configuration in force when the pulse starts, so that a parameter change
+            scheduled before it counts).
 
         """
         for name, val in (('shock.x', peak_x), ('shock.y', peak_y)):
@@ -298,14 +305,14 @@ class Simulator:
                 raise InputError(f'{name}: must be finite, got {val!r}')
         if peak_y != 0.0 and self._y_index < 0:
             raise InputError('shock.y: needs modes.companions (q1s) to act on')
-        dur = self._config.shock_duration_s if duration_s is None else duration_s
-        if not (math.isfinite(dur) and dur > 0.0):
-            raise InputError(f'shock.duration: must be > 0, got {dur!r}')
+        if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0.0):
+            raise InputError(f'shock.duration: must be > 0, got {duration_s!r}')
         start_ns = self.time_ns if at_ns is None else int(at_ns)
         if start_ns < self.time_ns:
             raise InputError(f'shock: time {start_ns * 1e-9:.9f} s is in the past '
                              f'(simulation time {self.time_s:.9f} s)')
-        self._pulses.append((start_ns * 1e-9, float(dur), float(peak_x), float(peak_y)))
+        dur = _DURATION_AT_START if duration_s is None else float(duration_s)
+        self._pulses.append((start_ns * 1e-9, dur, float(peak_x), float(peak_y)))
 
     def add_base_acceleration(self, at_ns: int, ax: float, ay: float = 0.0) -> None:
         """Add one sample of a streamed base-acceleration profile (m/s^2) at ``at_ns``."""
@@ -421,6 +428,7 @@ class Simulator:
             action()
 
     def _integrate(self, count: int, out_q: np.ndarray, out_v: np.ndarray) -> None:
+        # Cut at events (advance_samples), so the configuration is constant over the call.
         if count <= 0:
             return
         if self.status != 'running':
@@ -430,9 +438,16 @@ class Simulator:
             return
         t_start = self.sample_index * self.period_s
         t_end = (self.sample_index + count) * self.period_s
-        pulses = [p for p in self._pulses if p[0] + p[1] >= t_start]
+        pulses = []
+        for p in self._pulses:
+            if p[1] == _DURATION_AT_START and p[0] < t_end:
+                # Starts in this stretch, over which the configuration is constant (one
+                # starting at t_end waits for the events due then).
+                p = (p[0], self._config.shock_duration_s, p[2], p[3])
+            if p[1] == _DURATION_AT_START or p[0] + p[1] >= t_start:
+                pulses.append(p)
         self._pulses = pulses
-        active = [p for p in pulses if p[0] <= t_end]
+        active = [p for p in pulses if p[0] < t_end]  # one starting at t_end acts later
         pulse_arr = np.array(active, dtype=np.float64).reshape(-1, 4)
         pulse_max_sub = (float(np.min(pulse_arr[:, 1])) / PULSE_SUBSTEPS_PER_DURATION
                          if len(active) else self.h)

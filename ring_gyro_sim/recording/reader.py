@@ -162,6 +162,35 @@ def _iter_messages(path, topics):
         yield from found
 
 
+def read_topics(path):
+    """
+    Return ``{topic: type name}`` of a recording (from its summary, else by a linear scan).
+
+    Raises
+    ------
+    RecordingError
+        The file cannot be read or is not an MCAP file.
+
+    """
+    path = _checked_path(path)
+    with open(path, 'rb') as stream:
+        if len(stream.read(len(_MAGIC))) < len(_MAGIC):
+            return {}
+        stream.seek(0, io.SEEK_SET)
+        summary = _summary(SeekingReader(stream))
+        if summary is not None:
+            schemas, channels = summary.schemas, summary.channels.values()
+        else:
+            stream.seek(0, io.SEEK_SET)
+            schemas, channels = {}, []
+            for record in _linear_records(stream):
+                if isinstance(record, Schema):
+                    schemas[record.id] = record
+                elif isinstance(record, Channel):
+                    channels.append(record)
+        return {c.topic: schemas[c.schema_id].name for c in channels if c.schema_id in schemas}
+
+
 def read_messages(path, topics=None):
     """
     Iterate over the messages of a bag in log-time order.

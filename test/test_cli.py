@@ -1,0 +1,256 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Tests of cli.py (``ring_gyro``): ``run`` with --json, -o and --from, errors, the executable.
+
+``main([...])`` is called in this process; one run and one failing run go through the
+installed console script (or ``python -m ring_gyro_sim.cli``) in their own processes.
+"""
+
+import json
+import os
+import pathlib
+import shutil
+import subprocess
+import sys
+import time
+
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+import numpy as np
+import pytest
+from ring_gyro_sim import cli
+from ring_gyro_sim.core.params import STANDARD_GRAVITY
+from ring_gyro_sim.offline import run_offline
+from ring_gyro_sim.paramfile import load_yaml
+
+REPO_ROOT = pathlib.Path(__file__).resolve().parents[1]
+NS = '/ring_gyro'
+BLOCK_TOPICS = [f'{NS}/modal_displacement', f'{NS}/radial_gap', f'{NS}/sense_electrodes']
+SUMMARY_KEYS = {'sim_time_s', 'wall_time_s', 'real_time_factor', 'peak_abs_m', 'final_abs_m',
+                'min_gap_m', 'contact'}
+SHOCK_10000G = 10_000 * STANDARD_GRAVITY
+
+
+def scenario(path, duration=0.05, **groups):
+    """Write a params file: 10 000 g at t = 0 from rest, plus ``groups`` (YAML flow text)."""
+    lines = ['ring_gyro:', '  ros__parameters:',
+             '    drive: {amplitude: 0.0, start_on: rest}',
+             f'    duration: {duration}',
+             f'    scenario: {{shock_times: [0.0], shock_peaks: [{SHOCK_10000G!r}]}}']
+    lines += [f'    {name}: {text}' for name, text in groups.items()]
+    path = pathlib.Path(path)
+    path.write_text('\n'.join(lines) + '\n', encoding='utf-8')
+    return path
+
+
+def block_arrays(path):
+    """Return {topic: [(log_time_ns, labels, (K, C) array)]} decoded by mcap_ros2."""
+    out = {}
+    with open(path, 'rb') as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        for _, channel, message, msg in reader.iter_decoded_messages(topics=BLOCK_TOPICS):
+            data = np.array(msg.data, dtype=np.float64).reshape(msg.layout.dim[0].size,
+                                                                msg.layout.dim[1].size)
+            out.setdefault(channel.topic, []).append(
+                (message.log_time, msg.layout.dim[1].label, data))
+    return out
+
+
+def assert_same_outputs(path_a, path_b):
+    a, b = block_arrays(path_a), block_arrays(path_b)
+    assert sorted(a) == sorted(b) == sorted(BLOCK_TOPICS)
+    for topic in BLOCK_TOPICS:
+        assert len(a[topic]) == len(b[topic]) > 0
+        for (ta, la, xa), (tb, lb, xb) in zip(a[topic], b[topic]):
+            assert (ta, la) == (tb, lb)
+            assert np.array_equal(xa, xb), f'{topic} at {ta} ns: values differ'
+
+
+def command():
+    """Return the ``ring_gyro`` console script next to this Python, else ``python -m``."""
+    exe = pathlib.Path(sys.executable).parent / 'ring_gyro'
+    if exe.exists():
+        return [str(exe)]
+    found = shutil.which('ring_gyro')
+    return [found] if found else [sys.executable, '-m', 'ring_gyro_sim.cli']
+
+
+def run_process(args, cwd, timeout=120):
+    env = dict(os.environ)
+    env['PYTHONPATH'] = os.pathsep.join(
+        [str(REPO_ROOT)] + [p for p in env.get('PYTHONPATH', '').split(os.pathsep) if p])
+    return subprocess.run(command() + args, cwd=cwd, env=env, capture_output=True, text=True,
+                          timeout=timeout, check=False)
+
+
+def test_run_json_prints_exactly_one_object(tmp_path, capsys):
+    path = scenario(tmp_path / 's.yaml')
+    assert cli.main(['run', str(path), '--json', '--no-progress']) == 0
+    out = capsys.readouterr().out
+    assert out.endswith('\n') and out.count('\n') == 1
+    summary = json.loads(out)
+    assert isinstance(summary, dict)
+    assert SUMMARY_KEYS <= set(summary)
+    assert summary['sim_time_s'] == pytest.approx(0.05)
+    assert summary['contact'] is False
+    assert summary['output'] is None
+    assert summary['real_time_factor'] == pytest.approx(
+        summary['sim_time_s'] / summary['wall_time_s'])
+    # The same numbers as the library call on the same file.
+    direct = run_offline(load_yaml(str(path)), progress=False)
+    assert summary['peak_abs_m'] == direct.peak_abs_m
+    assert summary['final_abs_m'] == direct.final_abs_m
+    assert summary['min_gap_m'] == direct.min_gap_m
+    assert 0.55e-5 < summary['peak_abs_m']['q1'] < 0.60e-5
+
+
+def test_run_text_summary(tmp_path, capsys):
+    path = scenario(tmp_path / 's.yaml', duration=0.01)
+    assert cli.main(['run', str(path), '--no-progress']) == 0
+    out = capsys.readouterr().out
+    assert 'simulated 0.0100 s' in out and 'q1: peak' in out and 'smallest outer gap' in out
+    with pytest.raises(json.JSONDecodeError):
+        json.loads(out)
+
+
+def test_duration_option_overrides_the_file(tmp_path, capsys):
+    path = scenario(tmp_path / 's.yaml', duration=1.0)
+    assert cli.main(['run', str(path), '--json', '--duration', '0.004', '--no-progress']) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary['sim_time_s'] == pytest.approx(0.004)
+    assert summary['samples'] == 800
+
+
+@pytest.fixture(scope='module')
+def recorded(tmp_path_factory):
+    """``ring_gyro run s.yaml -o run.mcap --json`` (in process): (path, summary)."""
+    work = tmp_path_factory.mktemp('cli')
+    path = scenario(work / 's.yaml', duration=0.03)
+    out = work / 'run.mcap'
+    capture = _Capture()
+    with capture:
+        rc = cli.main(['run', str(path), '-o', str(out), '--json', '--no-progress'])
+    assert rc == 0, capture.err
+    return out, json.loads(capture.out)
+
+
+class _Capture:
+    """Capture sys.stdout / sys.stderr of a module-scoped call (capsys is function-scoped)."""
+
+    def __enter__(self):
+        import io
+        self._saved = sys.stdout, sys.stderr
+        sys.stdout, sys.stderr = io.StringIO(), io.StringIO()
+        return self
+
+    def __exit__(self, *exc):
+        self.out, self.err = sys.stdout.getvalue(), sys.stderr.getvalue()
+        sys.stdout, sys.stderr = self._saved
+
+
+def test_output_option_writes_a_recording(recorded):
+    path, summary = recorded
+    assert summary['output'] == str(path)
+    assert path.stat().st_size > 0
+    blocks = block_arrays(path)
+    # 0.03 s at 200 kHz in blocks of 10 ms.
+    assert [len(b) for b in blocks.values()] == [3, 3, 3]
+    data = np.concatenate([a for _, _, a in blocks[f'{NS}/modal_displacement']])
+    assert data.shape == (6000, 4)
+    assert np.max(np.abs(data[:, 1])) == summary['peak_abs_m']['q1']
+    with open(path, 'rb') as stream:
+        assert make_reader(stream).get_header().profile == 'ros2'
+
+
+def test_from_recording_resimulates_bit_identically(recorded, tmp_path, capsys):
+    path, summary = recorded
+    again = tmp_path / 'again.mcap'
+    assert cli.main(['run', '--from', str(path), '-o', str(again), '--json',
+                     '--no-progress']) == 0
+    resumed = json.loads(capsys.readouterr().out)
+    assert resumed['output'] == str(again)
+    assert resumed['peak_abs_m'] == summary['peak_abs_m']
+    assert_same_outputs(path, again)
+
+
+def test_from_a_file_that_is_not_a_recording(tmp_path, capsys):
+    path = scenario(tmp_path / 's.yaml')
+    assert cli.main(['run', '--from', str(path), '--no-progress']) != 0
+    err = capsys.readouterr().err
+    assert 's.yaml' in err and 'MCAP' in err
+
+
+@pytest.mark.parametrize('groups, field', [
+    ({'modes': '{quality_factors: [-5.0, 64700.0, 170000.0]}'}, 'modes.quality_factors'),
+    ({'electrodes': '{outer_voltag: 70.0}'}, 'electrodes.outer_voltag'),
+    ({'electrodes': '{outer_voltage: abc}'}, 'electrodes.outer_voltage'),
+])
+def test_invalid_field_exits_nonzero_naming_it(tmp_path, capsys, groups, field):
+    path = scenario(tmp_path / 'bad.yaml', **groups)
+    rc = cli.main(['run', str(path), '--json', '--no-progress'])
+    captured = capsys.readouterr()
+    assert rc != 0
+    assert field in captured.err
+    assert captured.out == ''
+
+
+def test_zero_duration_is_refused(tmp_path, capsys):
+    path = scenario(tmp_path / 's.yaml', duration=0.0)
+    assert cli.main(['run', str(path), '--no-progress']) != 0
+    assert 'duration' in capsys.readouterr().err
+
+
+@pytest.mark.parametrize('where', ['missing_dir', 'directory'])
+def test_unwritable_output_fails_at_start(tmp_path, capsys, where):
+    # 100 s of simulation if it started: the failure must come before the run.
+    path = scenario(tmp_path / 's.yaml', duration=100.0)
+    target = tmp_path / 'no' / 'such' / 'dir' / 'x.mcap' if where == 'missing_dir' else tmp_path
+    start = time.perf_counter()
+    rc = cli.main(['run', str(path), '-o', str(target), '--no-progress'])
+    elapsed = time.perf_counter() - start
+    err = capsys.readouterr().err
+    assert rc != 0
+    assert elapsed < 10.0
+    assert str(target) in err and 'error' in err
+    assert not (tmp_path / 'no').exists()
+
+
+def test_help_lists_the_verbs(capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(['--help'])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    for verb in ('run', 'replay', 'calibrate'):
+        assert verb in out
+    assert cli.main([]) == 2
+
+
+def test_console_script_in_its_own_process(tmp_path):
+    path = scenario(tmp_path / 's.yaml', duration=0.02)
+    result = run_process(['run', str(path), '-o', 'p.mcap', '--json'], cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert len(lines) == 1
+    summary = json.loads(lines[0])
+    assert SUMMARY_KEYS <= set(summary)
+    assert (tmp_path / 'p.mcap').stat().st_size > 0
+    # A short run shows no progress bar.
+    assert result.stderr == ''
+    bad = scenario(tmp_path / 'bad.yaml', modes='{quality_factors: [1.0, 2.0]}')
+    result = run_process(['run', str(bad)], cwd=tmp_path)
+    assert result.returncode != 0
+    assert 'modes.quality_factors' in result.stderr
+    assert 'Traceback' not in result.stderr

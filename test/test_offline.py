@@ -1,0 +1,379 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Tests of offline.py: run summaries, recordings, re-simulation, progress bar, input errors.
+
+Recordings are read back with readers that share no code with ours (``mcap`` with the
+``mcap_ros2`` decoder, and ``rosbags``); outputs are compared as decoded float arrays, never as
+CDR bytes (rclpy leaves the CDR alignment padding uninitialised).
+"""
+
+import io
+import math
+import pathlib
+import sys
+import time
+import types
+
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+import numpy as np
+import pytest
+from ring_gyro_sim import offline
+from ring_gyro_sim.analysis.nnm import drive_initial_state
+from ring_gyro_sim.core.errors import ParameterError
+from ring_gyro_sim.core.params import build_config, STANDARD_GRAVITY
+from ring_gyro_sim.core.simulator import Simulator
+from ring_gyro_sim.paramfile import load_yaml
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import get_typestore, Stores
+
+NS = '/ring_gyro'
+BLOCK_TOPICS = [f'{NS}/modal_displacement', f'{NS}/radial_gap', f'{NS}/sense_electrodes']
+SHOCK_10000G = 10_000 * STANDARD_GRAVITY
+
+
+def shock_from_rest(peak=SHOCK_10000G, at_s=0.0, **extra):
+    """Paper configuration, drive off, one half-sine shock (x) at ``at_s``."""
+    values = {'drive.amplitude': 0.0, 'drive.start_on': 'rest',
+              'scenario.shock_times': [at_s], 'scenario.shock_peaks': [peak]}
+    values.update(extra)
+    return build_config(values)
+
+
+def decoded(path, topics=None):
+    """Return {topic: [(log_time_ns, message)]} decoded by mcap_ros2 (independent of ours)."""
+    out = {}
+    with open(path, 'rb') as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        for _, channel, message, msg in reader.iter_decoded_messages(topics=topics):
+            out.setdefault(channel.topic, []).append((message.log_time, msg))
+    return out
+
+
+def block_arrays(path):
+    """Return {block topic: (labels, [log times], [(K, C) arrays])} of a recording."""
+    result = {}
+    for topic, items in decoded(path, BLOCK_TOPICS).items():
+        labels = items[0][1].layout.dim[1].label
+        arrays = [np.array(m.data, dtype=np.float64).reshape(
+            m.layout.dim[0].size, m.layout.dim[1].size) for _, m in items]
+        result[topic] = (labels, [t for t, _ in items], arrays)
+    return result
+
+
+def assert_same_outputs(path_a, path_b):
+    """Both recordings hold the same blocks: labels, log times and values, bit for bit."""
+    a, b = block_arrays(path_a), block_arrays(path_b)
+    assert sorted(a) == sorted(b) == sorted(BLOCK_TOPICS)
+    for topic in BLOCK_TOPICS:
+        assert a[topic][0] == b[topic][0]
+        assert a[topic][1] == b[topic][1], f'{topic}: block log times differ'
+        assert len(a[topic][2]) == len(b[topic][2])
+        for k, (x, y) in enumerate(zip(a[topic][2], b[topic][2])):
+            assert np.array_equal(x, y), f'{topic} block {k}: values differ'
+
+
+def direct_run(config, duration_s, state=None):
+    """Return (sim, samples) of one Simulator advanced over the whole duration at once."""
+    sim = Simulator(config)
+    if state is not None:
+        sim.set_state(*state)
+    return sim, sim.advance(duration_s)
+
+
+# ------------------------------------------------------------------ summary
+
+
+def test_summary_matches_direct_simulator_run():
+    # Default configuration: starts on the upper branch of the drive, a 2000 g shock at 5 ms.
+    config = build_config({'scenario.shock_times': [0.005],
+                           'scenario.shock_peaks': [2000 * STANDARD_GRAVITY]})
+    summary = offline.run_offline(config, 0.03, progress=False)
+    sim, out = direct_run(config, 0.03, drive_initial_state(config))
+    assert summary.sim_time_s == pytest.approx(0.03, abs=1e-12)
+    assert summary.samples == len(out) == 6000
+    assert summary.wall_time_s > 0.0
+    assert summary.real_time_factor == pytest.approx(summary.sim_time_s / summary.wall_time_s)
+    assert list(summary.peak_abs_m) == list(summary.final_abs_m) == ['q1', 'q2', 'q3']
+    tail = int(round(offline.FINAL_WINDOW_S / sim.period_s))
+    for i, name in enumerate(sim.coordinates):
+        assert summary.peak_abs_m[name] == pytest.approx(np.max(np.abs(out.q[:, i])),
+                                                         rel=1e-12, abs=0.0)
+        assert summary.final_abs_m[name] == pytest.approx(np.max(np.abs(out.q[-tail:, i])),
+                                                          rel=1e-12, abs=0.0)
+    assert summary.min_gap_m == pytest.approx(np.min(out.min_gap), rel=1e-12)
+    assert summary.contact is False and summary.status == 'running'
+    # The shock did something: q1 moved by several 100 nm, q2 is still the driven ~0.43 um.
+    assert summary.peak_abs_m['q1'] > 0.5e-6
+    assert 0.35e-6 < summary.final_abs_m['q2'] < 0.5e-6
+
+
+def test_10000g_from_rest_reaches_55_to_60_percent_of_the_gap():
+    config = shock_from_rest()
+    summary = offline.run_offline(config, 0.01, progress=False)
+    gap = config.electrodes.gap
+    peak = summary.peak_abs_m
+    print(f'10 000 g from rest: peak q1 {peak["q1"] * 1e6:.3f} um '
+          f'({100 * peak["q1"] / gap:.1f} % of d_g), q2 {peak["q2"] * 1e6:.3f} um, '
+          f'q3 {peak["q3"] * 1e6:.3f} um, smallest gap {summary.min_gap_m * 1e6:.3f} um')
+    assert 0.55 * gap < peak['q1'] < 0.60 * gap
+    assert not summary.contact
+    # q2 and q3 grow through the q1^2 terms and add to q1 at theta = 0: the smallest gap is
+    # well below d_g - peak q1 ...
+    assert summary.min_gap_m < gap - peak['q1'] - 0.3e-6
+    # ... but never below what |w| <= sum |q_n| allows.
+    assert summary.min_gap_m >= gap - sum(peak.values()) - 1e-12
+
+
+# ------------------------------------------------------------------ recording
+
+
+@pytest.fixture(scope='module')
+def shock_recording(tmp_path_factory):
+    """Record a 25 ms run (10 000 g from rest) to MCAP; return (path, config, summary)."""
+    path = tmp_path_factory.mktemp('offline') / 'shock.mcap'
+    config = shock_from_rest()
+    summary = offline.run_offline(config, 0.025, output=str(path), progress=False)
+    return path, config, summary
+
+
+def test_recording_is_a_ros2_bag_for_mcap_ros2(shock_recording):
+    path, config, summary = shock_recording
+    assert summary.output == str(path)
+    with open(path, 'rb') as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        assert reader.get_header().profile == 'ros2'
+        info = reader.get_summary()
+        for schema in info.schemas.values():
+            assert schema.encoding == 'ros2msg'
+            assert schema.name.count('/msg/') == 1, schema.name
+        topics = {}
+        for channel_id, channel in info.channels.items():
+            assert channel.message_encoding == 'cdr'
+            topics[channel.topic] = info.statistics.channel_message_counts.get(channel_id, 0)
+    # output.rate x duration / block size blocks per output topic (the last one partial).
+    per_block = int(round(config.run.block_duration * config.run.output_rate))
+    expected = math.ceil(round(0.025 * config.run.output_rate) / per_block)
+    assert expected == 3
+    for topic in BLOCK_TOPICS:
+        assert topics[topic] == expected
+    assert topics[f'{NS}/shock'] == 1  # the scheduled shock, recorded as an input
+    assert topics['/diagnostics'] >= 1
+    blocks = block_arrays(path)
+    labels, times, arrays = blocks[f'{NS}/modal_displacement']
+    assert labels == 't,q1,q2,q3'
+    assert [len(a) for a in arrays] == [per_block, per_block, 1000]
+    t = np.concatenate([a[:, 0] for a in arrays])
+    period = 1.0 / config.run.output_rate
+    # Contiguous blocks, one output period apart; log time = last sample of the block.
+    np.testing.assert_allclose(np.diff(t), period, rtol=1e-9)
+    assert t[0] == pytest.approx(period)
+    assert times == [int(round(a[-1, 0] * 1e9)) for a in arrays]
+    # The recorded samples are the Simulator's.
+    _, out = direct_run(config, 0.025)
+    q = np.concatenate([a[:, 1:] for a in arrays])
+    assert np.array_equal(q, out.q)
+    gap_labels, _, gap_arrays = blocks[f'{NS}/radial_gap']
+    assert gap_labels.split(',')[-1] == 'min'
+    assert np.min(np.concatenate(gap_arrays)[:, -1]) == summary.min_gap_m
+
+
+def test_recording_is_readable_by_rosbags(shock_recording):
+    path, config, _ = shock_recording
+    store = get_typestore(Stores.ROS2_JAZZY)
+    with AnyReader([pathlib.Path(path)], default_typestore=store) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        assert counts[f'{NS}/modal_displacement'] == 3
+        shocks = [c for c in reader.connections if c.topic == f'{NS}/shock']
+        assert shocks[0].msgtype == 'geometry_msgs/msg/Vector3Stamped'
+        (_, log_time, raw), = list(reader.messages(connections=shocks))
+        msg = reader.deserialize(raw, shocks[0].msgtype)
+        assert log_time == 0
+        assert msg.vector.x == SHOCK_10000G and msg.vector.y == 0.0
+        blocks = [c for c in reader.connections if c.topic == f'{NS}/modal_displacement']
+        first = next(iter(reader.messages(connections=blocks)))
+        block = reader.deserialize(first[2], blocks[0].msgtype)
+        assert block.layout.dim[0].label == 'sample'
+        assert block.layout.dim[0].size == 2000 and block.layout.dim[0].stride == 8000
+        assert block.data.shape == (8000,)
+
+
+def test_resimulation_is_bit_identical(tmp_path, shock_recording):
+    path, _, summary = shock_recording
+    again = offline.resimulate(str(path), str(tmp_path / 'again.mcap'), progress=False)
+    assert_same_outputs(path, tmp_path / 'again.mcap')
+    assert again.peak_abs_m == summary.peak_abs_m
+    assert again.min_gap_m == summary.min_gap_m
+    # The scheduled shock is applied once, not twice (the recording holds it as an input too).
+    inputs = decoded(tmp_path / 'again.mcap', [f'{NS}/shock'])
+    assert len(inputs[f'{NS}/shock']) == 1
+
+
+def test_resimulation_from_the_upper_branch_with_inputs(tmp_path):
+    # Drive on (start state from the metadata) plus inputs of every kind the node records.
+    config = build_config({})
+    original = tmp_path / 'run.mcap'
+    inputs = [(2_000_000, 'shock', (2000 * STANDARD_GRAVITY, 0.0)),
+              (4_000_000, 'drive/frequency', 15790.0),
+              (6_000_000, 'base_acceleration', (500.0, 0.0)),
+              (6_500_000, 'base_acceleration', (0.0, 0.0)),
+              (9_000_000, 'drive/amplitude', 0.05)]
+    offline.run_offline(config, 0.02, output=str(original), progress=False, inputs=inputs)
+    offline.resimulate(str(original), str(tmp_path / 'again.mcap'), progress=False)
+    assert_same_outputs(original, tmp_path / 'again.mcap')
+    recorded = decoded(original, [f'{NS}/shock', f'{NS}/drive/frequency',
+                                  f'{NS}/drive/amplitude', f'{NS}/base_acceleration'])
+    assert [t for t, _ in recorded[f'{NS}/shock']] == [2_000_000]
+    assert recorded[f'{NS}/drive/frequency'][0][1].data == 15790.0
+    assert len(recorded[f'{NS}/base_acceleration']) == 2
+
+
+def test_parameter_changes_scheduled_ahead_apply_at_their_time(tmp_path):
+    # The drive is switched on (5 m/s^2) at 8 ms and off again at 12 ms by run-time parameter
+    # changes; q2 is exactly zero before 8 ms and rings after.
+    config = build_config({'drive.amplitude': 0.0, 'drive.start_on': 'rest'})
+    original = tmp_path / 'params.mcap'
+    inputs = [(8_000_000, 'events/parameters', {'drive.amplitude': 5.0}),
+              (12_000_000, 'events/parameters', {'drive.amplitude': 0.0})]
+    offline.run_offline(config, 0.02, output=str(original), progress=False, inputs=inputs)
+    events = decoded(original, [f'{NS}/events/parameters'])[f'{NS}/events/parameters']
+    assert [t for t, _ in events] == [8_000_000, 12_000_000]
+    again = tmp_path / 'again.mcap'
+    offline.resimulate(str(original), str(again), progress=False)
+    assert_same_outputs(original, again)
+    for path in (original, again):
+        _, _, arrays = block_arrays(path)[f'{NS}/modal_displacement']
+        data = np.concatenate(arrays)
+        t, q2 = data[:, 0], data[:, 2]
+        assert np.all(q2[t <= 0.008 + 1e-12] == 0.0)
+        first = t[np.nonzero(q2)[0][0]]
+        assert first == pytest.approx(0.008 + 5e-6, abs=1e-9)
+        # While driven, q2 grows; after 12 ms it rings down freely at about its level then.
+        driven = np.max(np.abs(q2[(t > 0.011) & (t <= 0.012)]))
+        free = np.max(np.abs(q2[t > 0.019]))
+        assert driven > 1e-9
+        assert free == pytest.approx(driven, rel=0.05)
+    # Control: without the second change the drive keeps pumping q2 beyond its 12 ms level.
+    pumped = offline.run_offline(config, 0.02, progress=False, inputs=inputs[:1])
+    assert pumped.final_abs_m['q2'] > 1.3 * driven
+
+
+def test_shock_after_a_shock_duration_change_uses_the_new_duration():
+    peak = 2000 * STANDARD_GRAVITY
+    rest = {'drive.amplitude': 0.0, 'drive.start_on': 'rest'}
+    changed = offline.run_offline(
+        build_config(rest), 0.01, progress=False,
+        inputs=[(2_000_000, 'events/parameters', {'shock.duration': 20e-6}),
+                (5_000_000, 'shock', (peak, 0.0))])
+    from_start = offline.run_offline(
+        build_config({**rest, 'shock.duration': 20e-6}), 0.01, progress=False,
+        inputs=[(5_000_000, 'shock', (peak, 0.0))])
+    # A 20 us pulse carries about 3x the impulse of the default 6.33 us one.
+    assert changed.peak_abs_m['q1'] == pytest.approx(from_start.peak_abs_m['q1'], rel=1e-6)
+
+
+# ------------------------------------------------------------------ progress bar
+
+
+class _TtyBuffer(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def fake_clock(step_s):
+    """Return a stand-in for the ``time`` module whose monotonic clock jumps ``step_s``."""
+    now = [0.0]
+
+    def monotonic():
+        now[0] += step_s
+        return now[0]
+    return types.SimpleNamespace(monotonic=monotonic, perf_counter=time.perf_counter)
+
+
+def test_progress_bar_on_a_real_run_longer_than_its_threshold(monkeypatch):
+    # The bar waits 2 s of wall time; size the run so that it takes about 4 s here.
+    config = shock_from_rest(peak=0.0, **{'output.rate': 50000.0})
+    probe = offline.run_offline(config, 0.2, progress=False)
+    speed = probe.real_time_factor
+    duration = min(60.0, round(4.0 * speed, 3))
+    stream = _TtyBuffer()
+    monkeypatch.setattr(sys, 'stderr', stream)
+    start = time.perf_counter()
+    summary = offline.run_offline(config, duration, progress=True)
+    wall = time.perf_counter() - start
+    text = stream.getvalue()
+    print(f'{duration} s simulated in {wall:.2f} s; stderr: {text!r}', file=sys.__stdout__)
+    assert wall > 2.0, 'the run was too short to test the bar'
+    assert '100.0%' in text and '[' + '#' * 30 + ']' in text
+    assert f'sim {summary.sim_time_s:.3f}/{duration:.3f} s' in text
+    assert text.endswith('\n')
+
+
+def test_no_progress_bar_for_a_short_run(capsys):
+    offline.run_offline(shock_from_rest(), 0.01)
+    assert capsys.readouterr().err == ''
+
+
+def test_progress_bar_lines_when_stderr_is_not_a_terminal(monkeypatch, capsys):
+    # 3 s of fake wall time between clock reads: a long run, seen from a pipe.
+    monkeypatch.setattr(offline, 'time', fake_clock(3.0))
+    offline.run_offline(shock_from_rest(), 0.05, progress=True)
+    err = capsys.readouterr().err
+    lines = err.splitlines()
+    assert lines, 'no progress lines for a long run'
+    assert '\r' not in err
+    assert lines[-1].startswith('[' + '#' * 30 + ']') and '100.0%' in lines[-1]
+
+
+def test_progress_false_shows_nothing_even_for_a_long_run(monkeypatch):
+    monkeypatch.setattr(offline, 'time', fake_clock(3.0))
+    monkeypatch.setattr(sys, 'stderr', _TtyBuffer())
+    offline.run_offline(shock_from_rest(), 0.05, progress=False)
+    assert sys.stderr.getvalue() == ''
+
+
+# ------------------------------------------------------------------ errors
+
+
+@pytest.mark.parametrize('duration', [0.0, -0.01, math.nan, math.inf])
+def test_duration_must_be_positive(duration, tmp_path):
+    with pytest.raises(ParameterError, match='duration'):
+        offline.run_offline(shock_from_rest(), duration, output=str(tmp_path / 'x.mcap'),
+                            progress=False)
+    assert not (tmp_path / 'x.mcap').exists()
+
+
+def test_duration_from_the_config_defaults_to_zero_and_is_refused():
+    with pytest.raises(ParameterError, match='duration'):
+        offline.run_offline(shock_from_rest(), progress=False)
+    # ... and is used when set.
+    summary = offline.run_offline(shock_from_rest(duration=0.004), progress=False)
+    assert summary.samples == 800
+
+
+@pytest.mark.parametrize('text, field', [
+    ('modes: {quality_factors: [-5.0, 64700.0, 170000.0]}', 'modes.quality_factors'),
+    ('electrodes: {outer_voltage: abc}', 'electrodes.outer_voltage'),
+    ('electrodes: {outer_voltag: 70.0}', 'electrodes.outer_voltag'),
+    ('output: {rate: .nan}', 'output.rate'),
+])
+def test_bad_scenario_field_is_named(tmp_path, text, field):
+    path = tmp_path / 'bad.yaml'
+    path.write_text(f'ring_gyro:\n  ros__parameters:\n    {text}\n    duration: 0.01\n',
+                    encoding='utf-8')
+    with pytest.raises(ParameterError) as info:
+        load_yaml(str(path))
+    assert field in str(info.value)
