@@ -57,7 +57,50 @@ def _parser() -> argparse.ArgumentParser:
     cal.add_argument('--amplitude', type=float, default=6e-6, help='m')
     cal.add_argument('--low', type=float, default=40.0, help='voltage bracket low, V')
     cal.add_argument('--high', type=float, default=120.0, help='voltage bracket high, V')
+    _add_harmonic_balance_verbs(sub)
+    rpt = sub.add_parser('report', help='regenerate the paper figures (PNG) and summary.json '
+                                        '/ summary.md with our numbers beside the paper\'s')
+    rpt.add_argument('--out', required=True, help='output directory')
+    rpt.add_argument('--quick', action='store_true',
+                     help='short runs (a few minutes; branches not decided)')
+    rpt.add_argument('--workers', type=int, default=2, help='worker processes (default 2)')
     return p
+
+
+def _add_harmonic_balance_verbs(sub) -> None:
+    bb = sub.add_parser('backbone', help='backbone of a nonlinear mode by harmonic balance '
+                                         '(Fig. 4); writes CSV and PNG')
+    bb.add_argument('params', nargs='?', help='params YAML (default: the embedded default)')
+    bb.add_argument('--mode', type=int, default=1, help='n of the n-theta mode (default 1)')
+    bb.add_argument('--taylor-terms', type=int, help='N_T (default: from the params; 0 = '
+                                                     'untruncated)')
+    bb.add_argument('--max-amplitude', type=float, default=6.5e-6,
+                    help='continue up to this max |q_mode|, m (default 6.5e-6)')
+    bb.add_argument('--harmonics', type=int, default=12, help='N_h (default 12)')
+    bb.add_argument('-o', '--output', default='backbone.csv',
+                    help='CSV file (amplitude_m,frequency_hz); the plot goes beside it (.png)')
+    bb.add_argument('--node-name', default='ring_gyro',
+                    help='node name whose ros__parameters to read (default ring_gyro)')
+
+    fr = sub.add_parser('frf', help='forced response to the 2theta drive by harmonic balance '
+                                    'and continuation (Fig. 9); writes CSV and PNG')
+    fr.add_argument('params', nargs='?', help='params YAML (default: the embedded default)')
+    fr.add_argument('--mode', type=int, default=2,
+                    help='n of the coordinate whose amplitude is reported (default 2)')
+    fr.add_argument('--f-range', type=float, nargs=2, default=(15.70e3, 15.85e3),
+                    metavar=('LOW', 'HIGH'), help='drive frequencies, Hz '
+                                                  '(default 15700 15850)')
+    fr.add_argument('--drive-amplitude', type=float,
+                    help='A_e, m/s^2 (default: drive.amplitude of the params)')
+    fr.add_argument('--taylor-terms', type=int, help='N_T (default: from the params)')
+    fr.add_argument('--harmonics', type=int, default=3, help='N_h (default 3)')
+    fr.add_argument('--stability', choices=('hill', 'monodromy'), default='hill',
+                    help="Floquet multipliers by Hill's method or the monodromy matrix")
+    fr.add_argument('-o', '--output', default='frf.csv',
+                    help='CSV file (frequency_hz,amplitude_m,stable); the plot goes beside '
+                         'it (.png)')
+    fr.add_argument('--node-name', default='ring_gyro',
+                    help='node name whose ros__parameters to read (default ring_gyro)')
 
 
 def _load(path: Optional[str], node_name: str = 'ring_gyro'):
@@ -115,6 +158,59 @@ def cmd_calibrate(args) -> int:
     return 0
 
 
+def _write_result(result, output: str) -> str:
+    """Write ``result`` to the CSV ``output`` and its plot beside it; return the PNG path."""
+    from pathlib import Path
+    csv = Path(output)
+    if csv.suffix.lower() == '.png':
+        raise RingGyroError(f'-o {output}: give the CSV file; the PNG is written beside it')
+    png = csv.with_suffix('.png')
+    result.to_csv(csv)
+    result.plot(png)
+    return str(png)
+
+
+def cmd_backbone(args) -> int:
+    """``ring_gyro backbone``."""
+    from ring_gyro_sim.analysis import hbm
+    config = _load(args.params, args.node_name)
+    result = hbm.backbone(config, mode=args.mode, taylor_terms=args.taylor_terms,
+                          max_amplitude_m=args.max_amplitude, harmonics=args.harmonics)
+    png = _write_result(result, args.output)
+    print(json.dumps({'csv': args.output, 'png': png, 'points': int(result.amplitude_m.size),
+                      'taylor_terms': result.taylor_terms, 'harmonics': result.harmonics,
+                      'amplitude_m': float(result.amplitude_m[-1]),
+                      'frequency_hz': float(result.frequency_hz[-1]),
+                      'status': result.status}))
+    return 0
+
+
+def cmd_frf(args) -> int:
+    """``ring_gyro frf``."""
+    from ring_gyro_sim.analysis import hbm
+    config = _load(args.params, args.node_name)
+    result = hbm.frf(config, mode=args.mode, f_range_hz=tuple(args.f_range),
+                     drive_amplitude=args.drive_amplitude, harmonics=args.harmonics,
+                     taylor_terms=args.taylor_terms, stability=args.stability)
+    png = _write_result(result, args.output)
+    print(json.dumps({'csv': args.output, 'png': png, 'points': int(result.frequency_hz.size),
+                      'drive_amplitude': result.drive_amplitude,
+                      'fold_frequencies_hz': list(result.fold_frequencies_hz),
+                      'max_amplitude_m': float(result.amplitude_m.max()),
+                      'status': result.status}))
+    return 0
+
+
+def cmd_report(args) -> int:
+    """``ring_gyro report``."""
+    from ring_gyro_sim.analysis.report import build_report
+    summary = build_report(args.out, quick=args.quick, workers=args.workers)
+    print(json.dumps({'out': args.out, 'quick': args.quick,
+                      'wall_time_s': summary['wall_time_s'],
+                      'cases': {c['name']: c.get('final_branch') for c in summary['cases']}}))
+    return 0
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Entry point of ``ring_gyro``."""
     parser = _parser()
@@ -122,7 +218,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     if not args.verb:
         parser.print_help()
         return 2
-    handler = {'run': cmd_run, 'replay': cmd_replay, 'calibrate': cmd_calibrate}[args.verb]
+    handler = {'run': cmd_run, 'replay': cmd_replay, 'calibrate': cmd_calibrate,
+               'backbone': cmd_backbone, 'frf': cmd_frf,
+               'report': cmd_report}[args.verb]
     try:
         return handler(args)
     except RingGyroError as exc:
