@@ -210,7 +210,7 @@ def test_integer_literals_are_accepted_for_floats():
     text = ('ring_gyro:\n  ros__parameters:\n    modes:\n'
             '      frequencies: [11200, 15800, 22000]\n'
             '      quality_factors: [120000, 64700, 170000]\n'
-            '    electrodes: {outer_voltage: 80, gap: 0.00001}\n'
+            '    electrodes: {outer_voltage: 78, gap: 0.00001}\n'
             '    output: {rate: 200000}\n')
     config = build_config(parameters_from_yaml_text(text))
     assert config.modes.frequencies == (11200.0, 15800.0, 22000.0)
