@@ -59,7 +59,7 @@ def _parser() -> argparse.ArgumentParser:
     cal.add_argument('--high', type=float, default=120.0, help='voltage bracket high, V')
     _add_harmonic_balance_verbs(sub)
     rpt = sub.add_parser('report', help='regenerate the paper figures (PNG) and summary.json '
-                                        '/ summary.md with our numbers beside the paper\'s')
+                                        "/ summary.md with our numbers beside the paper's")
     rpt.add_argument('--out', required=True, help='output directory')
     rpt.add_argument('--quick', action='store_true',
                      help='short runs (a few minutes; branches not decided)')

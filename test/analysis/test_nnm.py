@@ -207,9 +207,10 @@ def test_drive_initial_state_rest_or_drive_off_is_none():
     assert nnm.drive_initial_state(build_config({'drive.amplitude': 0.0})) is None
 
 
-def test_upper_branch_start_is_periodic(config, branches):
-    upper, _ = branches
+def test_upper_branch_start_is_periodic(config):
     assert config.drive.start_on == 'upper_branch'
+    upper = nnm.forced_orbit(config, config.drive.frequency, 0.4e-6, config.drive.amplitude)
+    assert upper.stable
     x0, v0 = nnm.drive_initial_state(config)
     amp = upper.amplitude_m[1]
     w = 2 * math.pi * config.drive.frequency
@@ -244,8 +245,9 @@ def test_upper_branch_start_is_periodic(config, branches):
     assert envelope.mean() == pytest.approx(amp, rel=1e-3)
 
 
-def test_lower_branch_start(config, branches):
-    _, lower = branches
+def test_lower_branch_start(config):
+    lower = nnm.forced_orbit(config, config.drive.frequency, 0.04e-6, config.drive.amplitude)
+    assert lower.stable and lower.amplitude_m[1] < 0.1e-6
     x0, v0 = nnm.drive_initial_state(replace(config, drive=replace(config.drive,
                                                                    start_on='lower_branch')))
     np.testing.assert_allclose(np.concatenate([x0, v0]), lower.initial_state,
