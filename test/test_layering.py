@@ -151,3 +151,19 @@ def test_core_source_has_no_forbidden_import(path):
 def test_the_static_check_itself(source, forbidden):
     found = imported_modules(source, 'ring_gyro_sim.core.forces')
     assert any(is_forbidden(m) for m in found) is forbidden, found
+
+
+@pytest.mark.parametrize('path', sorted(PACKAGE_DIR.rglob('*.py')),
+                         ids=lambda p: str(p.relative_to(PACKAGE_DIR)))
+def test_only_the_plotting_module_imports_matplotlib(path):
+    """style.md 8: matplotlib is imported only in ``analysis/plotting.py``."""
+    relative = path.relative_to(PACKAGE_DIR.parent).with_suffix('')
+    module_name = '.'.join(relative.parts)
+    imports = imported_modules(path.read_text(encoding='utf-8'), module_name)
+    uses_matplotlib = any(m.split('.')[0] == 'matplotlib' for m in imports)
+    assert uses_matplotlib == (module_name == 'ring_gyro_sim.analysis.plotting')
+
+
+def test_the_node_never_loads_matplotlib_or_the_analysis_plots():
+    loaded = loaded_after_import(['ring_gyro_sim.ros.node'])
+    assert not [m for m in loaded if m.split('.')[0] == 'matplotlib']

@@ -376,9 +376,9 @@ class CaseResult:
         return json.dumps(self.summary(), sort_keys=True)
 
     def plot(self, path, **kwargs) -> None:
-        """Save the envelopes (Figs. 10-12, 14-15) to ``path``; see ``plotting_cases``."""
-        from ring_gyro_sim.analysis import plotting_cases
-        plotting_cases.plot_case(self, path, **kwargs)
+        """Save the envelopes (Figs. 10-12, 14-15) to ``path``; see ``plotting``."""
+        from ring_gyro_sim.analysis import plotting
+        plotting.plot_case(self, path, **kwargs)
 
 
 def _jsonable(v):

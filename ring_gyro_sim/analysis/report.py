@@ -456,7 +456,7 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
         The content of ``summary.json``.
 
     """
-    from ring_gyro_sim.analysis import plotting_cases
+    from ring_gyro_sim.analysis import plotting
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     wall0 = time.perf_counter()
@@ -514,19 +514,18 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
     for name, fname in figs.items():
         if name in results:
             results[name].plot(out / fname)
-    plotting_cases.plot_q2_sweep([results[s.name] for s in plan.sweep],
-                                 out / 'fig13_case4.png')
+    plotting.plot_q2_sweep([results[s.name] for s in plan.sweep], out / 'fig13_case4.png')
     ritz_results = [results[s.name] for s in plan.ritz]
-    plotting_cases.plot_ritz_orders(ritz_results, out / 'fig05_ritz_orders.png')
+    plotting.plot_ritz_orders(ritz_results, out / 'fig05_ritz_orders.png')
     if 'nr5' in results:
         results['nr5'].plot(out / 'fig06_nr5_modes.png',
                             title='N_R = 5, 10 000 g from rest: modal envelopes (Fig. 6)')
     ritz = _ritz_numbers(ritz_results)
     if spectral is not None:
         ritz.update(spectral['numbers'])
-        plotting_cases.plot_spectrogram(spectral['spectrogram'], out / 'fig07_spectrogram.png',
-                                        ridge_t=spectral['spectrogram'].t,
-                                        ridge_hz=spectral['ridge_hz'])
+        plotting.plot_spectrogram(spectral['spectrogram'], out / 'fig07_spectrogram.png',
+                                  ridge_t=spectral['spectrogram'].t,
+                                  ridge_hz=spectral['ridge_hz'])
     summary['ritz'] = ritz
     summary['inner'] = _inner_numbers(results)
     summary['cases'] = [r.summary() for r in results.values()]
@@ -541,7 +540,7 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
 
 def _plot_backbones(backbones, path) -> None:
     """Fig. 4: the 1theta backbones for several N_T on one axis."""
-    from ring_gyro_sim.analysis.plotting_cases import _pyplot
+    from ring_gyro_sim.analysis.plotting import _pyplot
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for b in backbones:

@@ -133,7 +133,7 @@ def test_case_result_csv_json_and_plot(tmp_path):
 
 def test_importing_cases_does_not_load_matplotlib():
     code = ('import sys, ring_gyro_sim.analysis.cases, ring_gyro_sim.analysis.report, '
-            'ring_gyro_sim.analysis.plotting_cases; print("matplotlib" in sys.modules)')
+            'ring_gyro_sim.analysis.plotting; print("matplotlib" in sys.modules)')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                          timeout=120, check=True)
     assert out.stdout.strip() == 'False'
