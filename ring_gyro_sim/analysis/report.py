@@ -369,7 +369,8 @@ def _markdown(summary: Dict[str, Any]) -> str:
                      f'{_fmt(val, 1e-3, " kHz")} |')
     if 'frf_branches_at_drive' in hb:
         br = hb['frf_branches_at_drive']
-        lines.append('| FRF branches at 15 798.3 Hz (um, stable) | 0.39 (top), 0.03 (bottom) '
+        lines.append(f"| FRF branches at the drive, {summary['drive_frequency_hz']:.1f} Hz (um, "
+                     's: stable) | 0.39 (top), 0.03 (bottom) at 15 798.3 Hz '
                      '| ' + ', '.join(f'{a * 1e6:.4f} ({"s" if s else "u"})' for a, s in br)
                      + ' |')
         lines.append(f'| FRF folds | bistable near 15.8 kHz | '

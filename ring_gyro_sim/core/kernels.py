@@ -173,7 +173,7 @@ def _range_status(u, inner_contact, taylor_terms):
     return STATUS_OK
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold,
              inner_contact, gap, work, out, info):
     """
@@ -197,19 +197,39 @@ def nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold
     n = x.size
     u = work[:4 * r]
     p = work[4 * r:8 * r]
+    has_odd_a = False
+    for i in range(n):
+        if signs[0, i] < 0.0 and x[i] != 0.0:
+            has_odd_a = True
+    # Without sine content, u(-theta) == u(theta) bit for bit: P2 = P1, P4 = P3, so only
+    # members 1 and 3 (theta, pi - theta) are computed; the others are copied.
+    members = 4 if has_odd_a else 2
+    stride = 2 if not has_odd_a else 1
     for k in range(4 * r):
         u[k] = 0.0
-    for i in range(n):
-        xi = x[i] / gap
-        sa = signs[0, i]
-        sb = signs[1, i]
-        sab = sa * sb
+    if has_odd_a:
+        for i in range(n):
+            xi = x[i] / gap
+            sa = signs[0, i]
+            sb = signs[1, i]
+            sab = sa * sb
+            for j in range(r):
+                v = basis[j, i] * xi
+                u[j] += v
+                u[r + j] += sa * v
+                u[2 * r + j] += sb * v
+                u[3 * r + j] += sab * v
+    else:
+        for i in range(n):
+            xi = x[i] / gap
+            sb = signs[1, i]
+            for j in range(r):
+                v = basis[j, i] * xi
+                u[j] += v
+                u[2 * r + j] += sb * v
         for j in range(r):
-            v = basis[j, i] * xi
-            u[j] += v
-            u[r + j] += sa * v
-            u[2 * r + j] += sb * v
-            u[3 * r + j] += sab * v
+            u[r + j] = u[j]
+            u[3 * r + j] = u[2 * r + j]
     lo = 0.0
     hi = 0.0
     total = 0.0
@@ -224,13 +244,6 @@ def nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold
                 info[0] = status
                 info[1] = 4 * (k % r) + k // r
                 return
-    has_odd_a = False
-    for i in range(n):
-        if signs[0, i] < 0.0 and x[i] != 0.0:
-            has_odd_a = True
-    # Without sine content, u(-theta) == u(theta) bit for bit: P2 = P1, P4 = P3.
-    members = 4 if has_odd_a else 2
-    stride = 2 if not has_odd_a else 1
     for k in range(0, 4, stride):
         base = k * r
         if taylor_terms > 0:
@@ -258,7 +271,7 @@ def nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold
         out[i] = acc
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _external(t, t_mid, pulses, profile_t, profile_x, profile_y, drive_amp, drive_omega,
               drive_t_ref, drive_phase, drive_index, y_index, fe):
     """
