@@ -173,7 +173,7 @@ def _range_status(u, inner_contact, taylor_terms):
     return STATUS_OK
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline='always')
 def nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold,
              inner_contact, gap, work, out, info):
     """
@@ -271,7 +271,7 @@ def nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold
         out[i] = acc
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline='always')
 def _external(t, t_mid, pulses, profile_t, profile_x, profile_y, drive_amp, drive_omega,
               drive_t_ref, drive_phase, drive_index, y_index, fe):
     """
