@@ -43,6 +43,8 @@ half-sine (whose derivative jumps at both ends) is resolved.
 Everything is float64 and SI. Kernels take flat arrays and scalars, work buffers included;
 ``core/simulator.py`` validates inputs, calls them, and checks the result. A state that leaves
 the model's range stops the kernel with a status code and the index of the angle (never NaN).
+The two entry points (``run_samples``, ``output_channels``) release the GIL, so that a
+recorder thread can serialise and compress while they run.
 """
 
 import math
@@ -359,7 +361,7 @@ def _fill_propagators(omega, zeta, a, tau, prop):
             prop[i, c, 3] = e * (co - r * si)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_max_sub,
                 omega, zeta, prop_sub, basis, projection, signs, poly, taylor_terms, outer, inner,
                 fold, inner_contact, gap, pulses, profile_t, profile_x, profile_y, drive_amp,
@@ -432,7 +434,7 @@ def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_
     return n_samples
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electrode_weights,
                     cap_scale, gap_floor, out_gap, out_min, out_cap):
     """
