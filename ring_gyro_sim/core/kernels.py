@@ -176,6 +176,64 @@ def _range_status(u, inner_contact, taylor_terms):
 
 
 @njit(cache=True, inline='always')
+def _nl_accel_even(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold,
+                   inner_contact, gap, work, out, info):
+    """
+    :func:`nl_accel` for a state without sine content (every odd-a coordinate is zero).
+
+    Then ``u(-theta) == u(theta)`` bit for bit, so only members 1 and 3 (theta and
+    pi - theta) are evaluated, packed side by side so that one loop of 2 R vectorises. The
+    arithmetic per value is that of the general path: the results are bit-identical.
+    """
+    r = basis.shape[0]
+    n = x.size
+    u = work[:2 * r]
+    p = work[4 * r:6 * r]
+    for k in range(2 * r):
+        u[k] = 0.0
+    for i in range(n):
+        xi = x[i] / gap
+        sb = signs[1, i]
+        for j in range(r):
+            v = basis[j, i] * xi
+            u[j] += v
+            u[r + j] += sb * v
+    lo = 0.0
+    hi = 0.0
+    total = 0.0
+    for k in range(2 * r):
+        lo = min(lo, u[k])
+        hi = max(hi, u[k])
+        total += u[k]
+    if not (hi < 1.0 and lo > -1.0 and math.isfinite(total)):
+        for k in range(2 * r):
+            status = _range_status(u[k], inner_contact, taylor_terms)
+            if status != STATUS_OK:
+                info[0] = status
+                info[1] = 4 * (k % r) + (0 if k < r else 2)
+                return
+    if taylor_terms > 0:
+        top = poly[poly.size - 1]
+        for k in range(2 * r):
+            p[k] = top
+        for d in range(poly.size - 2, -1, -1):
+            c = poly[d]
+            for k in range(2 * r):
+                p[k] = p[k] * u[k] + c
+    else:
+        for k in range(2 * r):
+            p[k] = _p_of_u(u[k], poly, taylor_terms, outer, inner, fold, gap)
+    for i in range(n):
+        sa = signs[0, i]
+        sb = signs[1, i]
+        acc = 0.0
+        for j in range(r):
+            half = p[j] + sb * p[r + j]
+            acc += projection[i, j] * (half + sa * half)
+        out[i] = acc
+
+
+@njit(cache=True, inline='always')
 def nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold,
              inner_contact, gap, work, out, info):
     """
@@ -203,35 +261,23 @@ def nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold
     for i in range(n):
         if signs[0, i] < 0.0 and x[i] != 0.0:
             has_odd_a = True
-    # Without sine content, u(-theta) == u(theta) bit for bit: P2 = P1, P4 = P3, so only
-    # members 1 and 3 (theta, pi - theta) are computed; the others are copied.
-    members = 4 if has_odd_a else 2
-    stride = 2 if not has_odd_a else 1
+    if not has_odd_a:
+        _nl_accel_even(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold,
+                       inner_contact, gap, work, out, info)
+        return
     for k in range(4 * r):
         u[k] = 0.0
-    if has_odd_a:
-        for i in range(n):
-            xi = x[i] / gap
-            sa = signs[0, i]
-            sb = signs[1, i]
-            sab = sa * sb
-            for j in range(r):
-                v = basis[j, i] * xi
-                u[j] += v
-                u[r + j] += sa * v
-                u[2 * r + j] += sb * v
-                u[3 * r + j] += sab * v
-    else:
-        for i in range(n):
-            xi = x[i] / gap
-            sb = signs[1, i]
-            for j in range(r):
-                v = basis[j, i] * xi
-                u[j] += v
-                u[2 * r + j] += sb * v
+    for i in range(n):
+        xi = x[i] / gap
+        sa = signs[0, i]
+        sb = signs[1, i]
+        sab = sa * sb
         for j in range(r):
-            u[r + j] = u[j]
-            u[3 * r + j] = u[2 * r + j]
+            v = basis[j, i] * xi
+            u[j] += v
+            u[r + j] += sa * v
+            u[2 * r + j] += sb * v
+            u[3 * r + j] += sab * v
     lo = 0.0
     hi = 0.0
     total = 0.0
@@ -246,7 +292,7 @@ def nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold
                 info[0] = status
                 info[1] = 4 * (k % r) + k // r
                 return
-    for k in range(0, 4, stride):
+    for k in range(4):
         base = k * r
         if taylor_terms > 0:
             top = poly[poly.size - 1]
@@ -259,10 +305,6 @@ def nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold
         else:
             for j in range(r):
                 p[base + j] = _p_of_u(u[base + j], poly, taylor_terms, outer, inner, fold, gap)
-    if members == 2:
-        for j in range(r):
-            p[r + j] = p[j]
-            p[3 * r + j] = p[2 * r + j]
     for i in range(n):
         sa = signs[0, i]
         sb = signs[1, i]
