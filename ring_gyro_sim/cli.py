@@ -158,7 +158,7 @@ def cmd_calibrate(args) -> int:
     return 0
 
 
-def _write_result(result, output: str) -> str:
+def _write_result(result, output: str, **plot_options) -> str:
     """Write ``result`` to the CSV ``output`` and its plot beside it; return the PNG path."""
     from pathlib import Path
     csv = Path(output)
@@ -166,7 +166,7 @@ def _write_result(result, output: str) -> str:
         raise RingGyroError(f'-o {output}: give the CSV file; the PNG is written beside it')
     png = csv.with_suffix('.png')
     result.to_csv(csv)
-    result.plot(png)
+    result.plot(png, **plot_options)
     return str(png)
 
 
@@ -192,7 +192,7 @@ def cmd_frf(args) -> int:
     result = hbm.frf(config, mode=args.mode, f_range_hz=tuple(args.f_range),
                      drive_amplitude=args.drive_amplitude, harmonics=args.harmonics,
                      taylor_terms=args.taylor_terms, stability=args.stability)
-    png = _write_result(result, args.output)
+    png = _write_result(result, args.output, marker_hz=config.drive.frequency)
     print(json.dumps({'csv': args.output, 'png': png, 'points': int(result.frequency_hz.size),
                       'drive_amplitude': result.drive_amplitude,
                       'fold_frequencies_hz': list(result.fold_frequencies_hz),

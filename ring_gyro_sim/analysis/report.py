@@ -514,7 +514,7 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
         if plan.frf:
             resp = done['frf']
             resp.to_csv(out / 'fig09_frf.csv')
-            resp.plot(out / 'fig09_frf.png')
+            resp.plot(out / 'fig09_frf.png', marker_hz=build_config(plan.base).drive.frequency)
             hb['frf_folds_hz'] = list(resp.fold_frequencies_hz)
             hb['frf_branches_at_drive'] = resp.branches_at(
                 build_config(plan.base).drive.frequency)
