@@ -176,6 +176,46 @@ def _range_status(u, inner_contact, taylor_terms):
 
 
 @njit(cache=True, inline='always')
+def _first_out_of_range(u, m, inner_contact, taylor_terms, info):
+    """
+    Index of the first of ``u[:m]`` outside the model's range (-1: all in range).
+
+    The status goes to ``info[0]``; one min/max pass decides the common case.
+    """
+    lo = 0.0
+    hi = 0.0
+    total = 0.0
+    for k in range(m):
+        lo = min(lo, u[k])
+        hi = max(hi, u[k])
+        total += u[k]
+    if hi < 1.0 and lo > -1.0 and math.isfinite(total):
+        return -1
+    for k in range(m):
+        status = _range_status(u[k], inner_contact, taylor_terms)
+        if status != STATUS_OK:
+            info[0] = status
+            return k
+    return -1
+
+
+@njit(cache=True, inline='always')
+def _pressure(u, p, m, poly, taylor_terms, outer, inner, fold, gap):
+    """``p[:m] = P(u[:m])``: Horner on the series (one loop over all angles), or exact."""
+    if taylor_terms > 0:
+        top = poly[poly.size - 1]
+        for k in range(m):
+            p[k] = top
+        for d in range(poly.size - 2, -1, -1):
+            c = poly[d]
+            for k in range(m):
+                p[k] = p[k] * u[k] + c
+    else:
+        for k in range(m):
+            p[k] = _p_of_u(u[k], poly, taylor_terms, outer, inner, fold, gap)
+
+
+@njit(cache=True, inline='always')
 def _nl_accel_even(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold,
                    inner_contact, gap, work, out, info):
     """
@@ -198,6 +238,8 @@ def _nl_accel_even(x, basis, projection, signs, poly, taylor_terms, outer, inner
             v = basis[j, i] * xi
             u[j] += v
             u[r + j] += sb * v
+    # The hot path: range pass and Horner are written out here (through the helpers of the
+    # general path it measured ~5 % slower in run_samples); the status search is shared.
     lo = 0.0
     hi = 0.0
     total = 0.0
@@ -206,12 +248,10 @@ def _nl_accel_even(x, basis, projection, signs, poly, taylor_terms, outer, inner
         hi = max(hi, u[k])
         total += u[k]
     if not (hi < 1.0 and lo > -1.0 and math.isfinite(total)):
-        for k in range(2 * r):
-            status = _range_status(u[k], inner_contact, taylor_terms)
-            if status != STATUS_OK:
-                info[0] = status
-                info[1] = 4 * (k % r) + (0 if k < r else 2)
-                return
+        k = _first_out_of_range(u, 2 * r, inner_contact, taylor_terms, info)
+        if k >= 0:
+            info[1] = 4 * (k % r) + (0 if k < r else 2)
+            return
     if taylor_terms > 0:
         top = poly[poly.size - 1]
         for k in range(2 * r):
@@ -278,33 +318,11 @@ def nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold
             u[r + j] += sa * v
             u[2 * r + j] += sb * v
             u[3 * r + j] += sab * v
-    lo = 0.0
-    hi = 0.0
-    total = 0.0
-    for k in range(4 * r):
-        lo = min(lo, u[k])
-        hi = max(hi, u[k])
-        total += u[k]
-    if not (hi < 1.0 and lo > -1.0 and math.isfinite(total)):
-        for k in range(4 * r):
-            status = _range_status(u[k], inner_contact, taylor_terms)
-            if status != STATUS_OK:
-                info[0] = status
-                info[1] = 4 * (k % r) + k // r
-                return
-    for k in range(4):
-        base = k * r
-        if taylor_terms > 0:
-            top = poly[poly.size - 1]
-            for j in range(r):
-                p[base + j] = top
-            for d in range(poly.size - 2, -1, -1):
-                c = poly[d]
-                for j in range(r):
-                    p[base + j] = p[base + j] * u[base + j] + c
-        else:
-            for j in range(r):
-                p[base + j] = _p_of_u(u[base + j], poly, taylor_terms, outer, inner, fold, gap)
+    k = _first_out_of_range(u, 4 * r, inner_contact, taylor_terms, info)
+    if k >= 0:
+        info[1] = 4 * (k % r) + k // r
+        return
+    _pressure(u, p, 4 * r, poly, taylor_terms, outer, inner, fold, gap)
     for i in range(n):
         sa = signs[0, i]
         sb = signs[1, i]
