@@ -31,6 +31,15 @@ def _pyplot():
     return plt
 
 
+def _save(plt, fig, path) -> None:
+    """Lay out, write ``path`` (format from its suffix, 120 dpi) and close ``fig``, always."""
+    try:
+        fig.tight_layout()
+        fig.savefig(path, dpi=120)
+    finally:
+        plt.close(fig)
+
+
 def plot_backbone(backbone, path, title=None) -> None:
     """
     Save the backbone of a nonlinear mode (frequency against amplitude, as Fig. 4).
@@ -56,10 +65,9 @@ def plot_backbone(backbone, path, title=None) -> None:
                               f'(harmonic balance, N_h = {backbone.harmonics})')
         ax.grid(True, alpha=0.3)
         ax.legend()
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
+        _save(plt, fig, path)
     finally:
-        plt.close(fig)
+        plt.close(fig)  # also when drawing failed (closing twice is harmless)
 
 
 def _runs(mask: np.ndarray):
@@ -121,10 +129,9 @@ def plot_forced_response(response, path, title=None, marker_hz=None) -> None:
             ax.ticklabel_format(axis='x', useOffset=False)
             ax.grid(True, alpha=0.3)
             ax.legend()
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
+        _save(plt, fig, path)
     finally:
-        plt.close(fig)
+        plt.close(fig)  # also when drawing failed (closing twice is harmless)
 
 
 # ---------------------------------------------------------------- time-domain cases
@@ -169,9 +176,7 @@ def plot_case(result, path, title=None, log=True) -> None:
     ax.set_title(title or result.spec.description, fontsize=10)
     ax.grid(True, which='both', alpha=0.3)
     ax.legend(fontsize=8, loc='best')
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _save(plt, fig, path)
 
 
 def plot_q2_sweep(results, path, title='Case 4: q2 envelope for Q_1 from 5 000 to 180 000'
@@ -202,9 +207,7 @@ def plot_q2_sweep(results, path, title='Case 4: q2 envelope for Q_1 from 5 000 t
     ax.set_title(title, fontsize=10)
     ax.grid(True, which='both', alpha=0.3)
     ax.legend(fontsize=8, loc='best')
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _save(plt, fig, path)
 
 
 def plot_ritz_orders(results, path, channel='w0',
@@ -234,9 +237,7 @@ def plot_ritz_orders(results, path, channel='w0',
     ax.set_title(title, fontsize=10)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _save(plt, fig, path)
 
 
 def plot_spectrogram(spec, path, ridge_t=None, ridge_hz=None, f_max_hz=70e3,
@@ -277,6 +278,4 @@ def plot_spectrogram(spec, path, ridge_t=None, ridge_hz=None, f_max_hz=70e3,
         ax2.set_ylabel('1theta frequency (kHz)')
         ax2.set_title('zoom: 1theta line (ridge)', fontsize=9)
         ax2.grid(True, alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _save(plt, fig, path)
