@@ -169,9 +169,11 @@ def test_forced_response_has_two_stable_branches(config, branches):
           f'lower q2 = {lower.amplitude_m[1] * 1e6:.4f} um (paper: 0.39 / 0.03 um)')
     print(f'max |mu|: upper {np.max(np.abs(upper.floquet_multipliers)):.8f}, '
           f'lower {np.max(np.abs(lower.floquet_multipliers)):.8f}')
-    # Paper (section 3.4): ~0.39 um (4 % of the gap) and ~0.03 um.
-    assert 0.38e-6 < upper.amplitude_m[1] < 0.45e-6
-    assert 0.025e-6 < lower.amplitude_m[1] < 0.037e-6
+    # Paper (section 3.4) at 15 798.3 Hz: ~0.39 um and ~0.03 um. Measured here 0.4265 and
+    # 0.0307 um: this drive sits 9 mHz above our fold, where the upper branch is at its
+    # highest (README "Calibration"); within 10 % of the paper's values.
+    assert upper.amplitude_m[1] == pytest.approx(0.39e-6, rel=0.10)
+    assert lower.amplitude_m[1] == pytest.approx(0.03e-6, rel=0.10)
     assert upper.stable and lower.stable
     assert np.all(np.abs(upper.floquet_multipliers) < 1.0)
     assert np.all(np.abs(lower.floquet_multipliers) < 1.0)

@@ -366,9 +366,9 @@ def test_shock_flood_leaves_the_node_responsive(run):
           f'simulated {sim_advance:.3f} s meanwhile ({blocks} blocks), a service call '
           f'answered in {call_s * 1e3:.0f} ms, RSS {rss_before / 1e6:.1f} -> '
           f'{rss_after / 1e6:.1f} MB')
-    assert sent[0] / wall > 8000
-    assert sim_advance > 0.5 * wall  # kept simulating (paced at 1)
-    assert rss_after - rss_before < 50e6
+    assert sent[0] / wall > 8000  # the issue's 10 000/s, less the publisher's own jitter
+    assert sim_advance > 0.5 * wall  # kept simulating (paced at 1; 1.0 on an idle machine)
+    assert rss_after - rss_before < 50e6  # coarse: measured +0.1 MB; bounds are in the node
     probe.wait_sim_time(probe.last_time_ns() + 50_000_000, 5)
     assert_contiguous(probe)
     assert probe.reset().success
