@@ -240,13 +240,13 @@ def output_ns_per_sample(sim: Simulator) -> float:
 
 
 @njit
-def _force_loop(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold,
+def _force_loop(x, kbasis, projection, signs, poly, taylor_terms, outer, inner, fold,
                 inner_contact, gap, work, out, info, count):
     """Evaluate the force ``count`` times at slowly changing states (no Python in between)."""
     total = 0.0
     for k in range(count):
         x[0] += 1e-15 * (1 - 2 * (k & 1))
-        kernels.nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold,
+        kernels.nl_accel(x, kbasis, projection, signs, poly, taylor_terms, outer, inner, fold,
                          inner_contact, gap, work, out, info)
         total += out[0]
     return total
@@ -260,7 +260,7 @@ def standalone_force_ns(config: SimConfig, state, count: int) -> float:
     work = np.empty(forces.scratch_size(model))
     out = np.empty(model.n_coordinates)
     info = np.zeros(2, dtype=np.int64)
-    args = (model.basis, model.projection, model.signs, model.poly, model.taylor_terms,
+    args = (model.kbasis, model.projection, model.signs, model.poly, model.taylor_terms,
             model.outer, model.inner, model.fold, model.inner_contact, model.gap, work, out, info)
     _force_loop(x, *args, 10)
     best = math.inf

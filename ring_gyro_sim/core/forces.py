@@ -92,6 +92,9 @@ class ForceModel:
         M, the number of quadrature angles on the full circle.
     basis : ndarray, shape (R, n)
         ``phi_i(theta_j)`` (cos or sin) at the representatives.
+    kbasis : ndarray, shape (n, 4 R)
+        The same at the four orbit members, signed and divided by d_g, as the kernels take it
+        (:func:`ring_gyro_sim.core.kernels.member_basis`).
     projection : ndarray, shape (n, R)
         ``weight_j phi_i(theta_j) / m_i``, rad/kg.
     poly : ndarray, shape (D + 1,)
@@ -121,6 +124,7 @@ class ForceModel:
     signs: np.ndarray
     m_points: int
     basis: np.ndarray
+    kbasis: np.ndarray
     projection: np.ndarray
     poly: np.ndarray
     energy_poly: np.ndarray
@@ -201,6 +205,7 @@ def build_force_model(config: SimConfig) -> ForceModel:
         energy_poly[k] = c_k
     return ForceModel(harmonics=harmonics, sine=sine, theta=theta, weights=weights,
                       parity=parity, signs=signs, m_points=m_points, basis=basis,
+                      kbasis=kernels.member_basis(basis, signs, e.gap),
                       projection=projection, poly=poly, energy_poly=energy_poly,
                       outer=outer, inner=inner, gap=e.gap, taylor_terms=n_t, fold=fold,
                       inner_contact=e.inner_voltage != 0.0, masses=masses)
@@ -242,7 +247,7 @@ def nonlinear_acceleration(x: np.ndarray, model: ForceModel) -> np.ndarray:
     out = np.zeros_like(x)
     work = np.empty(scratch_size(model))
     info = np.zeros(2, dtype=np.int64)
-    kernels.nl_accel(x, model.basis, model.projection, model.signs, model.poly,
+    kernels.nl_accel(x, model.kbasis, model.projection, model.signs, model.poly,
                      model.taylor_terms, model.outer, model.inner, model.fold,
                      model.inner_contact, model.gap, work, out, info)
     if info[0] != 0:

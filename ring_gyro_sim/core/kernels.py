@@ -199,70 +199,114 @@ def _first_out_of_range(u, m, inner_contact, taylor_terms, info):
     return -1
 
 
-@njit(cache=True, inline='always')
-def _pressure(u, p, m, poly, taylor_terms, outer, inner, fold, gap):
-    """``p[:m] = P(u[:m])``: Horner on the series (one loop over all angles), or exact."""
-    if taylor_terms > 0:
-        top = poly[poly.size - 1]
-        for k in range(m):
-            p[k] = top
-        for d in range(poly.size - 2, -1, -1):
-            c = poly[d]
-            for k in range(m):
-                p[k] = p[k] * u[k] + c
-    else:
-        for k in range(m):
-            p[k] = _p_of_u(u[k], poly, taylor_terms, outer, inner, fold, gap)
-
-
-@njit(cache=True, inline='always')
-def _nl_accel_even(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold,
-                   inner_contact, gap, work, out, info):
+def member_basis(basis: np.ndarray, signs: np.ndarray, gap: float) -> np.ndarray:
     """
-    :func:`nl_accel` for a state without sine content (every odd-a coordinate is zero).
+    Lay out the mode shapes for the kernels: ``(n, 4 R)``, scaled by ``1 / d_g``.
 
-    Then ``u(-theta) == u(theta)`` bit for bit, so only members 1 and 3 (theta and
-    pi - theta) are evaluated, packed side by side so that one loop of 2 R vectorises. The
-    arithmetic per value is that of the general path: the results are bit-identical.
+    Row i holds coordinate i at the four orbit members in the order
+    ``[theta, pi - theta, -theta, pi + theta]`` (:data:`MEMBER_ORDER`), each block of R
+    multiplied by the parity of the coordinate under that symmetry, so that
+    ``u = x @ kbasis`` gives ``w / d_g`` at all 4 R angles. The first two blocks are all a
+    state without sine content needs (then ``u(-theta) == u(theta)``), and they are a
+    contiguous prefix of each row.
     """
-    r = basis.shape[0]
+    sa = signs[0][:, None]
+    sb = signs[1][:, None]
+    b = basis.T / gap
+    return np.ascontiguousarray(np.concatenate([b, sb * b, sa * b, sa * sb * b], axis=1))
+
+
+MEMBER_ORDER = (0, 2, 1, 3)
+"""Orbit member (as :func:`orbit_angle` numbers them) of each block of :func:`member_basis`."""
+
+
+@njit(cache=True, inline='always')
+def _angle_values(x, kbasis, m, u):
+    """``u[:m] = x @ kbasis[:, :m]``: w / d_g at the first m angles (loops vectorise over k)."""
+    x0 = x[0]
+    for k in range(m):
+        u[k] = kbasis[0, k] * x0
+    for i in range(1, x.size):
+        xi = x[i]
+        for k in range(m):
+            u[k] += kbasis[i, k] * xi
+
+
+@njit(cache=True)
+def _nl_accel_general(x, kbasis, projection, signs, poly, taylor_terms, outer, inner, fold,
+                      inner_contact, gap, work, out, info):
+    """
+    :func:`nl_accel` at all four orbit members: states with sine content, and N_T = 0.
+
+    Kept out of line: the common case (:func:`nl_accel`'s own path) stays small.
+    """
     n = x.size
-    u = work[:2 * r]
-    p = work[4 * r:6 * r]
-    for k in range(2 * r):
-        u[k] = 0.0
+    r = kbasis.shape[1] // 4
+    m = 4 * r
+    u = work[:m]
+    p = work[m:2 * m]
+    _angle_values(x, kbasis, m, u)
+    k = _first_out_of_range(u, m, inner_contact, taylor_terms, info)
+    if k >= 0:
+        info[1] = 4 * (k % r) + MEMBER_ORDER[k // r]
+        return
+    for k in range(m):
+        p[k] = _p_of_u(u[k], poly, taylor_terms, outer, inner, fold, gap)
     for i in range(n):
-        xi = x[i] / gap
+        sa = signs[0, i]
         sb = signs[1, i]
+        acc = 0.0
         for j in range(r):
-            v = basis[j, i] * xi
-            u[j] += v
-            u[r + j] += sb * v
-    # The hot path: range pass and Horner are written out here (through the helpers of the
-    # general path it measured ~5 % slower in run_samples); the status search is shared.
+            acc += projection[i, j] * ((p[j] + sb * p[r + j])
+                                       + sa * (p[2 * r + j] + sb * p[3 * r + j]))
+        out[i] = acc
+
+
+NEEDS_GENERAL = -1
+"""``info[0]`` of :func:`_nl_accel_even` when the state needs :func:`_nl_accel_general`."""
+
+
+@njit(cache=True, inline='always')
+def _nl_accel_even(x, kbasis, projection, signs, poly, taylor_terms, work, out, info):
+    """
+    Take the common case of :func:`nl_accel`, inline: the Taylor series, no sine content.
+
+    Then ``u(-theta) == u(theta)`` bit for bit and only the members theta and pi - theta are
+    evaluated (2 R angles, the half-circle rule), with the same arithmetic per value as
+    :func:`_nl_accel_general`. Every loop runs over the angles innermost, on separate
+    stretches of ``work``. A state this path does not cover (sine content, N_T = 0, out of
+    range) leaves ``out`` unchanged and sets ``info[0] = NEEDS_GENERAL``; otherwise
+    ``info[0] = 0``.
+
+    Written without branches around the work: measured in ``_step``, a conditional store
+    or call in here (the fallback, an early return) doubles its cost (~65 -> ~130 ns on the
+    paper configuration), so the fallback is the caller's (:func:`nl_accel`, :func:`_step`).
+    """
+    n = x.size
+    r = kbasis.shape[1] // 4
+    m = 2 * r
+    u = work[:m]
+    p = work[4 * r:4 * r + m]
+    even = taylor_terms > 0
+    for i in range(n):
+        if signs[0, i] < 0.0 and x[i] != 0.0:
+            even = False
+    _angle_values(x, kbasis, m, u)
     lo = 0.0
     hi = 0.0
     total = 0.0
-    for k in range(2 * r):
+    for k in range(m):
         lo = min(lo, u[k])
         hi = max(hi, u[k])
         total += u[k]
-    if not (hi < 1.0 and lo > -1.0 and math.isfinite(total)):
-        k = _first_out_of_range(u, 2 * r, inner_contact, taylor_terms, info)
-        if k >= 0:
-            info[1] = 4 * (k % r) + (0 if k < r else 2)
-            return
-    if taylor_terms > 0:
-        top = poly[poly.size - 1]
-        for k in range(2 * r):
-            p[k] = top
-        for d in range(poly.size - 2, -1, -1):
-            c = poly[d]
-            for k in range(2 * r):
-                p[k] = p[k] * u[k] + c
-    else:
-        for k in range(2 * r):
-            p[k] = _p_of_u(u[k], poly, taylor_terms, outer, inner, fold, gap)
+    ok = even and hi < 1.0 and lo > -1.0 and math.isfinite(total)
+    top = poly[poly.size - 1]
+    for k in range(m):
+        p[k] = top
+    for d in range(poly.size - 2, -1, -1):
+        c = poly[d]
+        for k in range(m):
+            p[k] = p[k] * u[k] + c
     for i in range(n):
         sa = signs[0, i]
         sb = signs[1, i]
@@ -270,11 +314,12 @@ def _nl_accel_even(x, basis, projection, signs, poly, taylor_terms, outer, inner
         for j in range(r):
             half = p[j] + sb * p[r + j]
             acc += projection[i, j] * (half + sa * half)
-        out[i] = acc
+        out[i] = acc if ok else out[i]
+    info[0] = 0 if ok else NEEDS_GENERAL
 
 
-@njit(cache=True, inline='always')
-def nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold,
+@njit(cache=True)
+def nl_accel(x, kbasis, projection, signs, poly, taylor_terms, outer, inner, fold,
              inner_contact, gap, work, out, info):
     """
     Electrostatic generalised force / modal mass at ``x`` (see ``core/forces.py``).
@@ -282,73 +327,62 @@ def nl_accel(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold
     The quadrature angles come in orbits ``{theta, -theta, pi - theta, pi + theta}``; only a
     representative ``theta_j`` in [0, pi/2] is stored (R of them). ``signs[0, i]``
     (``signs[1, i]``) is the parity, +1 or -1, of coordinate i under theta -> -theta
-    (theta -> pi - theta). ``w`` at the four members is summed with those signs in the same
-    order, and the force on a coordinate combines the four values of P as
-    ``(P1 + b P3) + a (P2 + b P4)``, so a sum that is zero by symmetry (symmetric electrodes,
-    a state without sine or without even coordinates) is exactly 0.0, not round-off. The
-    loops run over the angles innermost so that they vectorise.
+    (theta -> pi - theta); ``kbasis`` (:func:`member_basis`) holds the mode shapes at the four
+    members with those signs applied. The force on a coordinate combines the four values of
+    P as ``(P1 + b P3) + a (P2 + b P4)``, so a sum that is zero by symmetry (symmetric
+    electrodes, a state without sine or without even coordinates) is exactly 0.0, not
+    round-off.
 
-    ``work`` is scratch of at least ``8 R`` floats; ``out`` (n,) receives the accelerations
-    (m/s^2). On a state out of range ``info[0]`` gets the status, ``info[1]`` the index
-    ``4 * j + k`` (representative j, member k in the order above), and ``out`` is left
-    unchanged.
+    :func:`_nl_accel_even` takes the common case, :func:`_nl_accel_general` the rest
+    (``_step`` makes the same two calls itself). ``work`` is scratch of at least ``8 R``
+    floats; ``out`` (n,) receives the accelerations (m/s^2). On a state out of range
+    ``info[0]`` gets the status, ``info[1]`` the index ``4 * j + k`` (representative j,
+    member k as :func:`orbit_angle` numbers them), and ``out`` is left unchanged.
     """
-    r = basis.shape[0]
-    n = x.size
-    u = work[:4 * r]
-    p = work[4 * r:8 * r]
-    has_odd_a = False
-    for i in range(n):
-        if signs[0, i] < 0.0 and x[i] != 0.0:
-            has_odd_a = True
-    if not has_odd_a:
-        _nl_accel_even(x, basis, projection, signs, poly, taylor_terms, outer, inner, fold,
-                       inner_contact, gap, work, out, info)
-        return
-    for k in range(4 * r):
-        u[k] = 0.0
-    for i in range(n):
-        xi = x[i] / gap
-        sa = signs[0, i]
-        sb = signs[1, i]
-        sab = sa * sb
-        for j in range(r):
-            v = basis[j, i] * xi
-            u[j] += v
-            u[r + j] += sa * v
-            u[2 * r + j] += sb * v
-            u[3 * r + j] += sab * v
-    k = _first_out_of_range(u, 4 * r, inner_contact, taylor_terms, info)
-    if k >= 0:
-        info[1] = 4 * (k % r) + k // r
-        return
-    _pressure(u, p, 4 * r, poly, taylor_terms, outer, inner, fold, gap)
-    for i in range(n):
-        sa = signs[0, i]
-        sb = signs[1, i]
-        acc = 0.0
-        for j in range(r):
-            acc += projection[i, j] * ((p[j] + sb * p[2 * r + j])
-                                       + sa * (p[r + j] + sb * p[3 * r + j]))
-        out[i] = acc
+    _nl_accel_even(x, kbasis, projection, signs, poly, taylor_terms, work, out, info)
+    if info[0] != 0:
+        info[0] = 0
+        _nl_accel_general(x, kbasis, projection, signs, poly, taylor_terms, outer, inner, fold,
+                          inner_contact, gap, work, out, info)
+
+
+@njit(cache=True)
+def _profile_accel(t, profile_t, profile_x, profile_y):
+    """Interpolate the sampled base acceleration (x, y) linearly at ``t``, m/s^2."""
+    n_prof = profile_t.size
+    if not (profile_t[0] <= t <= profile_t[n_prof - 1]):
+        return 0.0, 0.0
+    k = np.searchsorted(profile_t, t, side='right') - 1
+    if k >= n_prof - 1:
+        return profile_x[n_prof - 1], profile_y[n_prof - 1]
+    f = (t - profile_t[k]) / (profile_t[k + 1] - profile_t[k])
+    return (profile_x[k] + f * (profile_x[k + 1] - profile_x[k]),
+            profile_y[k] + f * (profile_y[k + 1] - profile_y[k]))
 
 
 @njit(cache=True, inline='always')
-def _external(t, t_mid, pulses, profile_t, profile_x, profile_y, drive_amp, drive_omega,
-              drive_t_ref, drive_phase, drive_index, y_index, fe):
+def _external(t, t_mid, pulses, base_x, base_y, drive_index, y_index, drive_c, drive_s,
+              rot_c, rot_s, fe):
     """
     External acceleration at time ``t`` (s) into ``fe`` (m/s^2).
 
-    Base acceleration ``a_b`` enters as ``-a_b`` on q_1 (x) and q_1^s (y) (eq. 27); the drive
-    as ``A cos(omega (t - t_ref) + phase)`` on q_2. Whether a pulse acts is decided at the
-    middle ``t_mid`` of the current (sub)step, which never straddles a pulse's start or end;
-    inside it the half-sine formula is used at every stage, so stages that some splittings
-    place outside the step (negative drifts) see the smooth continuation, not a kink.
+    Base acceleration ``a_b`` enters as ``-a_b`` on q_1 (x) and q_1^s (y) (eq. 27). Whether a
+    pulse acts is decided at the middle ``t_mid`` of the current (sub)step, which never
+    straddles a pulse's start or end; inside it the half-sine formula is used at every stage,
+    so stages that some splittings place outside the step (negative drifts) see the smooth
+    continuation, not a kink. ``base_x, base_y`` is the sampled profile at ``t``
+    (:func:`_profile_accel`, called by :func:`_step`: a call in here, even one not taken,
+    costs every stage ~30 ns).
+
+    The drive ``A cos(omega (t - t_ref) + phase)`` on q_2 is ``drive_c rot_c - drive_s rot_s``:
+    ``drive_c, drive_s = A cos, A sin`` of the phase at the start of the step (one cos and one
+    sin per step, :func:`_step`) and ``rot_c, rot_s`` the cos and sin of ``omega`` times the
+    stage's offset in the step (:func:`_stage_rotations`), by the angle-sum formula.
     """
     for i in range(fe.size):
         fe[i] = 0.0
-    ax = 0.0
-    ay = 0.0
+    ax = base_x
+    ay = base_y
     for p in range(pulses.shape[0]):
         start = pulses[p, 0]
         dur = pulses[p, 1]
@@ -356,33 +390,54 @@ def _external(t, t_mid, pulses, profile_t, profile_x, profile_y, drive_amp, driv
             s = math.sin(math.pi * (t - start) / dur)
             ax += pulses[p, 2] * s
             ay += pulses[p, 3] * s
-    n_prof = profile_t.size
-    if n_prof > 0 and profile_t[0] <= t <= profile_t[n_prof - 1]:
-        k = np.searchsorted(profile_t, t, side='right') - 1
-        if k >= n_prof - 1:
-            ax += profile_x[n_prof - 1]
-            ay += profile_y[n_prof - 1]
-        else:
-            f = (t - profile_t[k]) / (profile_t[k + 1] - profile_t[k])
-            ax += profile_x[k] + f * (profile_x[k + 1] - profile_x[k])
-            ay += profile_y[k] + f * (profile_y[k + 1] - profile_y[k])
     fe[0] -= ax
     if y_index >= 0:
         fe[y_index] -= ay
-    if drive_index >= 0 and drive_amp != 0.0:
-        fe[drive_index] += drive_amp * math.cos(drive_omega * (t - drive_t_ref) + drive_phase)
+    if drive_index >= 0:
+        fe[drive_index] += drive_c * rot_c - drive_s * rot_s
+
+
+@njit(cache=True, inline='always')
+def drive_phasor(t, amp, omega, t_ref, phase):
+    """Return ``(A cos, A sin)`` of the drive's phase ``omega (t - t_ref) + phase`` at ``t``."""
+    if amp == 0.0:
+        return 0.0, 0.0
+    angle = omega * (t - t_ref) + phase
+    return amp * math.cos(angle), amp * math.sin(angle)
 
 
 @njit(cache=True)
-def _step(q, v, acc, t, h, a, b, prop, basis, projection, signs, poly, taylor_terms, outer, inner,
-          fold, inner_contact, gap, pulses, profile_t, profile_x, profile_y, drive_amp,
+def _stage_rotations(a, h, drive_omega, rot):
+    """
+    ``rot[i] = (cos, sin)(drive_omega c_i h)`` for the kick times ``t + c_i h`` of a step.
+
+    ``c_0 = 0``, ``c_i = a_0 + ... + a_{i-1}`` and the last kick at exactly ``c = 1``.
+    """
+    c = 0.0
+    for i in range(a.size):
+        rot[i, 0] = math.cos(drive_omega * c * h)
+        rot[i, 1] = math.sin(drive_omega * c * h)
+        c += a[i]
+    rot[a.size, 0] = math.cos(drive_omega * h)
+    rot[a.size, 1] = math.sin(drive_omega * h)
+
+
+@njit(cache=True)
+def _step(q, v, acc, t, h, a, b, prop, rot, kbasis, projection, signs, poly, taylor_terms, outer,
+          inner, fold, inner_contact, gap, pulses, profile_t, profile_x, profile_y, drive_amp,
           drive_omega, drive_t_ref, drive_phase, drive_index, y_index, work, fe, info, tinfo):
     """One BAB splitting step of length ``h`` from time ``t``; ``acc`` is FSAL."""
     n = q.size
+    t_mid = t + 0.5 * h
+    drive_c, drive_s = drive_phasor(t, drive_amp, drive_omega, drive_t_ref, drive_phase)
     tt = t
+    base_x = 0.0
+    base_y = 0.0
     for i in range(a.size):
-        _external(tt, t + 0.5 * h, pulses, profile_t, profile_x, profile_y, drive_amp, drive_omega,
-                  drive_t_ref, drive_phase, drive_index, y_index, fe)
+        if profile_t.size > 0:
+            base_x, base_y = _profile_accel(tt, profile_t, profile_x, profile_y)
+        _external(tt, t_mid, pulses, base_x, base_y, drive_index, y_index, drive_c, drive_s,
+                  rot[i, 0], rot[i, 1], fe)
         kick = b[i] * h
         for c in range(n):
             v[c] += kick * (acc[c] + fe[c])
@@ -392,13 +447,20 @@ def _step(q, v, acc, t, h, a, b, prop, basis, projection, signs, poly, taylor_te
             q[c] = prop[i, c, 0] * x0 + prop[i, c, 1] * v0
             v[c] = prop[i, c, 2] * x0 + prop[i, c, 3] * v0
         tt += h * a[i]
-        nl_accel(q, basis, projection, signs, poly, taylor_terms, outer, inner, fold,
-                 inner_contact, gap, work, acc, info)
+        # nl_accel written out: its fallback called from here, not from an inlined function
+        # (see _nl_accel_even).
+        _nl_accel_even(q, kbasis, projection, signs, poly, taylor_terms, work, acc, info)
         if info[0] != 0:
-            tinfo[0] = tt
-            return
-    _external(t + h, t + 0.5 * h, pulses, profile_t, profile_x, profile_y, drive_amp, drive_omega,
-              drive_t_ref, drive_phase, drive_index, y_index, fe)
+            info[0] = 0
+            _nl_accel_general(q, kbasis, projection, signs, poly, taylor_terms, outer, inner,
+                              fold, inner_contact, gap, work, acc, info)
+            if info[0] != 0:
+                tinfo[0] = tt
+                return
+    if profile_t.size > 0:
+        base_x, base_y = _profile_accel(t + h, profile_t, profile_x, profile_y)
+    _external(t + h, t_mid, pulses, base_x, base_y, drive_index, y_index, drive_c, drive_s,
+              rot[a.size, 0], rot[a.size, 1], fe)
     kick = b[a.size] * h
     for c in range(n):
         v[c] += kick * (acc[c] + fe[c])
@@ -423,7 +485,7 @@ def _fill_propagators(omega, zeta, a, tau, prop):
 
 @njit(cache=True, nogil=True)
 def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_max_sub,
-                omega, zeta, prop_sub, basis, projection, signs, poly, taylor_terms, outer, inner,
+                omega, zeta, prop_sub, kbasis, projection, signs, poly, taylor_terms, outer, inner,
                 fold, inner_contact, gap, pulses, profile_t, profile_x, profile_y, drive_amp,
                 drive_omega, drive_t_ref, drive_phase, drive_index, y_index, out_q, out_v,
                 work, fe, info, tinfo):
@@ -439,6 +501,9 @@ def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_
     """
     n = q.size
     cuts = np.empty(2 * pulses.shape[0] + 2)
+    rot = np.empty((b.size, 2))
+    rot_sub = np.empty((b.size, 2))
+    _stage_rotations(a, h, drive_omega, rot)
     for s in range(n_samples):
         k = k0 + s
         for j in range(n_sub):
@@ -472,8 +537,9 @@ def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_
                         m = 1
                     hs = length / m
                     _fill_propagators(omega, zeta, a, hs, prop_sub)
+                    _stage_rotations(a, hs, drive_omega, rot_sub)
                     for r in range(m):
-                        _step(q, v, acc, seg[g] + r * hs, hs, a, b, prop_sub, basis,
+                        _step(q, v, acc, seg[g] + r * hs, hs, a, b, prop_sub, rot_sub, kbasis,
                               projection, signs, poly, taylor_terms, outer, inner, fold,
                               inner_contact, gap, pulses, profile_t, profile_x, profile_y,
                               drive_amp, drive_omega, drive_t_ref, drive_phase, drive_index,
@@ -481,7 +547,7 @@ def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_
                         if info[0] != 0:
                             return s
             else:
-                _step(q, v, acc, t, h, a, b, prop, basis, projection, signs, poly,
+                _step(q, v, acc, t, h, a, b, prop, rot, kbasis, projection, signs, poly,
                       taylor_terms,
                       outer, inner, fold, inner_contact, gap, pulses, profile_t, profile_x,
                       profile_y, drive_amp, drive_omega, drive_t_ref, drive_phase,
@@ -500,18 +566,21 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
     """
     Outer gaps, smallest gap and electrode capacitances of every sample.
 
+    The shapes are stored coordinate-major so that every loop runs over the angles
+    innermost and vectorises.
+
     Parameters
     ----------
     q : ndarray, shape (S, n)
         Coordinates of the samples, m.
     gap : float
         d_g, m.
-    centre_shapes : ndarray, shape (K, n)
+    centre_shapes : ndarray, shape (n, K)
         Mode shapes at the electrode centres.
-    ring_shapes : ndarray, shape (G, n)
+    ring_shapes : ndarray, shape (n, G)
         Mode shapes on G equally spaced angles; the maximum of w is refined by a parabola
         through the best grid angle and its neighbours.
-    electrode_shapes : ndarray, shape (K * P, n)
+    electrode_shapes : ndarray, shape (n, K * P)
         Mode shapes at the P Gauss-Legendre angles of each electrode.
     electrode_weights : ndarray, shape (P,)
         Gauss-Legendre weights times the half span, rad.
@@ -524,23 +593,28 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
 
     """
     n_s, n = q.shape
-    n_k = centre_shapes.shape[0]
-    n_g = ring_shapes.shape[0]
+    n_k = centre_shapes.shape[1]
+    n_g = ring_shapes.shape[1]
     n_p = electrode_weights.size
+    n_e = electrode_shapes.shape[1]
     wg = np.empty(n_g)
+    we = np.empty(n_e)
     for s in range(n_s):
         for k in range(n_k):
             w = 0.0
             for i in range(n):
-                w += centre_shapes[k, i] * q[s, i]
+                w += centre_shapes[i, k] * q[s, i]
             out_gap[s, k] = max(gap - w, 0.0)
-        best = 0
+        q0 = q[s, 0]
         for g in range(n_g):
-            w = 0.0
-            for i in range(n):
-                w += ring_shapes[g, i] * q[s, i]
-            wg[g] = w
-            if w > wg[best]:
+            wg[g] = ring_shapes[0, g] * q0
+        for i in range(1, n):
+            qi = q[s, i]
+            for g in range(n_g):
+                wg[g] += ring_shapes[i, g] * qi
+        best = 0
+        for g in range(1, n_g):
+            if wg[g] > wg[best]:
                 best = g
         y0 = wg[best - 1 if best > 0 else n_g - 1]
         y1 = wg[best]
@@ -550,15 +624,16 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
         if den < 0.0:
             w_max = y1 - 0.125 * (y2 - y0) * (y2 - y0) / den
         out_min[s] = max(gap - w_max, 0.0)
+        for e in range(n_e):
+            we[e] = electrode_shapes[0, e] * q0
+        for i in range(1, n):
+            qi = q[s, i]
+            for e in range(n_e):
+                we[e] += electrode_shapes[i, e] * qi
+        for e in range(n_e):
+            we[e] = electrode_weights[e % n_p] / max(gap - we[e], gap_floor)
         for k in range(n_k):
             c = 0.0
-            for p in range(n_p):
-                w = 0.0
-                row = k * n_p + p
-                for i in range(n):
-                    w += electrode_shapes[row, i] * q[s, i]
-                d = gap - w
-                if d < gap_floor:
-                    d = gap_floor
-                c += electrode_weights[p] / d
+            for j in range(n_p):
+                c += we[k * n_p + j]
             out_cap[s, k] = cap_scale * c

@@ -183,13 +183,13 @@ class Simulator:
         span = e.span or 2.0 * math.pi / k
         centres = 2.0 * math.pi * np.arange(k) / k
         h, s = self.model.harmonics, self.model.sine
-        self._centre_shapes = np.ascontiguousarray(forces.mode_shapes(h, s, centres))
+        self._centre_shapes = np.ascontiguousarray(forces.mode_shapes(h, s, centres).T)
         g = GAP_GRID_POINTS_PER_MODE * config.modes.count
         self._ring_shapes = np.ascontiguousarray(
-            forces.mode_shapes(h, s, 2.0 * math.pi * np.arange(g) / g))
+            forces.mode_shapes(h, s, 2.0 * math.pi * np.arange(g) / g).T)
         x, wts = np.polynomial.legendre.leggauss(ELECTRODE_GAUSS_POINTS)
         angles = (centres[:, None] + 0.5 * span * x[None, :]).ravel()
-        self._electrode_shapes = np.ascontiguousarray(forces.mode_shapes(h, s, angles))
+        self._electrode_shapes = np.ascontiguousarray(forces.mode_shapes(h, s, angles).T)
         self._electrode_weights = 0.5 * span * wts
         self._cap_scale = (e.relative_permittivity * EPSILON_0 * config.ring.length
                            * config.outer_radius)
@@ -457,7 +457,7 @@ class Simulator:
         completed = kernels.run_samples(
             self.q, self.v, self._acc, self.sample_index, count, self.period_s, self.n_sub,
             self.h, self._a, self._b, self._prop, pulse_max_sub, self.omega, self.zeta,
-            self._prop_sub, m.basis, m.projection, m.signs, m.poly, m.taylor_terms, m.outer,
+            self._prop_sub, m.kbasis, m.projection, m.signs, m.poly, m.taylor_terms, m.outer,
             m.inner, m.fold, m.inner_contact,
             m.gap, pulse_arr, prof_t, prof_x, prof_y, self._drive_amp, self._drive_omega,
             self._drive_t_ref, self._drive_phase, self._drive_index, self._y_index, out_q,

@@ -252,14 +252,20 @@ def test_drive_phase_is_continuous_across_frequency_change():
     sim = Simulator(config)
     sim.advance(0.001)
     sim.set_drive(frequency_hz=15500.0)
-    fe_before = np.empty(3)
-    fe_after = np.empty(3)
     t = sim.time_s
-    args = (np.zeros((0, 4)), np.empty(0), np.empty(0), np.empty(0))
-    kernels._external(t, t, *args, 1.0, 2 * np.pi * 15000.0, 0.0, 0.0, 1, -1, fe_before)
-    kernels._external(t, t, *args, sim._drive_amp, sim._drive_omega, sim._drive_t_ref,
-                      sim._drive_phase, 1, -1, fe_after)
-    assert fe_after[1] == pytest.approx(fe_before[1], abs=1e-9)
+    before = kernels.drive_phasor(t, 1.0, 2 * np.pi * 15000.0, 0.0, 0.0)
+    after = kernels.drive_phasor(t, sim._drive_amp, sim._drive_omega, sim._drive_t_ref,
+                                 sim._drive_phase)
+    assert after == pytest.approx(before, abs=1e-9)
+    assert abs(before[0]) + abs(before[1]) > 0.5  # a phasor of amplitude 1, not zeros
+    # The stages' drive values, by the angle-sum formula, equal the direct cosine.
+    h = sim.h
+    rot = np.empty((sim._b.size, 2))
+    kernels._stage_rotations(sim._a, h, sim._drive_omega, rot)
+    c, s = after
+    offsets = np.concatenate([[0.0], np.cumsum(sim._a)[:-1], [1.0]])
+    direct = np.cos(sim._drive_omega * (t + offsets * h - sim._drive_t_ref) + sim._drive_phase)
+    assert np.allclose(c * rot[:, 0] - s * rot[:, 1], direct, rtol=0, atol=1e-12)
 
 
 def test_parameter_changes_scheduled_ahead_compose_when_they_act():
