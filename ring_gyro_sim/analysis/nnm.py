@@ -31,6 +31,7 @@ which is what the default outer voltage is calibrated on (:func:`calibrate_outer
 
 from dataclasses import dataclass, replace
 import math
+import warnings
 from typing import List, Sequence
 
 import numpy as np
@@ -250,7 +251,18 @@ def forced_orbit(config: SimConfig, frequency_hz: float, amplitude_guess_m: floa
     drive_amplitude : float
         A_e, m/s^2.
 
+    With the sine companions the orbit is solved without them and then embedded with the
+    companions at exactly 0: the drive has no sine content, and by the ring's symmetry the
+    force on every companion is then exactly zero, so the equations of the cos coordinates are
+    those of the model without companions. (Solved in the full space, each degenerate cos/sin
+    pair makes the shooting Jacobian nearly singular and the residual, a small difference of
+    large states, carries the integrator's error: the solve stalled.) The Floquet multipliers
+    are those of the full system, companions included.
+
     """
+    if config.modes.companions:
+        cos_only = forced_orbit(replace(config, modes=replace(config.modes, companions=False)),
+                                frequency_hz, amplitude_guess_m, drive_amplitude)
     m = _Model(config)
     n = m.n
     zeta = 1.0 / (2.0 * np.asarray(config.modes.coordinate_quality_factors()))
@@ -273,12 +285,18 @@ def forced_orbit(config: SimConfig, frequency_hz: float, amplitude_guess_m: floa
         sol = flow(y0)
         return (sol.y[:, -1] - y0) / scale
 
-    z0 = np.zeros(2 * n)
-    z0[n + 1] = 1.0  # q2 = a sin(w t): v2(0) = a w, the resonant (upper) branch at the peak
-    z, _, ier, msg = fsolve(residual, z0, full_output=True, xtol=1e-13)
-    if ier != 1 and np.max(np.abs(residual(z))) > 1e-9:
-        raise SimulationError(f'forced orbit at {frequency_hz} Hz did not converge: {msg}')
-    y0 = z * scale
+    if config.modes.companions:
+        half = n // 2
+        y0 = np.zeros(2 * n)
+        y0[:half] = cos_only.initial_state[:half]
+        y0[n:n + half] = cos_only.initial_state[half:]
+    else:
+        z0 = np.zeros(2 * n)
+        z0[n + 1] = 1.0  # q2 = a sin(w t): v2(0) = a w, the resonant (upper) branch at the peak
+        z, _, ier, msg = fsolve(residual, z0, full_output=True, xtol=1e-13)
+        if ier != 1 and np.max(np.abs(residual(z))) > 1e-9:
+            raise SimulationError(f'forced orbit at {frequency_hz} Hz did not converge: {msg}')
+        y0 = z * scale
     # Monodromy matrix by finite differences of the period map (for the stability test).
     mono = np.empty((2 * n, 2 * n))
     base = flow(y0).y[:, -1]
@@ -302,6 +320,14 @@ def drive_initial_state(config: SimConfig):
     on the branch asked for: the shooting starts from the peak amplitude
     ``A_e Q_2 / (omega omega_2)`` for the upper branch and from a tenth of it for the lower.
 
+    With the sine companions, the branch is that of the cos coordinates (the orbit has no sine
+    content, :func:`forced_orbit`) and must be stable there. The companions can still be
+    unstable: the standing 2theta wave of the upper branch is parametrically unstable to its
+    degenerate sin(2 theta) partner (default device at 15 798.6 Hz: largest multiplier
+    1.0000376, growth 0.59 /s; the whirling of a driven ring). The state is returned with a
+    warning then: in the simulator the companions stay exactly 0 until a sine disturbance (a y
+    shock or base acceleration) lets the instability grow.
+
     Raises
     ------
     SimulationError
@@ -315,10 +341,20 @@ def drive_initial_state(config: SimConfig):
     w = 2.0 * math.pi * d.frequency
     peak = abs(d.amplitude) * config.modes.quality_factors[1] / (w * w2)
     guess = peak if d.start_on == 'upper_branch' else 0.1 * peak
-    orbit = forced_orbit(config, d.frequency, guess, d.amplitude)
+    cos_config = replace(config, modes=replace(config.modes, companions=False))
+    orbit = forced_orbit(cos_config, d.frequency, guess, d.amplitude)
     if not orbit.stable:
         raise SimulationError(f'drive.start_on: no stable {d.start_on} orbit found at '
                               f'{d.frequency} Hz (found q2 = {orbit.amplitude_m[1]:.3e} m, '
                               f'unstable)')
+    if config.modes.companions:
+        orbit = forced_orbit(config, d.frequency, guess, d.amplitude)
+        if not orbit.stable:
+            mu = float(np.max(np.abs(orbit.floquet_multipliers)))
+            warnings.warn(f'drive.start_on: the {d.start_on} orbit at {d.frequency} Hz is '
+                          f'unstable to the sine companions (largest Floquet multiplier '
+                          f'{mu:.7f}, growth {math.log(mu) * d.frequency:.3g} /s); they stay '
+                          f'exactly 0 until a sine disturbance (y shock or base acceleration)',
+                          RuntimeWarning, stacklevel=2)
     n = config.modes.count * (2 if config.modes.companions else 1)
     return orbit.initial_state[:n].copy(), orbit.initial_state[n:].copy()

@@ -254,3 +254,63 @@ def test_lower_branch_start(config):
                                                                    start_on='lower_branch')))
     np.testing.assert_allclose(np.concatenate([x0, v0]), lower.initial_state,
                                rtol=1e-6, atol=1e-6 * lower.amplitude_m[1])
+
+
+def test_upper_branch_with_companions_is_the_cos_orbit(config):
+    """
+    With the sine companions the orbit is the same: their force is exactly zero.
+
+    The drive has no sine content, so neither has the orbit, and the symmetric quadrature
+    gives exactly 0.0 on every companion; the cos part must equal the orbit of the model
+    without companions. (With the companions in the shooting unknowns, the degenerate cos/sin
+    pairs made the solve stall on the integrator's round-off.)
+    """
+    upper = nnm.forced_orbit(config, config.drive.frequency, 0.4e-6, config.drive.amplitude)
+    both = replace(config, modes=replace(config.modes, companions=True))
+    with pytest.warns(RuntimeWarning, match='unstable to the sine companions'):
+        x0, v0 = nnm.drive_initial_state(both)
+    n = config.modes.count
+    assert x0.shape == (2 * n,)
+    assert np.all(x0[n:] == 0.0) and np.all(v0[n:] == 0.0)
+    np.testing.assert_allclose(np.concatenate([x0[:n], v0[:n]]), upper.initial_state,
+                               rtol=1e-8, atol=1e-8 * upper.amplitude_m[1])
+    assert np.all(forces.nonlinear_acceleration(x0, forces.build_force_model(both))[n:] == 0.0)
+
+
+def test_upper_branch_standing_wave_is_unstable_to_its_companion(config):
+    """
+    The driven standing 2theta wave is parametrically unstable to sin(2 theta) (whirling).
+
+    With companions, the full monodromy matrix has one multiplier outside the unit circle on
+    the upper branch (q2 ~ 0.39 um) and none on the lower branch (~5 nm), where the coupling,
+    quadratic in the amplitude, is ~6000 times weaker than the damping. The cos multipliers
+    are those of the model without companions; the companions' own are ~exp(-pi omega / (Q w))
+    at small amplitude. The check of the instability itself: a tiny sin(2 theta) seed grows
+    in the Simulator at the rate the multiplier gives.
+    """
+    both = replace(config, modes=replace(config.modes, companions=True))
+    f = config.drive.frequency
+    upper = nnm.forced_orbit(both, f, 0.4e-6, config.drive.amplitude)
+    lower = nnm.forced_orbit(both, f, 0.04e-6, config.drive.amplitude)
+    mu = np.sort(np.abs(upper.floquet_multipliers))[::-1]
+    print(f'upper branch with companions: largest multipliers {mu[:3]}; lower: '
+          f'{np.max(np.abs(lower.floquet_multipliers)):.8f}')
+    assert mu[0] > 1.00001 and mu[1] < 1.0
+    assert lower.stable
+    growth = math.log(mu[0]) * f  # 1/s
+    # The Simulator from the orbit with a 1 pm seed on q2s: the seed's envelope grows as
+    # exp(growth t) (after its transient onto the unstable direction).
+    sim = Simulator(both)
+    n = config.modes.count
+    x0, v0 = upper.initial_state[:2 * n].copy(), upper.initial_state[2 * n:].copy()
+    x0[n + 1] = 1e-12
+    sim.set_state(x0, v0)
+    out = sim.advance(4.0)
+    q2s = np.abs(out.q[:, n + 1])
+    window = int(round(0.05 / sim.period_s))
+    env = np.array([q2s[i:i + window].max() for i in range(0, len(q2s) - window + 1, window)])
+    t_env = (np.arange(env.size) + 0.5) * 0.05
+    late = t_env > 2.0  # the decaying direction (~0.29 /s) has faded below 5 %
+    rate = np.polyfit(t_env[late], np.log(env[late]), 1)[0]
+    print(f'growth of q2s: Floquet {growth:.3f} /s, Simulator {rate:.3f} /s')
+    assert rate == pytest.approx(growth, rel=0.05)
