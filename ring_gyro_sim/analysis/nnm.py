@@ -31,8 +31,8 @@ which is what the default outer voltage is calibrated on (:func:`calibrate_outer
 
 from dataclasses import dataclass, replace
 import math
-import warnings
 from typing import List, Sequence
+import warnings
 
 import numpy as np
 from ring_gyro_sim.core import forces
