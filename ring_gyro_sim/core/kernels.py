@@ -422,7 +422,7 @@ def _stage_rotations(a, h, drive_omega, rot):
     rot[a.size, 1] = math.sin(drive_omega * h)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _step(q, v, acc, t, h, a, b, prop, rot, kbasis, projection, signs, poly, taylor_terms, outer,
           inner, fold, inner_contact, gap, pulses, profile_t, profile_x, profile_y, drive_amp,
           drive_omega, drive_t_ref, drive_phase, drive_index, y_index, work, fe, info, tinfo):
@@ -483,12 +483,12 @@ def _fill_propagators(omega, zeta, a, tau, prop):
             prop[i, c, 3] = e * (co - r * si)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_max_sub,
                 omega, zeta, prop_sub, kbasis, projection, signs, poly, taylor_terms, outer, inner,
                 fold, inner_contact, gap, pulses, profile_t, profile_x, profile_y, drive_amp,
                 drive_omega, drive_t_ref, drive_phase, drive_index, y_index, out_q, out_v,
-                work, fe, info, tinfo):
+                work, fe, info, tinfo, cuts, rot, rot_sub):
     """
     Advance ``n_samples`` output periods from sample index ``k0``.
 
@@ -498,11 +498,13 @@ def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_
     sub-steps of at most ``pulse_max_sub`` seconds, so the method keeps its order.
     Returns the number of samples completed; on a state out of range it stops early with
     ``info`` / ``tinfo`` set and ``q, v`` at the last stage (finite).
+
+    ``cuts`` (at least ``2 P + 2`` floats for P pulses), ``rot`` and ``rot_sub`` (``(len(b),
+    2)``) are scratch. This kernel and :func:`_step` are compiled without numba's reference
+    counting (``_nrt=False``; they allocate nothing): with it, every step paid an atomic
+    increment and decrement of each of ~20 array arguments (measured 29 % of the run time).
     """
     n = q.size
-    cuts = np.empty(2 * pulses.shape[0] + 2)
-    rot = np.empty((b.size, 2))
-    rot_sub = np.empty((b.size, 2))
     _stage_rotations(a, h, drive_omega, rot)
     for s in range(n_samples):
         k = k0 + s
@@ -527,7 +529,14 @@ def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_
             if active:
                 cuts[n_cuts] = t1
                 n_cuts += 1
-                seg = np.sort(cuts[:n_cuts])
+                for g in range(1, n_cuts):  # insertion sort (a few entries)
+                    value = cuts[g]
+                    e = g - 1
+                    while e >= 0 and cuts[e] > value:
+                        cuts[e + 1] = cuts[e]
+                        e -= 1
+                    cuts[e + 1] = value
+                seg = cuts
                 for g in range(n_cuts - 1):
                     length = seg[g + 1] - seg[g]
                     if length <= 0.0:

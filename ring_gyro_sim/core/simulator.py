@@ -461,7 +461,9 @@ class Simulator:
             m.inner, m.fold, m.inner_contact,
             m.gap, pulse_arr, prof_t, prof_x, prof_y, self._drive_amp, self._drive_omega,
             self._drive_t_ref, self._drive_phase, self._drive_index, self._y_index, out_q,
-            out_v, self._work, self._fe, self._info, self._tinfo)
+            out_v, self._work, self._fe, self._info, self._tinfo,
+            np.empty(2 * len(active) + 2), np.empty((self._b.size, 2)),
+            np.empty((self._b.size, 2)))
         self.steps_taken += completed * self.n_sub
         if self._info[0] != 0:
             status = int(self._info[0])
