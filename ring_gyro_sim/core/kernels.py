@@ -366,6 +366,10 @@ def _external(t, t_mid, pulses, base_x, base_y, drive_index, y_index, drive_c, d
     """
     External acceleration at time ``t`` (s) into ``fe`` (m/s^2).
 
+    Only ``fe[0]``, ``fe[y_index]`` and ``fe[drive_index]`` (distinct) are written; the other
+    entries stay at the zero :func:`run_samples` puts there (zeroing all of ``fe`` every stage
+    compiled to a call of memset).
+
     Base acceleration ``a_b`` enters as ``-a_b`` on q_1 (x) and q_1^s (y) (eq. 27). Whether a
     pulse acts is decided at the middle ``t_mid`` of the current (sub)step, which never
     straddles a pulse's start or end; inside it the half-sine formula is used at every stage,
@@ -379,8 +383,6 @@ def _external(t, t_mid, pulses, base_x, base_y, drive_index, y_index, drive_c, d
     sin per step, :func:`_step`) and ``rot_c, rot_s`` the cos and sin of ``omega`` times the
     stage's offset in the step (:func:`_stage_rotations`), by the angle-sum formula.
     """
-    for i in range(fe.size):
-        fe[i] = 0.0
     ax = base_x
     ay = base_y
     for p in range(pulses.shape[0]):
@@ -390,11 +392,11 @@ def _external(t, t_mid, pulses, base_x, base_y, drive_index, y_index, drive_c, d
             s = math.sin(math.pi * (t - start) / dur)
             ax += pulses[p, 2] * s
             ay += pulses[p, 3] * s
-    fe[0] -= ax
+    fe[0] = -ax
     if y_index >= 0:
-        fe[y_index] -= ay
+        fe[y_index] = -ay
     if drive_index >= 0:
-        fe[drive_index] += drive_c * rot_c - drive_s * rot_s
+        fe[drive_index] = drive_c * rot_c - drive_s * rot_s
 
 
 @njit(cache=True, inline='always')
@@ -505,6 +507,8 @@ def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_
     increment and decrement of each of ~20 array arguments (measured 29 % of the run time).
     """
     n = q.size
+    for c in range(n):
+        fe[c] = 0.0
     _stage_rotations(a, h, drive_omega, rot)
     for s in range(n_samples):
         k = k0 + s
