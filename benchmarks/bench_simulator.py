@@ -245,7 +245,7 @@ def _force_loop(x, kbasis, projection, signs, poly, taylor_terms, outer, inner, 
     """
     Evaluate the force ``count`` times at slowly changing states (no Python in between).
 
-    The calls are made as ``kernels._step`` makes them (the common case inline, the general
+    The calls are made as ``kernels.run_samples`` makes them (the common case inline, the general
     path called from the loop): ``kernels.nl_accel`` called as a function costs ~3x more.
     """
     total = 0.0

@@ -57,11 +57,13 @@ shaped by, each measured:
 
 * numba's reference counting: a function that takes arrays and has branches increments and
   decrements every array argument atomically on every call unless its pruning pass can prove
-  the pairs redundant. ``run_samples`` and ``_step`` are compiled with ``_nrt=False`` (they
-  allocate nothing), which removed 29 % of the run time;
+  the pairs redundant. ``run_samples`` is compiled with ``_nrt=False`` (it allocates
+  nothing), which removed 29 % of the run time;
 * an inlined function (``inline='always'``) with a branch that stores, returns early or calls
   out costs the same kind of overhead per call: the force's common case
-  (:func:`_nl_accel_even`) has no such branch, its fallback is called from ``_step``;
+  (:func:`_nl_accel_even`) has no such branch, its fallback is called from the step loop;
+* the step is written out in :func:`run_samples`: called as a function it passed ~20 array
+  structures every step (~25 % of a Strang run);
 * loops over the angles run innermost on coordinate-major arrays (``(n, angles)``) so that
   they vectorise; a loop that only zeroes a short array compiled to a ``memset`` call.
 """
@@ -298,9 +300,10 @@ def _nl_accel_even(x, kbasis, projection, signs, poly, taylor_terms, work, out, 
     range) leaves ``out`` unchanged and sets ``info[0] = NEEDS_GENERAL``; otherwise
     ``info[0] = 0``.
 
-    Written without branches around the work: measured in ``_step``, a conditional store
+    Written without branches around the work: measured in the step loop, a conditional store
     or call in here (the fallback, an early return) doubles its cost (~65 -> ~130 ns on the
-    paper configuration), so the fallback is the caller's (:func:`nl_accel`, :func:`_step`).
+    paper configuration), so the fallback is the caller's (:func:`nl_accel`,
+    :func:`run_samples`).
     """
     n = x.size
     r = kbasis.shape[1] // 4
@@ -355,7 +358,7 @@ def nl_accel(x, kbasis, projection, signs, poly, taylor_terms, outer, inner, fol
     round-off.
 
     :func:`_nl_accel_even` takes the common case, :func:`_nl_accel_general` the rest
-    (``_step`` makes the same two calls itself). ``work`` is scratch of at least ``8 R``
+    (:func:`run_samples` makes the same two calls itself). ``work`` is scratch of at least ``8 R``
     floats; ``out`` (n,) receives the accelerations (m/s^2). On a state out of range
     ``info[0]`` gets the status, ``info[1]`` the index ``4 * j + k`` (representative j,
     member k as :func:`orbit_angle` numbers them), and ``out`` is left unchanged.
@@ -396,12 +399,12 @@ def _external(t, t_mid, pulses, base_x, base_y, drive_index, y_index, drive_c, d
     straddles a pulse's start or end; inside it the half-sine formula is used at every stage,
     so stages that some splittings place outside the step (negative drifts) see the smooth
     continuation, not a kink. ``base_x, base_y`` is the sampled profile at ``t``
-    (:func:`_profile_accel`, called by :func:`_step`: a call in here, even one not taken,
+    (:func:`_profile_accel`, called by :func:`run_samples`: a call in here, even one not taken,
     costs every stage ~30 ns).
 
     The drive ``A cos(omega (t - t_ref) + phase)`` on q_2 is ``drive_c rot_c - drive_s rot_s``:
     ``drive_c, drive_s = A cos, A sin`` of the phase at the start of the step (one cos and one
-    sin per step, :func:`_step`) and ``rot_c, rot_s`` the cos and sin of ``omega`` times the
+    sin per step, :func:`run_samples`) and ``rot_c, rot_s`` the cos and sin of ``omega`` times the
     stage's offset in the step (:func:`_stage_rotations`), by the angle-sum formula.
     """
     ax = base_x
@@ -445,50 +448,6 @@ def _stage_rotations(a, h, drive_omega, rot):
     rot[a.size, 1] = math.sin(drive_omega * h)
 
 
-@njit(cache=True, _nrt=False)
-def _step(q, v, acc, t, h, a, b, prop, rot, kbasis, projection, signs, poly, taylor_terms, outer,
-          inner, fold, inner_contact, gap, pulses, profile_t, profile_x, profile_y, drive_amp,
-          drive_omega, drive_t_ref, drive_phase, drive_index, y_index, work, fe, info, tinfo):
-    """One BAB splitting step of length ``h`` from time ``t``; ``acc`` is FSAL."""
-    n = q.size
-    t_mid = t + 0.5 * h
-    drive_c, drive_s = drive_phasor(t, drive_amp, drive_omega, drive_t_ref, drive_phase)
-    tt = t
-    base_x = 0.0
-    base_y = 0.0
-    for i in range(a.size):
-        if profile_t.size > 0:
-            base_x, base_y = _profile_accel(tt, profile_t, profile_x, profile_y)
-        _external(tt, t_mid, pulses, base_x, base_y, drive_index, y_index, drive_c, drive_s,
-                  rot[i, 0], rot[i, 1], fe)
-        kick = b[i] * h
-        for c in range(n):
-            v[c] += kick * (acc[c] + fe[c])
-        for c in range(n):
-            x0 = q[c]
-            v0 = v[c]
-            q[c] = prop[i, c, 0] * x0 + prop[i, c, 1] * v0
-            v[c] = prop[i, c, 2] * x0 + prop[i, c, 3] * v0
-        tt += h * a[i]
-        # nl_accel written out: its fallback called from here, not from an inlined function
-        # (see _nl_accel_even).
-        _nl_accel_even(q, kbasis, projection, signs, poly, taylor_terms, work, acc, info)
-        if info[0] != 0:
-            info[0] = 0
-            _nl_accel_general(q, kbasis, projection, signs, poly, taylor_terms, outer, inner,
-                              fold, inner_contact, gap, work, acc, info)
-            if info[0] != 0:
-                tinfo[0] = tt
-                return
-    if profile_t.size > 0:
-        base_x, base_y = _profile_accel(t + h, profile_t, profile_x, profile_y)
-    _external(t + h, t_mid, pulses, base_x, base_y, drive_index, y_index, drive_c, drive_s,
-              rot[a.size, 0], rot[a.size, 1], fe)
-    kick = b[a.size] * h
-    for c in range(n):
-        v[c] += kick * (acc[c] + fe[c])
-
-
 @njit(cache=True)
 def _fill_propagators(omega, zeta, a, tau, prop):
     """In-kernel version of :func:`linear_propagators` for the drifts ``a * tau``."""
@@ -515,19 +474,24 @@ def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_
     """
     Advance ``n_samples`` output periods from sample index ``k0``.
 
-    Step times are computed from integer indices (``k period + j h``), so the result does not
-    depend on how a run is cut into calls. A step that overlaps a shock pulse is cut at the
-    pulse's start and end (where the half-sine's derivative jumps) and each piece into equal
-    sub-steps of at most ``pulse_max_sub`` seconds, so the method keeps its order.
-    Returns the number of samples completed; on a state out of range it stops early with
-    ``info`` / ``tinfo`` set and ``q, v`` at the last stage (finite).
+    Each step is one BAB splitting step (module docstring) of length ``h``, the force of its
+    last kick reused as the first of the next (FSAL, in ``acc``). Step times are computed from
+    integer indices (``k period + j h``), so the result does not depend on how a run is cut
+    into calls. A step that overlaps a shock pulse is cut at the pulse's start and end (where
+    the half-sine's derivative jumps) and each piece into equal sub-steps of at most
+    ``pulse_max_sub`` seconds, so the method keeps its order. Returns the number of samples
+    completed; on a state out of range it stops early with ``info`` / ``tinfo`` set and
+    ``q, v`` at the last stage (finite).
 
     ``cuts`` (at least ``2 P + 2`` floats for P pulses), ``rot`` and ``rot_sub`` (``(len(b),
-    2)``) are scratch. This kernel and :func:`_step` are compiled without numba's reference
-    counting (``_nrt=False``; they allocate nothing): with it, every step paid an atomic
-    increment and decrement of each of ~20 array arguments (measured 29 % of the run time).
+    2)``) are scratch. The step is written out here, not called: a call passed ~20 array
+    structures every step (~25 % of a Strang run), and numba's inliner does not take a
+    function of this many arguments. The kernel is compiled without numba's reference
+    counting (``_nrt=False``; it allocates nothing): with it, every step paid an atomic
+    increment and decrement of each array argument (measured 29 % of the run time).
     """
     n = q.size
+    n_stages = a.size
     for c in range(n):
         fe[c] = 0.0
     _stage_rotations(a, h, drive_omega, rot)
@@ -551,9 +515,9 @@ def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_
                     if pe < t1:
                         cuts[n_cuts] = pe
                         n_cuts += 1
+            cuts[n_cuts] = t1
+            n_cuts += 1
             if active:
-                cuts[n_cuts] = t1
-                n_cuts += 1
                 for g in range(1, n_cuts):  # insertion sort (a few entries)
                     value = cuts[g]
                     e = g - 1
@@ -561,33 +525,66 @@ def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_
                         cuts[e + 1] = cuts[e]
                         e -= 1
                     cuts[e + 1] = value
-                seg = cuts
-                for g in range(n_cuts - 1):
-                    length = seg[g + 1] - seg[g]
+            for g in range(n_cuts - 1):
+                # The plain step (no pulse): one piece of exactly h with the step's own
+                # propagators; a piece of a pulse step: m sub-steps with their own.
+                m = 1
+                hs = h
+                step_prop = prop
+                step_rot = rot
+                if active:
+                    length = cuts[g + 1] - cuts[g]
                     if length <= 0.0:
                         continue
-                    m = int(math.ceil(length / pulse_max_sub - 1e-9))
-                    if m < 1:
-                        m = 1
+                    m = max(1, int(math.ceil(length / pulse_max_sub - 1e-9)))
                     hs = length / m
                     _fill_propagators(omega, zeta, a, hs, prop_sub)
                     _stage_rotations(a, hs, drive_omega, rot_sub)
-                    for r in range(m):
-                        _step(q, v, acc, seg[g] + r * hs, hs, a, b, prop_sub, rot_sub, kbasis,
-                              projection, signs, poly, taylor_terms, outer, inner, fold,
-                              inner_contact, gap, pulses, profile_t, profile_x, profile_y,
-                              drive_amp, drive_omega, drive_t_ref, drive_phase, drive_index,
-                              y_index, work, fe, info, tinfo)
+                    step_prop = prop_sub
+                    step_rot = rot_sub
+                for r in range(m):
+                    # ---- one BAB step of length hs from ts
+                    ts = cuts[g] + r * hs
+                    t_mid = ts + 0.5 * hs
+                    drive_c, drive_s = drive_phasor(ts, drive_amp, drive_omega, drive_t_ref,
+                                                    drive_phase)
+                    tt = ts
+                    base_x = 0.0
+                    base_y = 0.0
+                    for i in range(n_stages):
+                        if profile_t.size > 0:
+                            base_x, base_y = _profile_accel(tt, profile_t, profile_x, profile_y)
+                        _external(tt, t_mid, pulses, base_x, base_y, drive_index, y_index,
+                                  drive_c, drive_s, step_rot[i, 0], step_rot[i, 1], fe)
+                        kick = b[i] * hs
+                        for c in range(n):
+                            v[c] += kick * (acc[c] + fe[c])
+                        for c in range(n):
+                            x0 = q[c]
+                            v0 = v[c]
+                            q[c] = step_prop[i, c, 0] * x0 + step_prop[i, c, 1] * v0
+                            v[c] = step_prop[i, c, 2] * x0 + step_prop[i, c, 3] * v0
+                        tt += hs * a[i]
+                        # nl_accel written out: its fallback is called from here, not from an
+                        # inlined function (see _nl_accel_even).
+                        _nl_accel_even(q, kbasis, projection, signs, poly, taylor_terms, work,
+                                       acc, info)
                         if info[0] != 0:
-                            return s
-            else:
-                _step(q, v, acc, t, h, a, b, prop, rot, kbasis, projection, signs, poly,
-                      taylor_terms,
-                      outer, inner, fold, inner_contact, gap, pulses, profile_t, profile_x,
-                      profile_y, drive_amp, drive_omega, drive_t_ref, drive_phase,
-                      drive_index, y_index, work, fe, info, tinfo)
-                if info[0] != 0:
-                    return s
+                            info[0] = 0
+                            _nl_accel_general(q, kbasis, projection, signs, poly, taylor_terms,
+                                              outer, inner, fold, inner_contact, gap, work, acc,
+                                              info)
+                            if info[0] != 0:
+                                tinfo[0] = tt
+                                return s
+                    if profile_t.size > 0:
+                        base_x, base_y = _profile_accel(ts + hs, profile_t, profile_x, profile_y)
+                    _external(ts + hs, t_mid, pulses, base_x, base_y, drive_index, y_index,
+                              drive_c, drive_s, step_rot[n_stages, 0], step_rot[n_stages, 1],
+                              fe)
+                    kick = b[n_stages] * hs
+                    for c in range(n):
+                        v[c] += kick * (acc[c] + fe[c])
         for c in range(n):
             out_q[s, c] = q[c]
             out_v[s, c] = v[c]
