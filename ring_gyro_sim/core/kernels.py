@@ -49,11 +49,11 @@ recorder thread can serialise and compress while they run.
 Cost
 ----
 Measured on the paper configuration (N_R = 3, N_T = 10, bm6, one 5 us step per 200 kHz
-sample; ``benchmarks/bench_simulator.py`` and the README's Performance section): ~1.0 us per
-step, of which 11 force evaluations at ~66 ns (18 angles, Horner of degree 9, strict IEEE
-arithmetic: no fast-math, so results do not depend on the vector width), ~15 ns per stage of
-kick, drift and external force, and ~150 ns per step (drive phasor, loop). What the code is
-shaped by, each measured:
+sample; ``benchmarks/bench_simulator.py`` and the README's Performance section): ~0.9 us per
+step in this kernel, of which 11 force evaluations at ~66 ns (18 angles, Horner of degree 9,
+strict IEEE arithmetic: no fast-math, so results do not depend on the vector width), ~13 ns
+per stage of kick, drift and external force, and ~100 ns per step (drive phasor, loop);
+:func:`output_channels` adds ~190 ns per sample. What the code is shaped by, each measured:
 
 * numba's reference counting: a function that takes arrays and has branches increments and
   decrements every array argument atomically on every call unless its pruning pass can prove
