@@ -243,7 +243,11 @@ MEMBER_ORDER = (0, 2, 1, 3)
 
 @njit(cache=True, inline='always')
 def _angle_values(x, kbasis, m, u):
-    """``u[:m] = x @ kbasis[:, :m]``: w / d_g at the first m angles (loops vectorise over k)."""
+    """
+    Set ``u[:m] = x @ kbasis[:, :m]``, w at the first m angles (loops vectorise over k).
+
+    In units of d_g with :func:`member_basis`, in m with plain mode shapes.
+    """
     x0 = x[0]
     for k in range(m):
         u[k] = kbasis[0, k] * x0
@@ -636,13 +640,8 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
             for i in range(n):
                 w += centre_shapes[i, k] * q[s, i]
             out_gap[s, k] = max(gap - w, 0.0)
-        q0 = q[s, 0]
-        for g in range(n_g):
-            wg[g] = ring_shapes[0, g] * q0
-        for i in range(1, n):
-            qi = q[s, i]
-            for g in range(n_g):
-                wg[g] += ring_shapes[i, g] * qi
+        qs = q[s]
+        _angle_values(qs, ring_shapes, n_g, wg)
         best = 0
         for g in range(1, n_g):
             if wg[g] > wg[best]:
@@ -655,12 +654,7 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
         if den < 0.0:
             w_max = y1 - 0.125 * (y2 - y0) * (y2 - y0) / den
         out_min[s] = max(gap - w_max, 0.0)
-        for e in range(n_e):
-            we[e] = electrode_shapes[0, e] * q0
-        for i in range(1, n):
-            qi = q[s, i]
-            for e in range(n_e):
-                we[e] += electrode_shapes[i, e] * qi
+        _angle_values(qs, electrode_shapes, n_e, we)
         for e in range(n_e):
             we[e] = electrode_weights[e % n_p] / max(gap - we[e], gap_floor)
         for k in range(n_k):
