@@ -70,9 +70,9 @@ def default_max_step(config: SimConfig) -> float:
 
     The linear part is exact, so the step is set by the accuracy of the nonlinear coupling
     only: at 1/8 of the fastest period (5 us for the paper's 22 kHz 3theta mode) the largest
-    error in any q, 20 ms after a 10 000 g shock, against a DOP853 reference is 3.4e-6 of the
-    peak q1 with ``bm6`` (the default) and 7.7e-5 with ``bm4`` (``test/core/test_simulator.py``
-    and ``benchmarks/``; the issue asks for 1e-4).
+    error in any q, 20 ms after a 10 000 g shock, against a DOP853 reference is 2.2e-6 of the
+    peak q1 with ``bm6`` (the default; 3.3e-6 with the drive on, ``benchmarks/``) and 7.7e-5
+    with ``bm4`` (``test/core/test_simulator.py``; the issue asks for 1e-4).
     """
     if config.integrator.max_step > 0.0:
         return config.integrator.max_step

@@ -14,6 +14,7 @@
 
 """Tests of core/simulator.py and core/kernels.py: accuracy, conservation, determinism, inputs."""
 
+from dataclasses import replace
 import math
 
 import numpy as np
@@ -58,17 +59,21 @@ def reference_solution(config, t_end, t_eval):
 
 
 def test_accuracy_against_dop853_20ms_after_10000g():
-    # Issue 3: largest error in any q below 1e-4 of the peak q1, paper configuration.
+    # Issue 3: largest error in any q below 1e-4 of the peak q1, paper configuration; the
+    # default bm6 and the cheaper bm4 (README "Performance": its margin is small).
     config = paper_shock()
-    sim = Simulator(config)
-    out = sim.advance(0.02)
-    after = out.t > config.shock_duration_s
-    ref = reference_solution(config, 0.02, out.t[after])
-    peak_q1 = np.max(np.abs(ref[:, 0]))
-    err = np.max(np.abs(out.q[after] - ref)) / peak_q1
-    print(f'bm6, h = {sim.h * 1e6:.2f} us: max error / peak q1 = {err:.2e}')
-    assert peak_q1 > 5e-6  # the shock does reach ~55-60 % of the gap
-    assert err < 1e-4
+    ref = None
+    for method in ('bm6', 'bm4'):
+        sim = Simulator(replace(config, integrator=replace(config.integrator, method=method)))
+        out = sim.advance(0.02)
+        after = out.t > config.shock_duration_s
+        if ref is None:
+            ref = reference_solution(config, 0.02, out.t[after])
+        peak_q1 = np.max(np.abs(ref[:, 0]))
+        err = np.max(np.abs(out.q[after] - ref)) / peak_q1
+        print(f'{method}, h = {sim.h * 1e6:.2f} us: max error / peak q1 = {err:.2e}')
+        assert peak_q1 > 5e-6  # the shock does reach ~55-60 % of the gap
+        assert err < 1e-4
 
 
 def test_splitting_orders():
