@@ -29,7 +29,7 @@ This gives the backbone of Fig. 4 on the configuration that is simulated (all it
 which is what the default outer voltage is calibrated on (:func:`calibrate_outer_voltage`).
 """
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 import math
 from typing import List, Sequence
 import warnings
@@ -218,8 +218,14 @@ class ForcedOrbit:
         max |x_i| over the period, m.
     initial_state : ndarray, shape (2 n,)
         ``[x, v]`` at a time where the drive phase is 0 (m, m/s).
-    floquet_multipliers : ndarray, shape (2 n,)
-        Eigenvalues of the monodromy matrix (stable iff all |mu| < 1).
+    floquet_multipliers : ndarray, shape (2 n_c,)
+        Eigenvalues of the monodromy matrix of the cos coordinates (n_c of them): the
+        stability of the branch.
+    companion_multipliers : ndarray, shape (2 n_s,)
+        With the sine companions (n_s), the eigenvalues of their block of the monodromy
+        matrix (empty without them). At an orbit without sine content the matrix is block
+        diagonal: by the theta -> -theta symmetry the cos equations are even and the sine
+        equations odd in the sine coordinates.
 
     """
 
@@ -227,11 +233,17 @@ class ForcedOrbit:
     amplitude_m: np.ndarray
     initial_state: np.ndarray
     floquet_multipliers: np.ndarray
+    companion_multipliers: np.ndarray = field(default_factory=lambda: np.empty(0))
+
+    @property
+    def branch_stable(self) -> bool:
+        """The multipliers of the cos coordinates inside the unit circle."""
+        return bool(np.all(np.abs(self.floquet_multipliers) < 1.0))
 
     @property
     def stable(self) -> bool:
-        """All Floquet multipliers inside the unit circle."""
-        return bool(np.all(np.abs(self.floquet_multipliers) < 1.0))
+        """All Floquet multipliers, the companions' included, inside the unit circle."""
+        return self.branch_stable and bool(np.all(np.abs(self.companion_multipliers) < 1.0))
 
 
 def forced_orbit(config: SimConfig, frequency_hz: float, amplitude_guess_m: float,
@@ -256,8 +268,8 @@ def forced_orbit(config: SimConfig, frequency_hz: float, amplitude_guess_m: floa
     force on every companion is then exactly zero, so the equations of the cos coordinates are
     those of the model without companions. (Solved in the full space, each degenerate cos/sin
     pair makes the shooting Jacobian nearly singular and the residual, a small difference of
-    large states, carries the integrator's error: the solve stalled.) The Floquet multipliers
-    are those of the full system, companions included.
+    large states, carries the integrator's error: the solve stalled.) Only the companions'
+    block of the monodromy matrix is then added (:class:`ForcedOrbit`).
 
     """
     if config.modes.companions:
@@ -280,36 +292,45 @@ def forced_orbit(config: SimConfig, frequency_hz: float, amplitude_guess_m: floa
     def flow(y0):
         return solve_ivp(rhs, (0.0, period), y0, method='DOP853', rtol=1e-12, atol=1e-20)
 
-    def residual(z):
-        y0 = z * scale
-        sol = flow(y0)
-        return (sol.y[:, -1] - y0) / scale
+    def monodromy_eigenvalues(y0, rows):
+        """Eigenvalues of the block ``rows`` of the period map's Jacobian (finite differences)."""
+        base = flow(y0).y[rows, -1]
+        block = np.empty((rows.size, rows.size))
+        for col, k in enumerate(rows):
+            dy = np.zeros(2 * n)
+            dy[k] = 1e-6 * scale[k]
+            block[:, col] = (flow(y0 + dy).y[rows, -1] - base) / dy[k]
+        return np.linalg.eigvals(block)
 
     if config.modes.companions:
         half = n // 2
         y0 = np.zeros(2 * n)
         y0[:half] = cos_only.initial_state[:half]
         y0[n:n + half] = cos_only.initial_state[half:]
-    else:
-        z0 = np.zeros(2 * n)
-        z0[n + 1] = 1.0  # q2 = a sin(w t): v2(0) = a w, the resonant (upper) branch at the peak
-        z, _, ier, msg = fsolve(residual, z0, full_output=True, xtol=1e-13)
-        if ier != 1 and np.max(np.abs(residual(z))) > 1e-9:
-            raise SimulationError(f'forced orbit at {frequency_hz} Hz did not converge: {msg}')
+        sine_rows = np.concatenate([np.arange(half, n), np.arange(n + half, 2 * n)])
+        return ForcedOrbit(frequency_hz=frequency_hz,
+                           amplitude_m=np.concatenate([cos_only.amplitude_m, np.zeros(half)]),
+                           initial_state=y0, floquet_multipliers=cos_only.floquet_multipliers,
+                           companion_multipliers=monodromy_eigenvalues(y0, sine_rows))
+
+    def residual(z):
         y0 = z * scale
-    # Monodromy matrix by finite differences of the period map (for the stability test).
-    mono = np.empty((2 * n, 2 * n))
-    base = flow(y0).y[:, -1]
-    for k in range(2 * n):
-        dy = np.zeros(2 * n)
-        dy[k] = 1e-6 * scale[k]
-        mono[:, k] = (flow(y0 + dy).y[:, -1] - base) / dy[k]
+        sol = flow(y0)
+        return (sol.y[:, -1] - y0) / scale
+
+    z0 = np.zeros(2 * n)
+    z0[n + 1] = 1.0  # q2 = a sin(w t): v2(0) = a w, the resonant (upper) branch at the peak
+    z, _, ier, msg = fsolve(residual, z0, full_output=True, xtol=1e-13)
+    if ier != 1 and np.max(np.abs(residual(z))) > 1e-9:
+        raise SimulationError(f'forced orbit at {frequency_hz} Hz did not converge: {msg}')
+    y0 = z * scale
+    mu = monodromy_eigenvalues(y0, np.arange(2 * n))  # for the stability test
     sol = solve_ivp(rhs, (0.0, period), y0, method='DOP853', rtol=1e-12, atol=1e-20,
                     dense_output=True)
     tt = np.linspace(0.0, period, 1001)
     amp = np.max(np.abs(sol.sol(tt)[:n]), axis=1)
     return ForcedOrbit(frequency_hz=frequency_hz, amplitude_m=amp, initial_state=y0,
-                       floquet_multipliers=np.linalg.eigvals(mono))
+                       floquet_multipliers=mu)
 
 
 def drive_initial_state(config: SimConfig):
@@ -341,20 +362,17 @@ def drive_initial_state(config: SimConfig):
     w = 2.0 * math.pi * d.frequency
     peak = abs(d.amplitude) * config.modes.quality_factors[1] / (w * w2)
     guess = peak if d.start_on == 'upper_branch' else 0.1 * peak
-    cos_config = replace(config, modes=replace(config.modes, companions=False))
-    orbit = forced_orbit(cos_config, d.frequency, guess, d.amplitude)
-    if not orbit.stable:
+    orbit = forced_orbit(config, d.frequency, guess, d.amplitude)
+    if not orbit.branch_stable:
         raise SimulationError(f'drive.start_on: no stable {d.start_on} orbit found at '
                               f'{d.frequency} Hz (found q2 = {orbit.amplitude_m[1]:.3e} m, '
                               f'unstable)')
-    if config.modes.companions:
-        orbit = forced_orbit(config, d.frequency, guess, d.amplitude)
-        if not orbit.stable:
-            mu = float(np.max(np.abs(orbit.floquet_multipliers)))
-            warnings.warn(f'drive.start_on: the {d.start_on} orbit at {d.frequency} Hz is '
-                          f'unstable to the sine companions (largest Floquet multiplier '
-                          f'{mu:.7f}, growth {math.log(mu) * d.frequency:.3g} /s); they stay '
-                          f'exactly 0 until a sine disturbance (y shock or base acceleration)',
-                          RuntimeWarning, stacklevel=2)
+    if not orbit.stable:
+        mu = float(np.max(np.abs(orbit.companion_multipliers)))
+        warnings.warn(f'drive.start_on: the {d.start_on} orbit at {d.frequency} Hz is '
+                      f'unstable to the sine companions (largest Floquet multiplier '
+                      f'{mu:.7f}, growth {math.log(mu) * d.frequency:.3g} /s); they stay '
+                      f'exactly 0 until a sine disturbance (y shock or base acceleration)',
+                      RuntimeWarning, stacklevel=2)
     n = config.modes.count * (2 if config.modes.companions else 1)
     return orbit.initial_state[:n].copy(), orbit.initial_state[n:].copy()

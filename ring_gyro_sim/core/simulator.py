@@ -169,6 +169,8 @@ class Simulator:
         self._a, self._b = kernels.splitting_coefficients(config.integrator.method)
         self._prop = kernels.linear_propagators(self.omega, self.zeta, self._a * self.h)
         self._prop_sub = np.empty_like(self._prop)
+        self._rot = np.empty((self._b.size, 2))  # scratch of run_samples
+        self._rot_sub = np.empty((self._b.size, 2))
         names = [f'q{n}' for n in range(1, config.modes.count + 1)]
         if config.modes.companions:
             names += [f'q{n}s' for n in range(1, config.modes.count + 1)]
@@ -462,8 +464,7 @@ class Simulator:
             m.gap, pulse_arr, prof_t, prof_x, prof_y, self._drive_amp, self._drive_omega,
             self._drive_t_ref, self._drive_phase, self._drive_index, self._y_index, out_q,
             out_v, self._work, self._fe, self._info, self._tinfo,
-            np.empty(2 * len(active) + 2), np.empty((self._b.size, 2)),
-            np.empty((self._b.size, 2)))
+            np.empty(2 * len(active) + 2), self._rot, self._rot_sub)
         self.steps_taken += completed * self.n_sub
         if self._info[0] != 0:
             status = int(self._info[0])

@@ -292,11 +292,16 @@ def test_upper_branch_standing_wave_is_unstable_to_its_companion(config):
     f = config.drive.frequency
     upper = nnm.forced_orbit(both, f, 0.4e-6, config.drive.amplitude)
     lower = nnm.forced_orbit(both, f, 0.04e-6, config.drive.amplitude)
-    mu = np.sort(np.abs(upper.floquet_multipliers))[::-1]
-    print(f'upper branch with companions: largest multipliers {mu[:3]}; lower: '
-          f'{np.max(np.abs(lower.floquet_multipliers)):.8f}')
+    mu = np.sort(np.abs(upper.companion_multipliers))[::-1]
+    print(f'upper branch with companions: largest companion multipliers {mu[:3]}, branch '
+          f'{np.max(np.abs(upper.floquet_multipliers)):.8f}; lower: '
+          f'{np.max(np.abs(lower.companion_multipliers)):.8f}')
+    # One companion direction grows (measured 1.0000376: 40x the distance to 1 of the
+    # finite-difference error, which the decaying pairs at exp(-pi omega / (Q w)) = 0.99998
+    # bound), the others decay; the branch itself is stable.
     assert mu[0] > 1.00001 and mu[1] < 1.0
-    assert lower.stable
+    assert upper.branch_stable and not upper.stable
+    assert lower.stable and lower.companion_multipliers.size == 2 * config.modes.count
     growth = math.log(mu[0]) * f  # 1/s
     # The Simulator from the orbit with a 1 pm seed on q2s: the seed's envelope grows as
     # exp(growth t) (after its transient onto the unstable direction).
@@ -313,4 +318,5 @@ def test_upper_branch_standing_wave_is_unstable_to_its_companion(config):
     late = t_env > 2.0  # the decaying direction (~0.29 /s) has faded below 5 %
     rate = np.polyfit(t_env[late], np.log(env[late]), 1)[0]
     print(f'growth of q2s: Floquet {growth:.3f} /s, Simulator {rate:.3f} /s')
+    # Measured 0.594 vs 0.595 /s; 5 % allows for the log-linear fit of 40 window maxima.
     assert rate == pytest.approx(growth, rel=0.05)
