@@ -1,0 +1,69 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Write ``demo_reference.npz``: every output channel of a short ``config/demo.yaml`` run.
+
+The scenario is ``config/demo.yaml`` (upper-branch drive start, a 10 000 g shock) with the
+shock moved to 10 ms and 40 ms simulated, over the shock. Stored: every ``DECIMATION``-th sample of
+every channel (q, gap at each electrode centre, smallest gap, capacitances) as float64, and
+the SHA-256 of each channel's complete array (all 8000 samples), so that the file stays small
+and still pins every sample. It was made with the tree of commit 14aa740 (before the run-path redesign
+of issue 9); ``test/test_reference_outputs.py`` checks that the current tree reproduces it
+bit for bit. Run ``python test/data/make_demo_reference.py`` only when the physics is meant
+to change, and say why in the commit.
+"""
+
+import hashlib
+import pathlib
+import sys
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+REPO = HERE.parents[1]
+OVERRIDES = {'duration': 0.04, 'scenario.shock_times': [0.01], 'record.path': ''}
+BLOCK_SAMPLES = (2000, 2000, 2000, 1500, 500)
+DECIMATION = 10
+CHANNELS = ('t', 'q', 'gap', 'min_gap', 'capacitance')
+
+
+def compute():
+    """Return the channels of the reference scenario as a dict of arrays."""
+    sys.path.insert(0, str(REPO))
+    from ring_gyro_sim.analysis.nnm import drive_initial_state
+    from ring_gyro_sim.core.params import build_config, to_flat
+    from ring_gyro_sim.core.simulator import Simulator
+    from ring_gyro_sim.paramfile import load_yaml
+
+    base = load_yaml(str(REPO / 'config' / 'demo.yaml'))
+    config = build_config({**to_flat(base), **OVERRIDES})
+    sim = Simulator(config)
+    start = drive_initial_state(config)
+    sim.set_state(*start)
+    parts = [sim.advance_samples(n) for n in BLOCK_SAMPLES]
+    return {name: np.ascontiguousarray(np.concatenate([getattr(p, name) for p in parts]))
+            for name in CHANNELS}
+
+
+def digest(array):
+    """Return the SHA-256 (hex) of a float64 array's bytes."""
+    return hashlib.sha256(np.ascontiguousarray(array, dtype=np.float64).tobytes()).hexdigest()
+
+
+if __name__ == '__main__':
+    channels = compute()
+    stored = {name: a[::DECIMATION] for name, a in channels.items()}
+    stored.update({f'sha256_{name}': np.array(digest(a)) for name, a in channels.items()})
+    np.savez_compressed(HERE / 'demo_reference.npz', **stored)

@@ -1,0 +1,45 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The physics did not change: a short ``config/demo.yaml`` run against a stored reference.
+
+``test/data/demo_reference.npz`` was written by ``test/data/make_demo_reference.py`` with the
+tree before the run-path redesign (issue 9). Every output channel must come out bit for bit
+the same (the SHA-256 of each complete channel, and the stored samples for a readable diff).
+"""
+
+import pathlib
+import sys
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE / 'data'))
+
+import make_demo_reference  # noqa: E402
+
+
+def test_demo_outputs_are_bit_identical_to_the_stored_reference():
+    stored = np.load(HERE / 'data' / 'demo_reference.npz')
+    channels = make_demo_reference.compute()
+    for name in make_demo_reference.CHANNELS:
+        got = channels[name][::make_demo_reference.DECIMATION]
+        assert got.shape == stored[name].shape, name
+        diff = np.flatnonzero((got != stored[name]).reshape(len(got), -1).any(axis=1))
+        assert diff.size == 0, (
+            f'{name}: {diff.size} stored samples differ, first at row {diff[:1]}: '
+            f'max |delta| = {np.max(np.abs(got - stored[name]))!r}')
+        assert make_demo_reference.digest(channels[name]) == str(stored[f'sha256_{name}']), \
+            f'{name}: the complete channel differs from the reference (samples in between)'
