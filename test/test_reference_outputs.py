@@ -20,15 +20,16 @@ tree before the run-path redesign (issue 9). Every output channel must come out 
 the same (the SHA-256 of each complete channel, and the stored samples for a readable diff).
 """
 
+import importlib.util
 import pathlib
-import sys
 
 import numpy as np
 
 HERE = pathlib.Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE / 'data'))
-
-import make_demo_reference  # noqa: E402
+_SPEC = importlib.util.spec_from_file_location('make_demo_reference',
+                                               HERE / 'data' / 'make_demo_reference.py')
+make_demo_reference = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(make_demo_reference)
 
 
 def test_demo_outputs_are_bit_identical_to_the_stored_reference():

@@ -62,7 +62,7 @@ class ParamSpec:
     """One row of the parameter table."""
 
     name: str
-    kind: str  # 'float', 'int', 'bool', 'str', 'float_list'
+    kind: str  # 'float', 'int', 'bool', 'str', 'float_list', 'str_list'
     default: Any
     unit: str
     description: str
@@ -146,11 +146,26 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
     ParamSpec('output.block_duration', 'float', 0.01, 's',
               'simulated time covered by one published block', 0.0),
     ParamSpec('record.path', 'str', '', '-', 'MCAP file to record the run to (empty = none)'),
+    ParamSpec('record.topics', 'str_list', [], '-',
+              'topics a recording holds, relative names as published (e.g. modal_displacement, '
+              'shock, /diagnostics); empty = all. Inputs needed to re-simulate are always kept'),
+    ParamSpec('record.decimation', 'int', 1, '-',
+              'record every N-th sample of the block topics (1 = every sample)', 1, 1000000),
+    ParamSpec('record.compression', 'str', 'zstd', '-',
+              'chunk compression of the recording: zstd, lz4 or none (as rosbag2 offers)'),
+    ParamSpec('record.overwrite', 'bool', False, '-',
+              'replace an existing file at record.path (false: refuse it, as rosbag2 does)'),
+    ParamSpec('inputs.horizon', 'float', 60.0, 's',
+              'inputs stamped further ahead of the simulation time than this are refused', 0.0,
+              read_only=False),
     ParamSpec('publish_clock', 'bool', False, '-', 'publish the simulation time on /clock'),
     ParamSpec('scenario.shock_times', 'float_list', [], 's',
               'simulation times of scheduled x shocks'),
     ParamSpec('scenario.shock_peaks', 'float_list', [], 'm/s^2',
-              'peak base accelerations of the scheduled x shocks (same length)'),
+              'peak base accelerations of the scheduled shocks (same length)'),
+    ParamSpec('scenario.shock_angles', 'float_list', [], 'deg',
+              'direction of each scheduled shock, from x towards y (empty = all along x; '
+              'else the same length as scenario.shock_times)'),
 )
 
 SPECS: Dict[str, ParamSpec] = {p.name: p for p in PARAMETERS}
@@ -188,7 +203,7 @@ def coerce(name: str, value: Any) -> Any:
     if spec is None:
         raise _fail(name, 'unknown parameter')
     if value is None:
-        return [] if spec.kind == 'float_list' else spec.default
+        return [] if spec.kind in ('float_list', 'str_list') else spec.default
     if spec.kind == 'float':
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise _fail(name, f'expected a number, got {value!r}')
@@ -207,6 +222,11 @@ def coerce(name: str, value: Any) -> Any:
         if not isinstance(value, str):
             raise _fail(name, f'expected a string, got {value!r}')
         return value
+    if spec.kind == 'str_list':
+        if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or not all(
+                isinstance(item, str) for item in value):
+            raise _fail(name, f'expected a list of strings, got {value!r}')
+        return list(value)
     if isinstance(value, (str, bytes)) or not isinstance(value, Sequence):
         raise _fail(name, f'expected a list of numbers, got {value!r}')
     out = []
@@ -387,6 +407,7 @@ class DriveParams:
 
 
 INTEGRATOR_METHODS = ('bm6', 'bm4', 'strang')
+RECORD_COMPRESSIONS = ('zstd', 'lz4', 'none')
 
 
 @dataclass(frozen=True)
@@ -418,6 +439,12 @@ class RunParams:
     shock_duration: float = 0.0
     shock_times: Tuple[float, ...] = ()
     shock_peaks: Tuple[float, ...] = ()
+    shock_angles: Tuple[float, ...] = ()
+    record_topics: Tuple[str, ...] = ()
+    record_decimation: int = 1
+    record_compression: str = 'zstd'
+    record_overwrite: bool = False
+    input_horizon: float = 60.0
 
     def __post_init__(self) -> None:
         for name, v in (('real_time_factor', self.real_time_factor),
@@ -443,6 +470,33 @@ class RunParams:
                 raise _fail('scenario.shock_times', f'must be >= 0, got {t!r}')
         for a in self.shock_peaks:
             _finite('scenario.shock_peaks', a)
+        if self.shock_angles and len(self.shock_angles) != len(self.shock_times):
+            raise _fail('scenario.shock_angles',
+                        f'has {len(self.shock_angles)} values but scenario.shock_times has '
+                        f'{len(self.shock_times)}')
+        for a in self.shock_angles:
+            _finite('scenario.shock_angles', a)
+        if self.record_compression not in RECORD_COMPRESSIONS:
+            raise _fail('record.compression',
+                        f'must be one of {", ".join(RECORD_COMPRESSIONS)}, '
+                        f'got {self.record_compression!r}')
+        if self.record_decimation < 1:
+            raise _fail('record.decimation', f'must be >= 1, got {self.record_decimation}')
+        _finite('inputs.horizon', self.input_horizon)
+        if self.input_horizon < 0.0:
+            raise _fail('inputs.horizon', f'must be >= 0, got {self.input_horizon!r}')
+
+    def scheduled_shocks(self) -> List[Tuple[int, float, float]]:
+        """Return the scheduled shocks as ``(start ns, peak x, peak y)`` (m/s^2)."""
+        angles = self.shock_angles or (0.0,) * len(self.shock_times)
+        out = []
+        for t_s, peak, deg in zip(self.shock_times, self.shock_peaks, angles):
+            if deg == 0.0:
+                x, y = peak, 0.0
+            else:
+                x, y = peak * math.cos(math.radians(deg)), peak * math.sin(math.radians(deg))
+            out.append((int(round(t_s * 1e9)), x, y))
+        return out
 
     @property
     def output_period_ns(self) -> int:
@@ -596,7 +650,13 @@ def build_config(values: Mapping[str, Any], *, frequencies_from_legs=None) -> Si
                     record_path=flat['record.path'], publish_clock=flat['publish_clock'],
                     shock_duration=flat['shock.duration'],
                     shock_times=tuple(flat['scenario.shock_times']),
-                    shock_peaks=tuple(flat['scenario.shock_peaks']))
+                    shock_peaks=tuple(flat['scenario.shock_peaks']),
+                    shock_angles=tuple(flat['scenario.shock_angles']),
+                    record_topics=tuple(flat['record.topics']),
+                    record_decimation=flat['record.decimation'],
+                    record_compression=flat['record.compression'],
+                    record_overwrite=flat['record.overwrite'],
+                    input_horizon=flat['inputs.horizon'])
     return SimConfig(ring=ring, legs=legs, modes=modes, electrodes=electrodes, drive=drive,
                      integrator=integrator, run=run)
 
@@ -650,6 +710,12 @@ def to_flat(config: SimConfig) -> Dict[str, Any]:
         'record.path': c.run.record_path, 'publish_clock': c.run.publish_clock,
         'scenario.shock_times': list(c.run.shock_times),
         'scenario.shock_peaks': list(c.run.shock_peaks),
+        'scenario.shock_angles': list(c.run.shock_angles),
+        'record.topics': list(c.run.record_topics),
+        'record.decimation': c.run.record_decimation,
+        'record.compression': c.run.record_compression,
+        'record.overwrite': c.run.record_overwrite,
+        'inputs.horizon': c.run.input_horizon,
     }
 
 

@@ -41,7 +41,8 @@ from ring_gyro_sim.core.errors import ParameterError
 
 _INT_LIMIT = 2 ** 63 - 1
 _CHOICES = {'drive.start_on': params.DRIVE_START_CHOICES,
-            'integrator.method': params.INTEGRATOR_METHODS}
+            'integrator.method': params.INTEGRATOR_METHODS,
+            'record.compression': params.RECORD_COMPRESSIONS}
 # Parameters rclpy itself declares on every node (not ours, never refused here).
 ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
 
@@ -64,6 +65,8 @@ def descriptor(spec: params.ParamSpec) -> ParameterDescriptor:
         constraints.append('a number (integer literals are accepted)')
     elif spec.kind == 'float_list':
         constraints.append('a list of numbers (an empty list means empty)')
+    elif spec.kind == 'str_list':
+        constraints.append('a list of strings (an empty list means empty)')
     if spec.name in _CHOICES:
         constraints.append('one of ' + ', '.join(_CHOICES[spec.name]))
     if spec.read_only:
@@ -76,6 +79,8 @@ def _default(spec: params.ParamSpec) -> Any:
     # rclpy types an empty list as a BYTE_ARRAY; "not set" is what rcl makes of [] anyway.
     if spec.kind == 'float_list':
         return [float(x) for x in spec.default] or None
+    if spec.kind == 'str_list':
+        return [str(x) for x in spec.default] or None
     return spec.default
 
 
@@ -146,7 +151,7 @@ def updated_config(current: params.SimConfig,
         if p.name not in params.SPECS:
             raise ParameterError(f'{p.name}: unknown parameter')
         value = plain(p.value)
-        if value is None and params.SPECS[p.name].kind != 'float_list':
+        if value is None and params.SPECS[p.name].kind not in ('float_list', 'str_list'):
             raise ParameterError(f'{p.name}: cannot be unset at run time')
         changed[p.name] = params.coerce(p.name, value)
     flat.update(changed)

@@ -16,13 +16,13 @@
 Write ``demo_reference.npz``: every output channel of a short ``config/demo.yaml`` run.
 
 The scenario is ``config/demo.yaml`` (upper-branch drive start, a 10 000 g shock) with the
-shock moved to 10 ms and 40 ms simulated, over the shock. Stored: every ``DECIMATION``-th sample of
-every channel (q, gap at each electrode centre, smallest gap, capacitances) as float64, and
-the SHA-256 of each channel's complete array (all 8000 samples), so that the file stays small
-and still pins every sample. It was made with the tree of commit 14aa740 (before the run-path redesign
-of issue 9); ``test/test_reference_outputs.py`` checks that the current tree reproduces it
-bit for bit. Run ``python test/data/make_demo_reference.py`` only when the physics is meant
-to change, and say why in the commit.
+shock moved to 10 ms and 40 ms simulated. Stored: every ``DECIMATION``-th sample of every
+channel (q, gap at each electrode centre, smallest gap, capacitances) as float64, and the
+SHA-256 of each channel's complete array (all 8000 samples), so that the file stays small and
+still pins every sample. It was made with the tree of commit 14aa740 (before the run-path
+redesign of issue 9); ``test/test_reference_outputs.py`` checks that the current tree
+reproduces it bit for bit. Run ``python test/data/make_demo_reference.py`` only when the
+physics is meant to change, and say why in the commit.
 """
 
 import hashlib
