@@ -25,18 +25,19 @@ import math
 import pathlib
 import sys
 import time
-import types
 
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 import numpy as np
 import pytest
-from ring_gyro_sim import offline
+from ring_gyro_sim import offline, progress, run
 from ring_gyro_sim.analysis.nnm import drive_initial_state
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.params import build_config, STANDARD_GRAVITY
 from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.paramfile import load_yaml
+from ring_gyro_sim.run import (BaseAcceleration, DriveAmplitude, DriveFrequency,
+                               ParameterChange, Shock)
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
 
@@ -108,7 +109,7 @@ def test_summary_matches_direct_simulator_run():
     assert summary.wall_time_s > 0.0
     assert summary.real_time_factor == pytest.approx(summary.sim_time_s / summary.wall_time_s)
     assert list(summary.peak_abs_m) == list(summary.final_abs_m) == ['q1', 'q2', 'q3']
-    tail = int(round(offline.FINAL_WINDOW_S / sim.period_s))
+    tail = int(round(run.SUMMARY_WINDOW_S / sim.period_s))
     for i, name in enumerate(sim.coordinates):
         assert summary.peak_abs_m[name] == pytest.approx(np.max(np.abs(out.q[:, i])),
                                                          rel=1e-12, abs=0.0)
@@ -226,11 +227,11 @@ def test_resimulation_from_the_upper_branch_with_inputs(tmp_path):
     # Drive on (start state from the metadata) plus inputs of every kind the node records.
     config = build_config({})
     original = tmp_path / 'run.mcap'
-    inputs = [(2_000_000, 'shock', (2000 * STANDARD_GRAVITY, 0.0)),
-              (4_000_000, 'drive/frequency', 15790.0),
-              (6_000_000, 'base_acceleration', (500.0, 0.0)),
-              (6_500_000, 'base_acceleration', (0.0, 0.0)),
-              (9_000_000, 'drive/amplitude', 0.05)]
+    inputs = [Shock(2000 * STANDARD_GRAVITY, 0.0, at_ns=2_000_000),
+              DriveFrequency(15790.0, at_ns=4_000_000),
+              BaseAcceleration(500.0, 0.0, at_ns=6_000_000),
+              BaseAcceleration(0.0, 0.0, at_ns=6_500_000),
+              DriveAmplitude(0.05, at_ns=9_000_000)]
     offline.run_offline(config, 0.02, output=str(original), progress=False, inputs=inputs)
     offline.resimulate(str(original), str(tmp_path / 'again.mcap'), progress=False)
     assert_same_outputs(original, tmp_path / 'again.mcap')
@@ -246,8 +247,8 @@ def test_parameter_changes_scheduled_ahead_apply_at_their_time(tmp_path):
     # changes; q2 is exactly zero before 8 ms and rings after.
     config = build_config({'drive.amplitude': 0.0, 'drive.start_on': 'rest'})
     original = tmp_path / 'params.mcap'
-    inputs = [(8_000_000, 'events/parameters', {'drive.amplitude': 5.0}),
-              (12_000_000, 'events/parameters', {'drive.amplitude': 0.0})]
+    inputs = [ParameterChange({'drive.amplitude': 5.0}, at_ns=8_000_000),
+              ParameterChange({'drive.amplitude': 0.0}, at_ns=12_000_000)]
     offline.run_offline(config, 0.02, output=str(original), progress=False, inputs=inputs)
     events = decoded(original, [f'{NS}/events/parameters'])[f'{NS}/events/parameters']
     assert [t for t, _ in events] == [8_000_000, 12_000_000]
@@ -276,11 +277,11 @@ def test_shock_after_a_shock_duration_change_uses_the_new_duration():
     rest = {'drive.amplitude': 0.0, 'drive.start_on': 'rest'}
     changed = offline.run_offline(
         build_config(rest), 0.01, progress=False,
-        inputs=[(2_000_000, 'events/parameters', {'shock.duration': 20e-6}),
-                (5_000_000, 'shock', (peak, 0.0))])
+        inputs=[ParameterChange({'shock.duration': 20e-6}, at_ns=2_000_000),
+                Shock(peak, 0.0, at_ns=5_000_000)])
     from_start = offline.run_offline(
         build_config({**rest, 'shock.duration': 20e-6}), 0.01, progress=False,
-        inputs=[(5_000_000, 'shock', (peak, 0.0))])
+        inputs=[Shock(peak, 0.0, at_ns=5_000_000)])
     # A 20 us pulse carries about 3x the impulse of the default 6.33 us one.
     assert changed.peak_abs_m['q1'] == pytest.approx(from_start.peak_abs_m['q1'], rel=1e-6)
 
@@ -293,22 +294,12 @@ class _TtyBuffer(io.StringIO):
         return True
 
 
-def fake_clock(step_s):
-    """Return a stand-in for the ``time`` module whose monotonic clock jumps ``step_s``."""
-    now = [0.0]
-
-    def monotonic():
-        now[0] += step_s
-        return now[0]
-    return types.SimpleNamespace(monotonic=monotonic, perf_counter=time.perf_counter)
-
-
 def test_progress_bar_on_a_real_run_longer_than_its_threshold(monkeypatch):
-    # The bar waits 2 s of wall time; size the run so that it takes about 4 s here.
+    # The bar waits progress.DELAY_S of wall time; size the run so that it takes about 4 s.
     config = shock_from_rest(peak=0.0, **{'output.rate': 50000.0})
     probe = offline.run_offline(config, 0.2, progress=False)
     speed = probe.real_time_factor
-    duration = min(60.0, round(4.0 * speed, 3))
+    duration = min(60.0, round(2.0 * progress.DELAY_S * speed, 3))
     stream = _TtyBuffer()
     monkeypatch.setattr(sys, 'stderr', stream)
     start = time.perf_counter()
@@ -316,9 +307,9 @@ def test_progress_bar_on_a_real_run_longer_than_its_threshold(monkeypatch):
     wall = time.perf_counter() - start
     text = stream.getvalue()
     print(f'{duration} s simulated in {wall:.2f} s; stderr: {text!r}', file=sys.__stdout__)
-    assert wall > 2.0, 'the run was too short to test the bar'
-    assert '100.0%' in text and '[' + '#' * 30 + ']' in text
-    assert f'sim {summary.sim_time_s:.3f}/{duration:.3f} s' in text
+    assert wall > progress.DELAY_S, 'the run was too short to test the bar'
+    assert '100.0%' in text
+    assert f'{summary.sim_time_s:.3f}/{duration:.3f} sim s' in text
     assert text.endswith('\n')
 
 
@@ -328,18 +319,19 @@ def test_no_progress_bar_for_a_short_run(capsys):
 
 
 def test_progress_bar_lines_when_stderr_is_not_a_terminal(monkeypatch, capsys):
-    # 3 s of fake wall time between clock reads: a long run, seen from a pipe.
-    monkeypatch.setattr(offline, 'time', fake_clock(3.0))
+    # No delay: a long run seen from a pipe writes whole lines, never carriage returns.
+    monkeypatch.setattr(progress, 'DELAY_S', 0.0)
+    monkeypatch.setattr(progress, 'PIPE_INTERVAL_S', 0.0)
     offline.run_offline(shock_from_rest(), 0.05, progress=True)
     err = capsys.readouterr().err
     lines = err.splitlines()
-    assert lines, 'no progress lines for a long run'
+    assert len(lines) >= 2, 'no progress lines for a long run'
     assert '\r' not in err
-    assert lines[-1].startswith('[' + '#' * 30 + ']') and '100.0%' in lines[-1]
+    assert '100.0%' in lines[-1] and '0.050/0.050 sim s' in lines[-1]
 
 
 def test_progress_false_shows_nothing_even_for_a_long_run(monkeypatch):
-    monkeypatch.setattr(offline, 'time', fake_clock(3.0))
+    monkeypatch.setattr(progress, 'DELAY_S', 0.0)
     monkeypatch.setattr(sys, 'stderr', _TtyBuffer())
     offline.run_offline(shock_from_rest(), 0.05, progress=False)
     assert sys.stderr.getvalue() == ''

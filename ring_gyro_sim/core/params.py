@@ -524,6 +524,10 @@ class SimConfig:
         if e.inner_radius and e.inner_radius >= self.ring.radius:
             raise _fail('electrodes.inner_radius',
                         f'must be smaller than ring.radius, got {e.inner_radius!r}')
+        if not self.modes.companions and any(
+                y != 0.0 for _, _, y in self.run.scheduled_shocks()):
+            raise _fail('scenario.shock_angles',
+                        'a shock off the x axis drives q1s: needs modes.companions')
         if self.drive.amplitude != 0.0 and self.modes.count < 2:
             raise _fail('drive.amplitude', 'drives the 2theta mode: needs at least 2 modes')
         # Static pull-in (linear stability): the softest coordinate must keep a positive

@@ -43,6 +43,7 @@ message giving the time and the angle, and from then on holds the ring where it 
 recovers. No output is ever NaN.
 """
 
+import bisect
 from dataclasses import dataclass, replace
 import math
 from typing import Any, Callable, List, Mapping, Optional, Tuple
@@ -78,6 +79,22 @@ def default_max_step(config: SimConfig) -> float:
         return config.integrator.max_step
     f_max = max(config.modes.coordinate_frequencies())
     return 1.0 / (STEPS_PER_PERIOD * f_max)
+
+
+def coordinate_names(config: SimConfig) -> List[str]:
+    """Return the names of the simulated coordinates: q1..qN, then q1s..qNs (companions)."""
+    names = [f'q{n}' for n in range(1, config.modes.count + 1)]
+    if config.modes.companions:
+        names += [f'q{n}s' for n in range(1, config.modes.count + 1)]
+    return names
+
+
+def channel_names(config: SimConfig):
+    """Return the channel names of the three block outputs (without the leading ``t``)."""
+    electrodes = [f'e{i}' for i in range(config.electrodes.count)]
+    return {'modal_displacement': coordinate_names(config),
+            'radial_gap': electrodes + ['min'],
+            'sense_electrodes': electrodes}
 
 
 # Marks a pulse whose duration is that of the configuration in force when it starts.
@@ -141,7 +158,12 @@ class Simulator:
         self.contact_time_s = math.nan
         self.contact_theta_rad = math.nan
         self._pulses: List[Tuple[float, float, float, float]] = []
-        self._profile: List[Tuple[int, float, float]] = []
+        # The streamed base-acceleration profile: stamps (ns, increasing) and values; samples
+        # before _profile_head are over (see _profile_arrays).
+        self._profile_t: List[int] = []
+        self._profile_x: List[float] = []
+        self._profile_y: List[float] = []
+        self._profile_head = 0
         self._events: List[Tuple[int, int, Callable[[], None]]] = []
         self._event_seq = 0
         self._drive_amp = config.drive.amplitude
@@ -153,8 +175,8 @@ class Simulator:
         self._info = np.zeros(2, dtype=np.int64)
         self._tinfo = np.zeros(1)
         self.steps_taken = 0
-        for t_s, peak in zip(config.run.shock_times, config.run.shock_peaks):
-            self.shock(peak, 0.0, at_ns=int(round(t_s * 1e9)))
+        for at_ns, peak_x, peak_y in config.run.scheduled_shocks():
+            self.shock(peak_x, peak_y, at_ns=at_ns)
 
     # ------------------------------------------------------------------ configuration
     def _build(self, config: SimConfig) -> None:
@@ -171,10 +193,7 @@ class Simulator:
         self._prop_sub = np.empty_like(self._prop)
         self._rot = np.empty((self._b.size, 2))  # scratch of run_samples
         self._rot_sub = np.empty((self._b.size, 2))
-        names = [f'q{n}' for n in range(1, config.modes.count + 1)]
-        if config.modes.companions:
-            names += [f'q{n}s' for n in range(1, config.modes.count + 1)]
-        self.coordinates = names
+        self.coordinates = coordinate_names(config)
         self._y_index = config.modes.count if config.modes.companions else -1
         self._drive_index = 1 if config.modes.count >= 2 else -1
         self._build_outputs(config)
@@ -215,11 +234,7 @@ class Simulator:
     @property
     def channel_names(self):
         """Channel names of the three block outputs (without the leading ``t``)."""
-        k = self._n_electrodes
-        electrodes = [f'e{i}' for i in range(k)]
-        return {'modal_displacement': list(self.coordinates),
-                'radial_gap': electrodes + ['min'],
-                'sense_electrodes': electrodes}
+        return channel_names(self._config)
 
     def reconfigure(self, config: SimConfig, at_ns: Optional[int] = None) -> None:
         """
@@ -326,9 +341,11 @@ class Simulator:
         if at_ns < self.time_ns:
             raise InputError(f'base_acceleration: time {at_ns * 1e-9:.9f} s is in the past '
                              f'(simulation time {self.time_s:.9f} s)')
-        if self._profile and at_ns <= self._profile[-1][0]:
+        if self._profile_t and at_ns <= self._profile_t[-1]:
             raise InputError('base_acceleration: stamps must increase')
-        self._profile.append((int(at_ns), float(ax), float(ay)))
+        self._profile_t.append(int(at_ns))
+        self._profile_x.append(float(ax))
+        self._profile_y.append(float(ay))
 
     def set_drive(self, amplitude: Optional[float] = None, frequency_hz: Optional[float] = None,
                   at_ns: Optional[int] = None) -> None:
@@ -361,14 +378,21 @@ class Simulator:
         self._drive_omega = 2.0 * math.pi * float(frequency_hz)
 
     def reset(self, at_ns: Optional[int] = None) -> None:
-        """Put the ring back at rest (and clear a contact) at a sample time."""
+        """
+        Put the ring back at rest (and clear a contact) at a sample time.
+
+        Everything pending is discarded: shock pulses (over or to come), the base-acceleration
+        profile (a new one may start at any stamp) and the drive / parameter changes
+        scheduled after it. The drive itself keeps its amplitude, frequency and phase.
+        """
         def apply() -> None:
             self.q[:] = 0.0
             self.v[:] = 0.0
             self._acc[:] = 0.0
-            now = self.time_s
-            self._pulses = [p for p in self._pulses if p[0] >= now]
-            self._profile = [p for p in self._profile if p[0] >= self.time_ns]
+            self._pulses = []
+            self._profile_t, self._profile_x, self._profile_y = [], [], []
+            self._profile_head = 0
+            self._events = []
             self.status = 'running'
             self.message = ''
             self.contact_time_s = math.nan
@@ -453,7 +477,7 @@ class Simulator:
         pulse_arr = np.array(active, dtype=np.float64).reshape(-1, 4)
         pulse_max_sub = (float(np.min(pulse_arr[:, 1])) / PULSE_SUBSTEPS_PER_DURATION
                          if len(active) else self.h)
-        prof_t, prof_x, prof_y = self._profile_arrays(t_start)
+        prof_t, prof_x, prof_y = self._profile_arrays(t_start, t_end)
         m = self.model
         self._info[:] = 0
         completed = kernels.run_samples(
@@ -483,19 +507,33 @@ class Simulator:
             self.q[:] = 0.0  # never expose NaN; the status says it failed
         self.v[:] = 0.0
 
-    def _profile_arrays(self, t_start: float):
-        prof = self._profile
-        keep = 0
-        for i, (t_ns, _, _) in enumerate(prof):
-            if t_ns * 1e-9 <= t_start:
-                keep = i
-        self._profile = prof[keep:]
-        if not self._profile:
+    def _profile_arrays(self, t_start: float, t_end: float):
+        """
+        Return the profile samples (s, m/s^2, m/s^2) that a stretch [t_start, t_end] can use.
+
+        From the last sample at or before ``t_start`` to the first one past ``t_end`` plus
+        two steps (splitting stages may sit slightly outside their step): the kernel
+        interpolates between neighbours only, so the result is that of the whole profile,
+        and the cost of a stretch does not grow with the samples still to come. Samples
+        before it are over; the lists are compacted once they hold mostly such samples.
+        """
+        times = self._profile_t
+        head = self._profile_head
+        if head >= len(times):
             empty = np.empty(0)
             return empty, empty, empty
-        arr = np.array(self._profile, dtype=np.float64)
-        return (np.ascontiguousarray(arr[:, 0] * 1e-9), np.ascontiguousarray(arr[:, 1]),
-                np.ascontiguousarray(arr[:, 2]))
+        keep = max(head, bisect.bisect_right(times, t_start, lo=head,
+                                             key=lambda t_ns: t_ns * 1e-9) - 1)
+        if keep > 4096 and 2 * keep > len(times):
+            for name in ('_profile_t', '_profile_x', '_profile_y'):
+                setattr(self, name, getattr(self, name)[keep:])
+            times, keep = self._profile_t, 0
+        self._profile_head = keep
+        end = min(len(times), bisect.bisect_right(times, t_end + 2.0 * self.h, lo=keep,
+                                                  key=lambda t_ns: t_ns * 1e-9) + 1)
+        return (np.array(times[keep:end], dtype=np.float64) * 1e-9,
+                np.array(self._profile_x[keep:end], dtype=np.float64),
+                np.array(self._profile_y[keep:end], dtype=np.float64))
 
     # ------------------------------------------------------------------ outputs
     def _samples(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> Samples:

@@ -12,48 +12,51 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+
 """
 ``ring_gyro_node``: the vibrating-ring gyroscope as a ROS 2 node (default name ``ring_gyro``).
 
 Run it with ``ring_gyro_node --ros-args --params-file config/default.yaml`` (or
 ``python -m ring_gyro_sim.ros.node ...``). The topics, parameters and services are those of
-``interface.md``; this docstring says how the node keeps them.
+``interface.md``. The simulation itself is a :class:`~ring_gyro_sim.run.Run` (the one run
+path: when inputs act, refusals, statistics, diagnostics keys); this node adds only pacing and
+ROS plumbing, and this docstring says how it keeps them.
 
 Pacing
-    A steady-clock timer advances the :class:`~ring_gyro_sim.core.simulator.Simulator` in
-    blocks of ``output.block_duration`` so that simulation time follows the wall clock times
-    ``real_time_factor`` (0 = as fast as possible). A block is computed and published once its
-    last sample time has been reached. When the computer cannot keep up, simulation time falls
-    behind but no block is ever skipped: the lag and the achieved factor are on
-    ``/diagnostics``. One timer callback works at most ``TICK_BUDGET_S`` of wall time, so
-    inputs and services are served between blocks even when running as fast as possible;
-    before each block the input messages waiting in the queues are taken, at most
-    ``SHOCK_DRAIN_PER_BLOCK`` shocks (the executor alone takes one per subscription per wait,
-    which starves inputs while the node lags).
-    ``duration`` > 0 ends the run after that much simulated time; SIGINT or SIGTERM end it
-    at the next block boundary. Either way: final diagnostics, a summary in the log (peak
-    |q1|, smallest gap, q2 amplitude before the first shock and over the last 10 ms), the
-    recording finalised, exit code 0. A bad parameter file or value, an unwritable
-    ``record.path`` or a failed ``drive.start_on`` orbit: one FATAL line naming the
+    A steady-clock timer advances the run in blocks of ``output.block_duration`` so that
+    simulation time follows the wall clock times ``real_time_factor`` (0 = as fast as
+    possible). A block is computed and published once its last sample time has been reached.
+    When the computer cannot keep up, simulation time falls behind but no block is ever
+    skipped: the lag and the achieved factor are on ``/diagnostics``. One timer callback works
+    at most ``TICK_BUDGET_S`` of wall time, so inputs and services are served between blocks
+    even when running as fast as possible; before each block the input messages waiting in the
+    queues are taken (the executor alone takes one per subscription per wait, which starves
+    inputs while the node lags). ``duration`` > 0 ends the run after that much simulated time;
+    SIGINT or SIGTERM end it at the next block boundary. Either way: final diagnostics, a
+    summary in the log (peak |q1|, smallest gap, q2 amplitude before the first shock and over
+    the last 10 ms), the recording finalised, exit code 0. A bad parameter file or value, an
+    unwritable ``record.path`` or a failed ``drive.start_on`` orbit: one FATAL line naming the
     parameter, exit code 1.
+
+    The node is spun with ``SingleThreadedExecutor.spin_once`` in a loop, not
+    ``spin_until_future_complete``: rclpy (Jazzy) adds a done-callback to the future on
+    every wake there (ros2/rclpy#1371), which grew the process by ~110 kB/s.
 
 Parameter handling
     Declared from the one table (``ros/parameters.py``), dynamically typed so that integer
     literals work for floats. Those a running simulation can take (voltages, Q factors,
-    drive, ``shock.duration``, ``real_time_factor``) are validated by rebuilding the whole
-    configuration; a refusal gives the reason ('<name>: <reason>') and changes nothing, an
-    accepted change acts at the current simulation time and is recorded. The others are
-    read-only.
+    drive, ``shock.duration``, ``real_time_factor``, ``inputs.horizon``) are validated by
+    rebuilding the whole configuration; a refusal gives the reason ('<name>: <reason>') and
+    changes nothing, an accepted change acts at the current simulation time and is recorded.
+    The others are read-only.
 
 Inputs and the simulation time they act at
-    The current simulation time is the end of the last published block. ``~/shock`` and
-    ``~/base_acceleration`` act at their stamp when it is in the future; a zero stamp, or a
-    stamp at most one block in the past (a late arrival), means the current simulation time;
-    an older stamp is rejected. ``~/drive/amplitude``, ``~/drive/frequency``, ``~/reset`` and
-    parameter changes act at the current simulation time. Every accepted input is recorded at
-    the time it acts; every rejected one (non-finite value, negative frequency, stamp too far
-    in the past, too many pending shocks, ...) changes nothing, is counted on
-    ``/diagnostics`` and logged with its reason (at most every 5 s per topic and kind).
+    See :mod:`ring_gyro_sim.run`: the current simulation time is the end of the last
+    published block; ``~/shock`` and ``~/base_acceleration`` act at their stamp (a zero stamp:
+    now; up to one block late: now; older: refused; beyond ``inputs.horizon`` ahead:
+    refused), ``~/drive/*``, ``~/reset`` and parameter changes now. Every refusal changes
+    nothing, is counted on ``/diagnostics`` and logged with its reason (at most every 5 s per
+    topic and kind). ``~/reset`` also discards everything pending.
 
 QoS
     Block topics (``~/modal_displacement``, ``~/radial_gap``, ``~/sense_electrodes``):
@@ -64,45 +67,38 @@ QoS
     (``~/base_acceleration``) and 10 (drive): a flood is dropped by the middleware queue,
     never stored without bound. ``/diagnostics`` and ``/clock``: reliable, keep last 10.
 
-Diagnostics (about 1 Hz, one status named ``<node name>: simulator``, stamped with the
-simulation time)
-    OK while running, WARN when more than ``LAG_WARN_S`` of wall time behind, ERROR in contact
-    / pull-in (the message gives time and place; the node stays up and ``~/reset``
-    recovers). Keys: ``sim_time_s``, ``real_time_factor_target``,
-    ``real_time_factor_achieved`` (over the last interval), ``real_time_factor_average``
-    (since the start), ``lag_s`` (simulated seconds behind the wall-clock target), ``steps``,
-    ``blocks``, ``min_gap_m`` and ``min_gap_ratio`` (smallest outer gap since the last
-    message, absolute and per d_g), ``min_gap_ratio_run`` (since the start), ``contact``,
-    ``status``, ``rejected_inputs`` (all topics) and ``rejected_<topic>``,
-    ``rejected_parameter_changes``, ``pending_shocks``, ``accepted_shocks``, ``drive_amplitude``,
-    ``drive_frequency_hz``.
+Diagnostics (about 1 Hz)
+    One status named ``<node>: simulator``, ``hardware_id`` ``ring_gyro_sim:<fully
+    qualified node name>``, stamped with the node's clock (ROS time; the simulation time only
+    with ``use_sim_time``). OK while running, WARN when more than ``LAG_WARN_S`` of wall time
+    behind, ERROR in contact / pull-in (the message gives time and place; the node stays up and
+    ``~/reset`` recovers). The keys are those of :meth:`ring_gyro_sim.run.Run.diagnostics`.
 """
 
 # Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
 # isort: off
-import collections
-import heapq
 import math
 import re
 import signal
 import sys
 import time
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, Optional, Tuple
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import AccelStamped, Vector3Stamped
-import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
-from rclpy.task import Future
+from ring_gyro_sim import run as run_mod
+from ring_gyro_sim.analysis.nnm import drive_initial_state
 from ring_gyro_sim.core.errors import InputError, ParameterError, RingGyroError
-from ring_gyro_sim.core.simulator import Samples, Simulator
 from ring_gyro_sim.ros import conversions, parameters
+from ring_gyro_sim.ros.recorder import RunRecorder
+from ring_gyro_sim.ros.sinks import Publishers, RosSink
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
@@ -114,94 +110,18 @@ BLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
 SHOCK_QUEUE_DEPTH = 100
 BASE_ACCELERATION_QUEUE_DEPTH = 1000
 DRIVE_QUEUE_DEPTH = 10
-MAX_PENDING_SHOCKS = 1000
 # Shocks taken from the queue per block besides the executor's one per wait: every shock
 # costs sub-steps (T_s / 16), so a flood must not buy unbounded work per block.
 SHOCK_DRAIN_PER_BLOCK = 10
-"""Shocks accepted but not over yet; beyond this a shock is rejected."""
-MAX_PENDING_BASE_ACCELERATION = 100_000
-"""Base-acceleration samples stamped in the future; beyond this one is rejected."""
 DIAGNOSTICS_PERIOD_S = 1.0
 TICK_BUDGET_S = 0.05
 """Most wall time one timer callback spends on blocks before serving inputs and services."""
+SPIN_TIMEOUT_S = 0.1
+"""Longest wait of one executor turn (the stop flag is checked between turns)."""
 LAG_WARN_S = 0.5
 """Wall seconds behind the real-time target from which /diagnostics says WARN."""
 REJECT_LOG_PERIOD_S = 5.0
-SUMMARY_WINDOW_S = 0.01
-"""Window (s) of the q2 amplitudes in the summary: before the first shock and at the end."""
-HARDWARE_ID = 'ring_gyro_sim'
 _NUMBER = re.compile(r'[-+]?\d[\d.]*(e[-+]?\d+)?')
-
-
-class RunStats:
-    """Peaks, smallest gap and amplitudes for the diagnostics and the end-of-run summary."""
-
-    def __init__(self, names: List[str], period_ns: int, gap_m: float) -> None:
-        self.names = names
-        self.period_ns = period_ns
-        self.gap_m = gap_m
-        self.peak = np.zeros(len(names))
-        self.min_gap = math.inf
-        self.interval_min_gap = math.inf
-        self.last_min_gap = gap_m
-        self.keep = max(1, int(round(SUMMARY_WINDOW_S * 1e9 / period_ns)))
-        self.tail_t = np.zeros(0, dtype=np.int64)
-        self.tail_q = np.zeros((0, len(names)))
-        self.first_shock_ns: Optional[int] = None
-        self.before_shock: Optional[np.ndarray] = None
-
-    def shock_at(self, at_ns: int) -> None:
-        """Note a shock acting at ``at_ns`` (the first one sets the pre-shock window)."""
-        if self.before_shock is None and (self.first_shock_ns is None
-                                          or at_ns < self.first_shock_ns):
-            self.first_shock_ns = int(at_ns)
-
-    def add(self, s: Samples, end_index: int) -> None:
-        """Add the samples of one block ending at sample ``end_index``."""
-        if len(s) == 0:
-            return
-        self.peak = np.maximum(self.peak, np.max(np.abs(s.q), axis=0))
-        block_min = float(np.min(s.min_gap))
-        self.min_gap = min(self.min_gap, block_min)
-        self.interval_min_gap = min(self.interval_min_gap, block_min)
-        self.last_min_gap = block_min
-        t_ns = (np.arange(end_index - len(s), end_index) + 1) * self.period_ns
-        all_t = np.concatenate([self.tail_t, t_ns])
-        all_q = np.concatenate([self.tail_q, s.q])
-        if (self.before_shock is None and self.first_shock_ns is not None
-                and t_ns[-1] >= self.first_shock_ns):
-            # The pulse starts at first_shock_ns: samples up to that time are unaffected.
-            before = all_q[all_t <= self.first_shock_ns][-self.keep:]
-            self.before_shock = (np.max(np.abs(before), axis=0) if len(before)
-                                 else np.full(len(self.names), math.nan))
-        self.tail_t = all_t[-self.keep:]
-        self.tail_q = all_q[-self.keep:]
-
-    def take_interval_min_gap(self) -> float:
-        """Return the smallest gap (m) since the last call (the last block's if none since)."""
-        value = self.interval_min_gap if math.isfinite(self.interval_min_gap) \
-            else self.last_min_gap
-        self.interval_min_gap = math.inf
-        return value
-
-    def summary(self) -> str:
-        """Return peak |q1|, smallest gap, q2 amplitude before the first shock and at the end."""
-        if not math.isfinite(self.min_gap):
-            return 'no block simulated'
-        parts = [f'peak |q1| = {1e6 * self.peak[0]:.4f} um',
-                 f'smallest gap = {1e6 * self.min_gap:.4f} um '
-                 f'({self.min_gap / self.gap_m:.3f} d_g)']
-        if len(self.names) >= 2:
-            window = f'{1e3 * SUMMARY_WINDOW_S:g} ms'
-            if self.before_shock is not None and math.isfinite(self.before_shock[1]):
-                parts.append(f'q2 amplitude {1e6 * self.before_shock[1]:.4f} um over the '
-                             f'{window} before the first shock '
-                             f'(t = {self.first_shock_ns * 1e-9:.6f} s)')
-            elif self.first_shock_ns is None:
-                parts.append('no shock')
-            final = np.max(np.abs(self.tail_q), axis=0)
-            parts.append(f'q2 amplitude {1e6 * final[1]:.4f} um over the last {window}')
-        return ', '.join(parts)
 
 
 class RingGyroNode(Node):
@@ -209,8 +129,10 @@ class RingGyroNode(Node):
 
     def __init__(self, node_name: str = 'ring_gyro', **kwargs) -> None:
         super().__init__(node_name, **kwargs)
-        self.recorder = None
+        self.run: Optional[run_mod.Run] = None
         self.stop_requested: Optional[str] = None
+        self.done = False
+        self.result: Optional[str] = None
         try:
             self._start()
         except RingGyroError as exc:
@@ -227,57 +149,40 @@ class RingGyroNode(Node):
         config = parameters.declare_parameters(self)
         for name in parameters.unknown_overrides(self):
             log.warn(f'ignoring {name!r}: not a parameter of ring_gyro_sim')
-        self.sim = Simulator(config)
-        Simulator(config).advance_samples(1)  # load the compiled kernels before pacing
-        self.initial_state = None
-        if config.drive.start_on != 'rest':
-            from ring_gyro_sim.analysis.nnm import drive_initial_state
-            log.info(f'computing the start state ({config.drive.start_on} of the drive at '
-                     f'{config.drive.frequency} Hz)')
-            self.initial_state = drive_initial_state(config)
-        if self.initial_state is not None:
-            self.sim.set_state(*self.initial_state)
-        self.channels = self.sim.channel_names
-        self.stats = RunStats(self.sim.coordinates, self.sim.period_ns, self.sim.model.gap)
-        self.block_samples = max(1, int(round(config.run.block_duration / self.sim.period_s)))
-        self.tolerance_ns = self.block_samples * self.sim.period_ns
-        self.total_samples = (int(round(config.run.duration / self.sim.period_s))
-                              if config.run.duration > 0.0 else 0)
-        self.finished = Future()
-        self._done = False
-        self._pending_shocks: List[int] = []  # heap of end times, ns
-        self._accepted_shocks = 0
-        self._pending_profile: collections.deque = collections.deque()
-        self._rejected: Dict[str, int] = {}
-        self._reject_log: Dict[Tuple[str, str], Tuple[float, int]] = {}
-        self._rejected_parameters = 0
-        self._ignored_z = set()
-        self._contact_logged = False
-        self._nonfinite_blocks = 0
-        self.blocks = 0
-        if config.run.record_path:
-            from ring_gyro_sim.ros.recorder import RunRecorder
-            try:
-                self.recorder = RunRecorder(
-                    config.run.record_path, config, self.channels,
-                    self.get_fully_qualified_name(), self.initial_state,
-                    config.run.publish_clock)
-            except (OSError, RingGyroError) as exc:
-                raise ParameterError(f'record.path: {exc}') from None
-        for t_s, peak in zip(config.run.shock_times, config.run.shock_peaks):
-            at_ns = int(round(t_s * 1e9))  # the Simulator scheduled these itself
-            self.stats.shock_at(at_ns)
-            heapq.heappush(self._pending_shocks,
-                           at_ns + int(round(config.shock_duration_s * 1e9)))
-            if self.recorder is not None:
-                self.recorder.shock(at_ns, peak, 0.0)
-
+        fqn = self.get_fully_qualified_name()
         self.block_pubs = {name: self.create_publisher(Float64MultiArray, f'~/{name}',
                                                        BLOCK_QOS)
                            for name in conversions.OUTPUT_TOPICS}
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self.clock_pub = (self.create_publisher(ClockMsg, '/clock', 10)
-                          if config.run.publish_clock else None)
+        clock_pub = (self.create_publisher(ClockMsg, '/clock', 10)
+                     if config.run.publish_clock else None)
+        names = run_mod.channel_names(config)
+        recorder = None
+        if config.run.record_path:
+            # Opened (and so checked) before the start state is computed.
+            try:
+                recorder = RunRecorder(config.run.record_path, config, names, fqn,
+                                       publish_clock=config.run.publish_clock)
+            except (OSError, RingGyroError) as exc:
+                raise ParameterError(f'record.path: {exc}') from None
+        self.sink = RosSink(names, fqn, recorder=recorder,
+                            publishers=Publishers(self.block_pubs, self.diag_pub, clock_pub),
+                            stamp_ns=lambda: self.get_clock().now().nanoseconds)
+        state = None
+        if config.drive.start_on != 'rest':
+            log.info(f'computing the start state ({config.drive.start_on} of the drive at '
+                     f'{config.drive.frequency} Hz)')
+            state = drive_initial_state(config)
+        block_samples = max(1, int(round(config.run.block_duration * config.run.output_rate)))
+        self.run = run_mod.Run(config, start_state=state, sink=self.sink,
+                               late_tolerance_ns=block_samples * config.run.output_period_ns)
+        run_mod.Run(config).advance(1)  # load the compiled kernels before pacing
+        self.block_samples = block_samples
+        self.total_samples = (int(round(config.run.duration * config.run.output_rate))
+                              if config.run.duration > 0.0 else 0)
+        self._reject_log: Dict[Tuple[str, str], Tuple[float, int]] = {}
+        self._ignored_z = set()
+        self._contact_logged = False
         self._input_subs = [
             (self.create_subscription(Vector3Stamped, '~/shock', self._on_shock,
                                       SHOCK_QUEUE_DEPTH), self._on_shock, SHOCK_DRAIN_PER_BLOCK),
@@ -298,30 +203,30 @@ class RingGyroNode(Node):
         self._pace_wall0: Optional[float] = None
         self._pace_sim0_ns = 0
         self._start_wall: Optional[float] = None
-        self._start_sim_ns = self.sim.time_ns
+        self._start_sim_ns = self.run.time_ns
         self._diag_wall = time.monotonic()
-        self._diag_sim_ns = self.sim.time_ns
+        self._diag_sim_ns = self.run.time_ns
         self._restart_tick_timer()
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diagnostics_timer, clock=self.steady)
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        run = config.run
+        rc = config.run
         log.info(
-            f'simulating {", ".join(self.sim.coordinates)}, '
-            f'output at {run.output_rate:g} Hz in blocks of {self.block_samples} samples, '
-            f'real_time_factor {run.real_time_factor:g}, '
-            f'duration {"unlimited" if not run.duration else f"{run.duration:g} s"}'
-            + (f', recording to {run.record_path}' if self.recorder is not None else ''))
+            f'simulating {", ".join(self.run.sim.coordinates)}, '
+            f'output at {rc.output_rate:g} Hz in blocks of {self.block_samples} samples, '
+            f'real_time_factor {rc.real_time_factor:g}, '
+            f'duration {"unlimited" if not rc.duration else f"{rc.duration:g} s"}'
+            + (f', recording to {rc.record_path}' if recorder is not None else ''))
 
     @property
     def real_time_factor(self) -> float:
-        """The pacing target in force."""
-        return self.sim.config.run.real_time_factor
+        """Return the pacing target in force."""
+        return self.run.config.run.real_time_factor
 
     def _restart_tick_timer(self) -> None:
         if self.tick_timer is not None:
             self.destroy_timer(self.tick_timer)
         rtf = self.real_time_factor
-        block_wall_s = self.block_samples * self.sim.period_s / rtf if rtf > 0 else 0.0
+        block_wall_s = self.block_samples * self.run.sim.period_s / rtf if rtf > 0 else 0.0
         period = min(max(block_wall_s / 4.0, 0.001), 0.02)
         self.tick_timer = self.create_timer(period, self._on_tick, clock=self.steady)
 
@@ -339,11 +244,11 @@ class RingGyroNode(Node):
             return  # pacing starts with the first tick
         now = time.monotonic()
         target = self._target_ns(now, old_rtf)
-        self._pace_sim0_ns = target if math.isfinite(target) else self.sim.time_ns
+        self._pace_sim0_ns = target if math.isfinite(target) else self.run.time_ns
         self._pace_wall0 = now
 
     def _on_tick(self) -> None:
-        if self._done:
+        if self.done:
             return
         if self.stop_requested:
             self._finish(f'stopped ({self.stop_requested})')
@@ -351,16 +256,17 @@ class RingGyroNode(Node):
         now = time.monotonic()
         if self._pace_wall0 is None:
             self._pace_wall0 = self._start_wall = self._diag_wall = now
-            self._pace_sim0_ns = self._start_sim_ns = self._diag_sim_ns = self.sim.time_ns
+            self._pace_sim0_ns = self._start_sim_ns = self._diag_sim_ns = self.run.time_ns
         deadline = now + TICK_BUDGET_S
+        period_ns = self.run.sim.period_ns
         while True:
             n = self.block_samples
             if self.total_samples:
-                n = min(n, self.total_samples - self.sim.sample_index)
+                n = min(n, self.total_samples - self.run.sim.sample_index)
                 if n <= 0:
                     self._finish('duration reached')
                     return
-            if self.sim.time_ns + n * self.sim.period_ns > self._target_ns(now):
+            if self.run.time_ns + n * period_ns > self._target_ns(now):
                 return
             self._drain_inputs()
             self._step(n)
@@ -387,68 +293,47 @@ class RingGyroNode(Node):
                 handler(taken[0])
 
     def _step(self, n: int) -> None:
-        """Advance one block, publish and record it."""
-        samples = self.sim.advance_samples(n)
-        t_ns = self.sim.time_ns
-        self.stats.add(samples, self.sim.sample_index)
-        if self.sim.status != 'running' and not self._contact_logged:
+        """Advance one block (the sink publishes and records it)."""
+        block = self.run.advance(n)
+        if not self.run.running and not self._contact_logged:
             self._contact_logged = True
-            self.get_logger().error(f'{self.sim.message} (call ~/reset to recover)')
+            self.get_logger().error(f'{self.run.sim.message} (call ~/reset to recover)')
             self._publish_diagnostics()
-        if not all(np.all(np.isfinite(a)) for a in
-                   (samples.q, samples.gap, samples.min_gap, samples.capacitance)):
-            self._nonfinite_blocks += 1  # never published; the Simulator should prevent it
-            self.get_logger().error(f'non-finite output at t = {t_ns * 1e-9:.9f} s withheld',
-                                    throttle_duration_sec=REJECT_LOG_PERIOD_S)
-            return
-        blocks = conversions.output_blocks(samples, self.channels)
-        for name, msg in blocks.items():
-            self.block_pubs[name].publish(msg)
-        if self.clock_pub is not None:
-            self.clock_pub.publish(conversions.clock_message(t_ns))
-        if self.recorder is not None:
-            self.recorder.outputs(blocks, t_ns)
-            self.recorder.clock(t_ns)
-        self.blocks += 1
-        while self._pending_shocks and self._pending_shocks[0] <= t_ns:
-            heapq.heappop(self._pending_shocks)
-        while self._pending_profile and self._pending_profile[0] <= t_ns:
-            self._pending_profile.popleft()
+        if block is None:  # never published; the Simulator should prevent it
+            self.get_logger().error(
+                f'non-finite output at t = {self.run.time_ns * 1e-9:.9f} s withheld',
+                throttle_duration_sec=REJECT_LOG_PERIOD_S)
 
     def _finish(self, why: str) -> None:
         """End the run: final diagnostics and summary; main() then closes the recording."""
-        self._done = True
-        self._publish_diagnostics()
+        self.done = True
+        self._publish_diagnostics(finished=True)
         self.get_logger().info(f'{why}: {self.summary()}')
-        self.finished.set_result(why)
+        self.result = why
 
     def summary(self) -> str:
         """Return simulated and wall time and the run's numbers in one line."""
         wall = time.monotonic() - self._start_wall if self._start_wall is not None else 0.0
-        sim_s = (self.sim.time_ns - self._start_sim_ns) * 1e-9
+        sim_s = (self.run.time_ns - self._start_sim_ns) * 1e-9
         rate = f' (x{sim_s / wall:.3f} real time)' if wall > 0 else ''
-        text = f'{self.sim.time_s:.6f} s simulated in {wall:.3f} s{rate}; {self.stats.summary()}'
-        if self.sim.status != 'running':
-            text += f'; {self.sim.status}: {self.sim.message}'
-        if self.recorder is not None:
-            text += f'; recorded to {self.sim.config.run.record_path}'
+        text = (f'{self.run.sim.time_s:.6f} s simulated in {wall:.3f} s{rate}; '
+                f'{self.run.summary_text()}')
+        if self.run.config.run.record_path:
+            text += f'; recorded to {self.run.config.run.record_path}'
         return text
 
     # ------------------------------------------------------------------ inputs
-    def _input_time(self, at_ns: Optional[int]) -> int:
-        """Return the simulation time (ns) an input stamped ``at_ns`` acts at (None: now)."""
-        now = self.sim.time_ns
-        if at_ns is None or at_ns >= now:
-            return now if at_ns is None else int(at_ns)
-        if now - at_ns <= self.tolerance_ns:
-            return now
-        raise InputError(f'stamp {at_ns * 1e-9:.9f} s is {(now - at_ns) * 1e-9:.6f} s in the '
-                         f'past (simulation time {now * 1e-9:.9f} s, tolerance '
-                         f'{self.tolerance_ns * 1e-9:g} s)')
+    def _apply(self, event) -> bool:
+        """Apply an input to the run; log a refusal (the run counts it)."""
+        try:
+            self.run.apply(event)
+        except (InputError, ParameterError) as exc:
+            self._log_reject(event.topic, str(exc))
+            return False
+        return True
 
-    def _reject(self, topic: str, reason: str) -> None:
-        """Count a rejected input; log it, at most every few seconds per topic and kind."""
-        self._rejected[topic] = self._rejected.get(topic, 0) + 1
+    def _log_reject(self, topic: str, reason: str) -> None:
+        """Log a refused input, at most every few seconds per topic and kind."""
         kind = (topic, _NUMBER.sub('#', reason))
         now = time.monotonic()
         last, suppressed = self._reject_log.get(kind, (-math.inf, 0))
@@ -459,67 +344,31 @@ class RingGyroNode(Node):
         self.get_logger().warn(f'rejected ~/{topic}: {reason}{more}')
         self._reject_log[kind] = (now, 0)
 
-    def _check_in_plane(self, topic: str, value: conversions.AccelerationInput) -> None:
-        if not value.finite():
-            raise InputError(f'not finite: x = {value.x!r}, y = {value.y!r}, z = {value.z!r}')
-        if value.z != 0.0 and topic not in self._ignored_z:
+    def _warn_z(self, topic: str, z: float) -> None:
+        if z != 0.0 and math.isfinite(z) and topic not in self._ignored_z:
             self._ignored_z.add(topic)
             self.get_logger().warn(f'~/{topic}: the z component is ignored (in-plane ring)')
 
     def _on_shock(self, msg: Vector3Stamped) -> None:
         s = conversions.shock_input(msg)
-        try:
-            self._check_in_plane('shock', s)
-            at_ns = self._input_time(s.at_ns)
-            if len(self._pending_shocks) >= MAX_PENDING_SHOCKS:
-                raise InputError(f'{MAX_PENDING_SHOCKS} shocks are already pending')
-            self.sim.shock(s.x, s.y, at_ns=at_ns)
-        except InputError as exc:
-            self._reject('shock', str(exc))
-            return
-        end_ns = at_ns + int(round(self.sim.config.shock_duration_s * 1e9))
-        heapq.heappush(self._pending_shocks, end_ns)
-        self._accepted_shocks += 1
-        self.stats.shock_at(at_ns)
-        if self.recorder is not None:
-            self.recorder.shock(at_ns, s.x, s.y)
+        if self._apply(run_mod.Shock(x=s.x, y=s.y, z=s.z, at_ns=s.at_ns)):
+            self._warn_z('shock', s.z)
 
     def _on_base_acceleration(self, msg: AccelStamped) -> None:
         a = conversions.base_acceleration_input(msg)
-        try:
-            self._check_in_plane('base_acceleration', a)
-            at_ns = self._input_time(a.at_ns)
-            if len(self._pending_profile) >= MAX_PENDING_BASE_ACCELERATION:
-                raise InputError(f'{MAX_PENDING_BASE_ACCELERATION} samples are already pending')
-            self.sim.add_base_acceleration(at_ns, a.x, a.y)
-        except InputError as exc:
-            self._reject('base_acceleration', str(exc))
-            return
-        self._pending_profile.append(at_ns)
-        if self.recorder is not None:
-            self.recorder.base_acceleration(at_ns, a.x, a.y)
+        if self._apply(run_mod.BaseAcceleration(x=a.x, y=a.y, z=a.z, at_ns=a.at_ns)):
+            self._warn_z('base_acceleration', a.z)
 
     def _on_drive_amplitude(self, msg: Float64) -> None:
-        self._set_drive('drive/amplitude', amplitude=float(msg.data))
+        self._apply(run_mod.DriveAmplitude(float(msg.data)))
 
     def _on_drive_frequency(self, msg: Float64) -> None:
-        self._set_drive('drive/frequency', frequency_hz=float(msg.data))
-
-    def _set_drive(self, topic: str, **change) -> None:
-        try:
-            self.sim.set_drive(**change)
-        except InputError as exc:
-            self._reject(topic, str(exc))
-            return
-        if self.recorder is not None:
-            self.recorder.drive(self.sim.time_ns, **change)
+        self._apply(run_mod.DriveFrequency(float(msg.data)))
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response):
-        t_ns = self.sim.time_ns
-        self.sim.reset()
+        t_ns = self.run.time_ns
+        self.run.apply(run_mod.Reset())
         self._contact_logged = False
-        if self.recorder is not None:
-            self.recorder.reset(t_ns)
         response.success = True
         response.message = f'ring at rest at simulation time {t_ns * 1e-9:.9f} s'
         self.get_logger().info(response.message)
@@ -528,18 +377,18 @@ class RingGyroNode(Node):
     def _on_set_parameters(self, params) -> SetParametersResult:
         old_rtf = self.real_time_factor
         try:
-            config, changed = parameters.updated_config(self.sim.config, params)
-            if changed:
-                self.sim.reconfigure(config)
+            _, changed = parameters.updated_config(self.run.config, params)
         except (ParameterError, InputError) as exc:
-            self._rejected_parameters += 1
-            self.get_logger().warn(f'parameter change refused: {exc}')
-            return SetParametersResult(successful=False, reason=str(exc))
+            self.run.count_rejected(run_mod.ParameterChange.topic)
+            return self._refuse_parameters(exc)
+        if changed:
+            try:
+                self.run.apply(run_mod.ParameterChange(changed))  # counts a refusal
+            except (ParameterError, InputError) as exc:
+                return self._refuse_parameters(exc)
         if not changed:
             return SetParametersResult(successful=True)
-        t_ns = self.sim.time_ns
-        if self.recorder is not None:
-            self.recorder.parameters(t_ns, changed)
+        t_ns = self.run.time_ns
         if self.real_time_factor != old_rtf:
             self._rebase_pacing(old_rtf)
             self._restart_tick_timer()
@@ -547,71 +396,43 @@ class RingGyroNode(Node):
                                + ', '.join(f'{k} = {v}' for k, v in changed.items()))
         return SetParametersResult(successful=True)
 
+    def _refuse_parameters(self, exc: Exception) -> SetParametersResult:
+        self.get_logger().warn(f'parameter change refused: {exc}')
+        return SetParametersResult(successful=False, reason=str(exc))
+
     # ------------------------------------------------------------------ diagnostics
     def _on_diagnostics_timer(self) -> None:
-        if not self._done:
+        if not self.done:
             self._publish_diagnostics()
 
-    def _publish_diagnostics(self) -> None:
+    def _publish_diagnostics(self, finished: bool = False) -> None:
         now = time.monotonic()
-        sim = self.sim
+        run = self.run
         rtf = self.real_time_factor
         target = self._target_ns(now)
-        lag_s = max(0.0, (target - sim.time_ns) * 1e-9) if math.isfinite(target) else 0.0
+        lag_s = max(0.0, (target - run.time_ns) * 1e-9) if math.isfinite(target) else 0.0
         wall = now - self._diag_wall
-        achieved = (sim.time_ns - self._diag_sim_ns) * 1e-9 / wall if wall > 0 else 0.0
-        self._diag_wall, self._diag_sim_ns = now, sim.time_ns
+        achieved = (run.time_ns - self._diag_sim_ns) * 1e-9 / wall if wall > 0 else 0.0
+        self._diag_wall, self._diag_sim_ns = now, run.time_ns
         total_wall = now - self._start_wall if self._start_wall is not None else 0.0
-        average = ((sim.time_ns - self._start_sim_ns) * 1e-9 / total_wall
+        average = ((run.time_ns - self._start_sim_ns) * 1e-9 / total_wall
                    if total_wall > 0 else 0.0)
-        gap = self.stats.take_interval_min_gap()
-        values = {
-            'sim_time_s': sim.time_s,
-            'real_time_factor_target': rtf,
-            'real_time_factor_achieved': achieved,
-            'real_time_factor_average': average,
-            'lag_s': lag_s,
-            'steps': sim.steps_taken,
-            'blocks': self.blocks,
-            'min_gap_m': gap,
-            'min_gap_ratio': gap / self.stats.gap_m,
-            'min_gap_ratio_run': (self.stats.min_gap / self.stats.gap_m
-                                  if math.isfinite(self.stats.min_gap) else 1.0),
-            'contact': sim.status != 'running',
-            'status': sim.status,
-            'rejected_inputs': sum(self._rejected.values()),
-        }
-        for topic in ('shock', 'base_acceleration', 'drive/amplitude', 'drive/frequency'):
-            values[f'rejected_{topic.replace("/", "_")}'] = self._rejected.get(topic, 0)
-        values['rejected_parameter_changes'] = self._rejected_parameters
-        values['pending_shocks'] = len(self._pending_shocks)
-        values['accepted_shocks'] = self._accepted_shocks
-        drive = sim.config.drive
-        values['drive_amplitude'] = drive.amplitude
-        values['drive_frequency_hz'] = drive.frequency
-        if self._nonfinite_blocks:
-            values['withheld_nonfinite_blocks'] = self._nonfinite_blocks
-        if sim.status != 'running':
-            level, message = 'ERROR', f'{sim.status}: {sim.message} (~/reset recovers)'
-        elif rtf > 0 and lag_s / rtf > LAG_WARN_S:
-            level, message = 'WARN', f'falling behind real time by {lag_s / rtf:.2f} s'
-        else:
-            level, message = 'OK', 'finished' if self._done else 'running'
-        msg = conversions.diagnostics_message(sim.time_ns, f'{self.get_name()}: simulator',
-                                              HARDWARE_ID, level, message, values)
-        self.diag_pub.publish(msg)
-        if self.recorder is not None:
-            self.recorder.diagnostics(msg, sim.time_ns)
+        run.diagnostics(run_mod.Pacing(target=rtf, achieved=achieved, average=average,
+                                       lag_s=lag_s,
+                                       lag_warn=rtf > 0 and lag_s / rtf > LAG_WARN_S),
+                        finished=finished)
 
     # ------------------------------------------------------------------ shutdown
     def close(self, summary: bool = True) -> None:
         """Finalise the recording (idempotent); log a summary if the run did not finish."""
-        if summary and not getattr(self, '_done', True):
-            self._done = True
+        if summary and self.run is not None and not self.done:
+            self.done = True
             print(f'[ring_gyro_node] stopped: {self.summary()}', file=sys.stderr)
-        recorder, self.recorder = self.recorder, None
-        if recorder is not None:
-            recorder.close()
+        if self.run is not None:
+            self.run.close()
+        elif getattr(self, 'sink', None) is not None:
+            self.sink.discard()
+        self.sink = None
 
 
 class _StopOnSignal:
@@ -641,11 +462,15 @@ def main(args=None) -> int:
     stop = _StopOnSignal()
     previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGINT, signal.SIGTERM)}
     node = None
+    executor = None
     code = 0
     try:
         node = RingGyroNode()
         stop.node = node
-        rclpy.spin_until_future_complete(node, node.finished)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while not node.done and rclpy.ok():
+            executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except RingGyroError as exc:
@@ -655,7 +480,11 @@ def main(args=None) -> int:
     finally:
         if node is not None:
             node.close()
+            if executor is not None:
+                executor.remove_node(node)
             node.destroy_node()
+        if executor is not None:
+            executor.shutdown()
         rclpy.try_shutdown()
         for sig, handler in previous.items():
             signal.signal(sig, handler)

@@ -38,7 +38,6 @@ import subprocess
 import threading
 from typing import Dict, Optional, Sequence
 
-import numpy as np
 from ring_gyro_sim import __version__
 from ring_gyro_sim.core.params import SimConfig, to_flat
 from ring_gyro_sim.recording.writer import BagWriter
@@ -88,7 +87,9 @@ class RunRecorder:
     namespace : str
         Topic namespace of the node, e.g. '/ring_gyro'.
     initial_state : (ndarray, ndarray), optional
-        Initial coordinates and velocities (m, m/s); zeros when None.
+        Initial coordinates and velocities (m, m/s). When None the metadata record waits
+        for :meth:`start`, so that a caller can open (and so check) the file before it
+        computes the start state.
     publish_clock : bool
         Also record ``/clock``.
     threaded : bool
@@ -102,6 +103,7 @@ class RunRecorder:
                  publish_clock: bool = False, threaded: bool = True) -> None:
         self.namespace = namespace.rstrip('/') or ''
         self.channel_names = channel_names
+        self._path = path
         self.writer = BagWriter(path)
         for name in conversions.OUTPUT_TOPICS:
             self.writer.add_topic(self.topic(name), BLOCK_TYPE)
@@ -111,17 +113,10 @@ class RunRecorder:
             self.writer.add_topic('/clock', 'rosgraph_msgs/msg/Clock')
         for name, type_name in INPUT_TOPICS.items():
             self.writer.add_topic(self.topic(name), type_name)
-        if initial_state is None:
-            n = len(channel_names['modal_displacement'])
-            initial_state = (np.zeros(n), np.zeros(n))
-        self.writer.add_metadata(METADATA_NAME, {
-            'parameters': yaml.safe_dump(to_flat(config), sort_keys=True),
-            'version': __version__,
-            'git_revision': git_revision(),
-            'namespace': self.namespace,
-            'initial_state': json.dumps({'q': [float(x) for x in initial_state[0]],
-                                         'v': [float(x) for x in initial_state[1]]}),
-        })
+        self._config = config
+        self._started = False
+        if initial_state is not None:
+            self.start(initial_state)
         # Serialising and zstd-compressing 25 MB per simulated second (200 kHz) costs about a
         # quarter of the simulation itself; a writer thread does it while the (GIL-free)
         # kernel runs, on the second core. The bounded queue keeps memory bounded.
@@ -132,6 +127,31 @@ class RunRecorder:
             self._thread = threading.Thread(target=self._drain, name='ring_gyro_recorder',
                                             daemon=True)
             self._thread.start()
+
+    def start(self, initial_state) -> None:
+        """Write the metadata record with the run's initial state (q, v) (once)."""
+        if self._started:
+            return
+        self._started = True
+        self.writer.add_metadata(METADATA_NAME, {
+            'parameters': yaml.safe_dump(to_flat(self._config), sort_keys=True),
+            'version': __version__,
+            'git_revision': git_revision(),
+            'namespace': self.namespace,
+            'initial_state': json.dumps({'q': [float(x) for x in initial_state[0]],
+                                         'v': [float(x) for x in initial_state[1]]}),
+        })
+
+    def discard(self) -> None:
+        """Close and delete the file: the run never started (no metadata, no samples)."""
+        path = self._path
+        try:
+            self.close()
+        finally:
+            try:
+                os.remove(path)
+            except OSError:
+                pass
 
     def topic(self, name: str) -> str:
         """Full topic name of a node-relative name."""

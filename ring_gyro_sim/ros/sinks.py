@@ -1,0 +1,195 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Sinks of a :class:`~ring_gyro_sim.run.Run` that speak ROS messages: publish and/or record.
+
+:class:`RosSink` turns each block into its three ``Float64MultiArray`` messages once and
+hands them to the node's publishers and to the recorder (either may be absent: a null
+target stands in, so no caller tests for ``None``). Inputs are recorded as they act, under
+the node's input topics (``<ns>/shock`` ...), diagnostics as ``/diagnostics``.
+
+Diagnostics: one status named ``<node>: simulator`` (the node's fully qualified name without
+the leading slash, e.g. ``ring_gyro: simulator`` or ``left/gyro: simulator``) and
+``hardware_id`` ``ring_gyro_sim:<fully qualified name>``, so two instances are told apart.
+The header is stamped by ``stamp_ns`` (the node: its ROS clock, i.e. wall time, or the
+simulation time only with ``use_sim_time``); without one (offline) by the simulation time.
+"""
+
+from typing import Callable, Dict, List, Mapping, Optional
+
+from ring_gyro_sim import run as run_mod
+from ring_gyro_sim.ros import conversions
+
+__all__ = ['NullPublishers', 'NullRecorder', 'Publishers', 'RosSink', 'diagnostics_names']
+
+
+def diagnostics_names(fully_qualified_name: str):
+    """Return ``(status name, hardware_id)`` of a node's diagnostics."""
+    fqn = '/' + fully_qualified_name.strip('/')
+    return f'{fqn.lstrip("/")}: simulator', f'ring_gyro_sim:{fqn}'
+
+
+class NullRecorder:
+    """Stands in for a :class:`~ring_gyro_sim.ros.recorder.RunRecorder` when not recording."""
+
+    def outputs(self, blocks, t_ns: int) -> None:
+        """Do nothing."""
+
+    def clock(self, t_ns: int) -> None:
+        """Do nothing."""
+
+    def diagnostics(self, msg, t_ns: int) -> None:
+        """Do nothing."""
+
+    def shock(self, at_ns: int, x: float, y: float = 0.0) -> None:
+        """Do nothing."""
+
+    def base_acceleration(self, at_ns: int, x: float, y: float = 0.0) -> None:
+        """Do nothing."""
+
+    def drive(self, at_ns: int, amplitude=None, frequency_hz=None) -> None:
+        """Do nothing."""
+
+    def reset(self, at_ns: int) -> None:
+        """Do nothing."""
+
+    def parameters(self, at_ns: int, changed) -> None:
+        """Do nothing."""
+
+    def start(self, initial_state) -> None:
+        """Do nothing."""
+
+    def close(self) -> None:
+        """Do nothing."""
+
+    def discard(self) -> None:
+        """Do nothing."""
+
+
+class Publishers:
+    """The node's output publishers (block topics, ``/clock`` if any, ``/diagnostics``)."""
+
+    def __init__(self, blocks: Mapping[str, object], diagnostics, clock=None) -> None:
+        self._blocks = dict(blocks)
+        self._diagnostics = diagnostics
+        self._clock = clock
+
+    def blocks(self, msgs: Mapping[str, object]) -> None:
+        """Publish the block messages of one block."""
+        for name, msg in msgs.items():
+            self._blocks[name].publish(msg)
+
+    def clock(self, msg) -> None:
+        """Publish ``/clock`` (only when the node publishes it)."""
+        if self._clock is not None:
+            self._clock.publish(msg)
+
+    def diagnostics(self, msg) -> None:
+        """Publish ``/diagnostics``."""
+        self._diagnostics.publish(msg)
+
+
+class NullPublishers:
+    """Stands in for :class:`Publishers` offline."""
+
+    def blocks(self, msgs) -> None:
+        """Do nothing."""
+
+    def clock(self, msg) -> None:
+        """Do nothing."""
+
+    def diagnostics(self, msg) -> None:
+        """Do nothing."""
+
+
+class RosSink(run_mod.Sink):
+    """
+    Publish and/or record a run.
+
+    Parameters
+    ----------
+    channel_names : dict
+        ``Run.channel_names``.
+    fully_qualified_name : str
+        The node's name with its namespace (offline: the namespace recorded, '/ring_gyro').
+    recorder : RunRecorder, optional
+        Records everything (default: nothing).
+    publishers : Publishers, optional
+        Publishes blocks, ``/clock`` and ``/diagnostics`` (default: nothing).
+    stamp_ns : callable, optional
+        Header stamp of the diagnostics, ns (default: the simulation time).
+
+    """
+
+    def __init__(self, channel_names: Dict[str, List[str]], fully_qualified_name: str,
+                 recorder=None, publishers=None,
+                 stamp_ns: Optional[Callable[[], int]] = None) -> None:
+        self.channel_names = channel_names
+        self.recorder = recorder if recorder is not None else NullRecorder()
+        self.publishers = publishers if publishers is not None else NullPublishers()
+        self.stamp_ns = stamp_ns
+        self.status_name, self.hardware_id = diagnostics_names(fully_qualified_name)
+
+    def start(self, state) -> None:
+        """Write the recording's metadata with the start state."""
+        self.recorder.start(state)
+
+    def input(self, event) -> None:
+        """Record an input as it acts."""
+        rec = self.recorder
+        t = int(event.at_ns)
+        if isinstance(event, run_mod.Shock):
+            rec.shock(t, event.x, event.y)
+        elif isinstance(event, run_mod.BaseAcceleration):
+            rec.base_acceleration(t, event.x, event.y)
+        elif isinstance(event, run_mod.DriveAmplitude):
+            rec.drive(t, amplitude=event.value)
+        elif isinstance(event, run_mod.DriveFrequency):
+            rec.drive(t, frequency_hz=event.value_hz)
+        elif isinstance(event, run_mod.Reset):
+            rec.reset(t)
+        elif isinstance(event, run_mod.ParameterChange):
+            rec.parameters(t, event.changes)
+
+    def block(self, block) -> None:
+        """Convert a block to messages once; publish and record them, and ``/clock``."""
+        msgs = conversions.output_blocks(block.samples, self.channel_names)
+        self.publishers.blocks(msgs)
+        clock = conversions.clock_message(block.end_ns)
+        self.publishers.clock(clock)
+        self.recorder.outputs(msgs, block.end_ns)
+        self.recorder.clock(block.end_ns)
+
+    def diagnostics_message(self, diag):
+        """Return the ``/diagnostics`` message of a snapshot."""
+        stamp = self.stamp_ns() if self.stamp_ns is not None else diag.t_ns
+        return conversions.diagnostics_message(stamp, self.status_name, self.hardware_id,
+                                               diag.level, diag.message, diag.values)
+
+    def diagnostics(self, diag) -> None:
+        """Publish and record a diagnostics snapshot (log time: the simulation time)."""
+        msg = self.diagnostics_message(diag)
+        self.publishers.diagnostics(msg)
+        self.recorder.diagnostics(msg, diag.t_ns)
+
+    def close(self) -> None:
+        """Finalise the recording."""
+        recorder, self.recorder = self.recorder, NullRecorder()
+        recorder.close()
+
+    def discard(self) -> None:
+        """Delete the recording of a run that never started."""
+        recorder, self.recorder = self.recorder, NullRecorder()
+        recorder.discard()

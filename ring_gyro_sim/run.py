@@ -1,0 +1,675 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The one run path: every way of running the simulator drives a :class:`Run`.
+
+The node (``ros/node.py``), ``ring_gyro run`` and ``--from`` (``offline.py``), the paper
+cases (``analysis/cases.py``) and the benchmark all do the same three things::
+
+    run = Run(config, start_state=..., sink=...)   # Simulator + start state + statistics
+    run.apply(Shock(x=..., at_ns=...))             # any input, validated and timed here
+    block = run.advance(n_samples)                 # samples of every channel
+
+so there is one place that decides when an input acts and whether it is refused (and counts
+it), one set of run statistics, one diagnostics builder (:meth:`Run.diagnostics`: the same
+keys whichever way a run is made) and one sink interface (:class:`Sink`, with
+:class:`NullSink` instead of ``if recorder is not None``). The node adds only pacing and ROS
+plumbing; offline adds only a loop. This module imports only ``core``: a sink that publishes
+or records ROS messages lives in ``ros/``.
+
+When inputs act (``apply``)
+    ``at_ns`` None means the current simulation time (the end of the last block). A stamp in
+    the future acts at that time, exactly (a shock starts between samples if need be); one at
+    most ``late_tolerance_ns`` in the past (a late arrival) acts now; an older one is refused.
+    A stamp more than ``inputs.horizon`` ahead of the simulation time is refused, so that one
+    message stamped in 2038 cannot lock a topic or hold a constant force for decades. At most
+    :data:`MAX_PENDING_SHOCKS` shocks that have not ended and
+    :data:`MAX_PENDING_BASE_ACCELERATION` future base-acceleration samples are held. Drive,
+    reset and parameter changes act at the current simulation time. A refused input changes
+    nothing, is counted per topic (``rejected_<topic>`` on the diagnostics) and raises
+    :class:`~ring_gyro_sim.core.errors.InputError` (or ``ParameterError``) with the reason.
+
+Reset
+    :class:`Reset` puts the ring at rest and discards everything pending: shocks not over,
+    base-acceleration samples (so a later profile may start at any stamp), drive and parameter
+    changes scheduled ahead, and the scheduled ``scenario.*`` shocks still to come.
+
+Recording order
+    The sink sees every accepted input when it acts, in simulation-time order, before the
+    block that contains its time (:meth:`Sink.input`), so a recording is written in log-time
+    order even for inputs accepted long before they act; an input discarded by a reset is
+    never recorded. Inputs are the inputs as they acted: their ``at_ns`` is the acting time.
+"""
+
+from dataclasses import asdict, dataclass, field, replace
+import heapq
+import json
+import math
+import time
+from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
+
+import numpy as np
+
+from ring_gyro_sim.core.errors import InputError, ParameterError
+from ring_gyro_sim.core.params import SimConfig
+from ring_gyro_sim.core.simulator import channel_names, Samples, Simulator
+
+__all__ = ['BaseAcceleration', 'Block', 'Diagnostics', 'DriveAmplitude', 'DriveFrequency',
+           'Input', 'MAX_PENDING_BASE_ACCELERATION', 'MAX_PENDING_SHOCKS', 'NullSink',
+           'Pacing', 'ParameterChange', 'Reset', 'Run', 'RunStats', 'RunSummary', 'Shock',
+           'Sink', 'channel_names', 'format_number']
+
+MAX_PENDING_SHOCKS = 1000
+"""Shocks accepted and not over yet; beyond this a shock is refused."""
+MAX_PENDING_BASE_ACCELERATION = 100_000
+"""Base-acceleration samples stamped in the future; beyond this one is refused."""
+SUMMARY_WINDOW_S = 0.01
+"""Window (s) of the final amplitudes and of the q2 amplitude before the first shock."""
+INPUT_TOPICS = ('shock', 'base_acceleration', 'drive/amplitude', 'drive/frequency',
+                'events/reset', 'events/parameters')
+"""Input topics (relative names) in the order the diagnostics list their counts."""
+
+
+# ---------------------------------------------------------------------------------- inputs
+@dataclass(frozen=True)
+class Shock:
+    """
+    A half-sine shock (eq. 32): peak base acceleration (m/s^2) along x and y.
+
+    ``z`` (out of plane) is not modelled: it must be finite and is otherwise ignored.
+    """
+
+    x: float
+    y: float = 0.0
+    at_ns: Optional[int] = None
+    z: float = 0.0
+    topic = 'shock'
+
+
+@dataclass(frozen=True)
+class BaseAcceleration:
+    """One sample of a streamed base-acceleration profile, m/s^2, at ``at_ns`` (z as Shock)."""
+
+    x: float
+    y: float = 0.0
+    at_ns: Optional[int] = None
+    z: float = 0.0
+    topic = 'base_acceleration'
+
+
+@dataclass(frozen=True)
+class DriveAmplitude:
+    """Drive force on the 2theta mode per unit modal mass, m/s^2 (0 = off)."""
+
+    value: float
+    at_ns: Optional[int] = None
+    topic = 'drive/amplitude'
+
+
+@dataclass(frozen=True)
+class DriveFrequency:
+    """Drive frequency, Hz (the drive phase stays continuous)."""
+
+    value_hz: float
+    at_ns: Optional[int] = None
+    topic = 'drive/frequency'
+
+
+@dataclass(frozen=True)
+class Reset:
+    """The ring back at rest; everything pending discarded."""
+
+    at_ns: Optional[int] = None
+    topic = 'events/reset'
+
+
+@dataclass(frozen=True)
+class ParameterChange:
+    """Parameters changed at run time, ``{dotted name: value}`` (validated when applied)."""
+
+    changes: Mapping[str, Any]
+    at_ns: Optional[int] = None
+    topic = 'events/parameters'
+
+
+Input = Union[Shock, BaseAcceleration, DriveAmplitude, DriveFrequency, Reset, ParameterChange]
+
+
+# ---------------------------------------------------------------------------------- outputs
+@dataclass(frozen=True)
+class Block:
+    """
+    One advanced stretch of simulation.
+
+    Attributes
+    ----------
+    samples : Samples
+        Every channel at the new sample times.
+    end_ns : int
+        Simulation time of the last sample, ns (the block's log time).
+    first_index : int
+        Global index of the first sample (sample ``i`` is at ``(i + 1) * period``).
+
+    """
+
+    samples: Samples
+    end_ns: int
+    first_index: int
+
+    def __len__(self) -> int:
+        return len(self.samples)
+
+
+@dataclass(frozen=True)
+class Pacing:
+    """What the caller knows about wall-clock pacing (the node; offline: as fast as possible)."""
+
+    target: float = 0.0
+    achieved: float = 0.0
+    average: float = 0.0
+    lag_s: float = 0.0
+    lag_warn: bool = False
+
+
+@dataclass(frozen=True)
+class Diagnostics:
+    """
+    A diagnostics snapshot: level ('OK', 'WARN', 'ERROR'), message and values.
+
+    ``values`` always has the same keys in the same order (see :meth:`Run.diagnostics`).
+    """
+
+    t_ns: int
+    level: str
+    message: str
+    values: Dict[str, Any]
+
+
+class Sink:
+    """
+    Where a run's inputs, blocks and diagnostics go: a publisher, a recorder, a summary.
+
+    The base class does nothing (it is the null sink); subclasses override what they need.
+    Calls come in simulation-time order.
+    """
+
+    def start(self, state: Tuple[np.ndarray, np.ndarray]) -> None:
+        """Take the start ``state`` = (q, v) (m, m/s): called once by :class:`Run`."""
+
+    def input(self, event: Input) -> None:
+        """Take an accepted event; it acts now (``event.at_ns``: its acting time, ns)."""
+
+    def block(self, block: Block) -> None:
+        """Take a simulated block (every sample finite)."""
+
+    def diagnostics(self, diag: Diagnostics) -> None:
+        """Take a diagnostics snapshot."""
+
+    def close(self) -> None:
+        """End the run (finalise files)."""
+
+    def discard(self) -> None:
+        """Drop what was opened: the run never started (e.g. no start state)."""
+        self.close()
+
+
+class NullSink(Sink):
+    """A sink that keeps nothing (no recorder, no publisher)."""
+
+
+def format_number(value: float, unit_scale: float = 1.0, digits: int = 4) -> str:
+    """Format ``value * unit_scale`` with ``digits`` decimals, or in exponent form when huge."""
+    x = value * unit_scale
+    if not math.isfinite(x) or abs(x) >= 1e9:
+        return f'{x:.{digits}e}'
+    return f'{x:.{digits}f}'
+
+
+# ---------------------------------------------------------------------------------- statistics
+class RunStats:
+    """Peaks, smallest gaps and amplitude windows of a run (diagnostics and summaries)."""
+
+    def __init__(self, names: List[str], period_ns: int, gap_m: float) -> None:
+        self.names = list(names)
+        self.period_ns = period_ns
+        self.gap_m = gap_m
+        self.peak = np.zeros(len(names))
+        self.min_gap = math.inf
+        self.interval_min_gap = math.inf
+        self.last_min_gap = gap_m
+        self.samples = 0
+        self.keep = max(1, int(round(SUMMARY_WINDOW_S * 1e9 / period_ns)))
+        self.tail_t = np.zeros(0, dtype=np.int64)
+        self.tail_q = np.zeros((0, len(names)))
+        self.first_shock_ns: Optional[int] = None
+        self.before_shock: Optional[np.ndarray] = None
+
+    def shock_at(self, at_ns: int) -> None:
+        """Note a shock acting at ``at_ns`` (the first one sets the pre-shock window)."""
+        if self.before_shock is None and (self.first_shock_ns is None
+                                          or at_ns < self.first_shock_ns):
+            self.first_shock_ns = int(at_ns)
+
+    def add(self, s: Samples, end_index: int) -> None:
+        """Add the samples of one block ending at global sample index ``end_index``."""
+        if len(s) == 0:
+            return
+        self.samples += len(s)
+        self.peak = np.maximum(self.peak, np.max(np.abs(s.q), axis=0))
+        block_min = float(np.min(s.min_gap))
+        self.min_gap = min(self.min_gap, block_min)
+        self.interval_min_gap = min(self.interval_min_gap, block_min)
+        self.last_min_gap = block_min
+        t_ns = (np.arange(end_index - len(s), end_index) + 1) * self.period_ns
+        all_t = np.concatenate([self.tail_t, t_ns[-self.keep:]])
+        all_q = np.concatenate([self.tail_q, s.q[-self.keep:]])
+        if (self.before_shock is None and self.first_shock_ns is not None
+                and t_ns[-1] >= self.first_shock_ns):
+            # The pulse starts at first_shock_ns: samples up to that time are unaffected.
+            sel = t_ns <= self.first_shock_ns
+            before = np.concatenate([self.tail_q[self.tail_t <= self.first_shock_ns],
+                                     s.q[sel]])[-self.keep:]
+            self.before_shock = (np.max(np.abs(before), axis=0) if len(before)
+                                 else np.full(len(self.names), math.nan))
+        self.tail_t = all_t[-self.keep:]
+        self.tail_q = all_q[-self.keep:]
+
+    def take_interval_min_gap(self) -> float:
+        """Return the smallest gap (m) since the last call (the last block's if none since)."""
+        value = (self.interval_min_gap if math.isfinite(self.interval_min_gap)
+                 else self.last_min_gap)
+        self.interval_min_gap = math.inf
+        return value
+
+    def final(self) -> Dict[str, float]:
+        """Return max |q| per coordinate over the last :data:`SUMMARY_WINDOW_S`, m."""
+        if len(self.tail_q) == 0:
+            return {n: 0.0 for n in self.names}
+        return {n: float(v) for n, v in zip(self.names, np.max(np.abs(self.tail_q), axis=0))}
+
+    def text(self) -> str:
+        """Return peak |q1|, smallest gap, q2 amplitude before the first shock and at the end."""
+        if not math.isfinite(self.min_gap):
+            return 'no block simulated'
+        parts = [f'peak |q1| = {format_number(self.peak[0], 1e6)} um',
+                 f'smallest gap = {format_number(self.min_gap, 1e6)} um '
+                 f'({format_number(self.min_gap / self.gap_m, digits=3)} d_g)']
+        if len(self.names) >= 2:
+            window = f'{1e3 * SUMMARY_WINDOW_S:g} ms'
+            if self.before_shock is not None and math.isfinite(self.before_shock[1]):
+                parts.append(f'q2 amplitude {format_number(self.before_shock[1], 1e6)} um over '
+                             f'the {window} before the first shock '
+                             f'(t = {self.first_shock_ns * 1e-9:.6f} s)')
+            elif self.first_shock_ns is None:
+                parts.append('no shock')
+            final = np.max(np.abs(self.tail_q), axis=0)
+            parts.append(f'q2 amplitude {format_number(final[1], 1e6)} um over the last '
+                         f'{window}')
+        return ', '.join(parts)
+
+
+@dataclass
+class RunSummary:
+    """Numbers of one run (SI units; ``*_m`` in metres), as ``ring_gyro run --json`` prints."""
+
+    sim_time_s: float
+    wall_time_s: float
+    real_time_factor: float
+    peak_abs_m: Dict[str, float]
+    final_abs_m: Dict[str, float]
+    min_gap_m: float
+    contact: bool
+    status: str
+    message: str
+    samples: int
+    steps: int
+    output: Optional[str] = None
+    extra: Dict[str, float] = field(default_factory=dict)
+
+    def to_json(self) -> str:
+        """Return one JSON object."""
+        return json.dumps(asdict(self), sort_keys=True)
+
+
+# ---------------------------------------------------------------------------------- the run
+class Run:
+    """
+    A Simulator with its start state, inputs, statistics, sink and diagnostics.
+
+    Parameters
+    ----------
+    config : SimConfig
+        Validated configuration (``scenario.*`` shocks are scheduled).
+    start_state : (q, v), optional
+        Initial coordinates (m) and velocities (m/s); None = rest. The caller computes the
+        ``drive.start_on`` orbit (``analysis.nnm.drive_initial_state``), which lives above
+        this layer.
+    sink : Sink, optional
+        Receives inputs as they act, blocks and diagnostics (default :class:`NullSink`).
+    late_tolerance_ns : int
+        How far in the past a stamp may be and still act now (the node: one block; offline:
+        0, every input has its exact time).
+    clock : callable
+        Wall clock for the summary, s (``time.monotonic``).
+
+    """
+
+    def __init__(self, config: SimConfig, start_state=None, sink: Optional[Sink] = None,
+                 late_tolerance_ns: int = 0,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.sim = Simulator(config)
+        self.start_state: Tuple[np.ndarray, np.ndarray]
+        n = self.sim.model.n_coordinates
+        if start_state is not None:
+            self.sim.set_state(*start_state)
+            self.start_state = (np.array(start_state[0], dtype=np.float64),
+                                np.array(start_state[1], dtype=np.float64))
+        else:
+            self.start_state = (np.zeros(n), np.zeros(n))
+        self.sink: Sink = sink if sink is not None else NullSink()
+        self.late_tolerance_ns = int(late_tolerance_ns)
+        self.stats = RunStats(self.sim.coordinates, self.sim.period_ns, self.sim.model.gap)
+        self.rejected: Dict[str, int] = {topic: 0 for topic in INPUT_TOPICS}
+        self.accepted: Dict[str, int] = {topic: 0 for topic in INPUT_TOPICS}
+        self.lost: Dict[str, int] = {}
+        self.blocks = 0
+        self.withheld_blocks = 0
+        self._clock = clock
+        self._wall0: Optional[float] = None
+        self._to_sink: List[Tuple[int, int, Input]] = []  # heap of (acting ns, seq, input)
+        self._seq = 0
+        self._shock_ends: List[int] = []  # heap of end times of accepted shocks, ns
+        self._future_profile: List[int] = []  # heap of future base-acceleration stamps, ns
+        for at_ns, x, y in config.run.scheduled_shocks():
+            # The Simulator scheduled these itself; recorded on ~/shock as if they had arrived.
+            self._accept_shock(Shock(x=x, y=y, at_ns=at_ns))
+        self.sink.start(self.start_state)
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def config(self) -> SimConfig:
+        """Return the configuration in force."""
+        return self.sim.config
+
+    @property
+    def time_ns(self) -> int:
+        """Return the simulation time, ns (the end of the last block)."""
+        return self.sim.time_ns
+
+    @property
+    def channel_names(self) -> Dict[str, List[str]]:
+        """Return the channel names of the block outputs (``Simulator.channel_names``)."""
+        return self.sim.channel_names
+
+    @property
+    def running(self) -> bool:
+        """Tell whether the ring is free (not in contact, not failed)."""
+        return self.sim.status == 'running'
+
+    @property
+    def pending_shocks(self) -> int:
+        """Return the number of accepted shocks that have not ended."""
+        return len(self._shock_ends)
+
+    @property
+    def pending_inputs(self) -> int:
+        """Return the number of accepted inputs that have not acted yet."""
+        return len(self._to_sink)
+
+    # ------------------------------------------------------------------ inputs
+    def apply(self, event: Input) -> int:
+        """
+        Validate an input, schedule it and return the simulation time (ns) it acts at.
+
+        Raises
+        ------
+        InputError, ParameterError
+            Refused (counted under ``event.topic``); nothing changed.
+
+        """
+        try:
+            return self._apply(event)
+        except (InputError, ParameterError):
+            self.rejected[event.topic] = self.rejected.get(event.topic, 0) + 1
+            raise
+
+    def _apply(self, event: Input) -> int:
+        sim = self.sim
+        if isinstance(event, (Shock, BaseAcceleration)) and not all(
+                math.isfinite(v) for v in (event.x, event.y, event.z)):
+            raise InputError(f'not finite: x = {event.x!r}, y = {event.y!r}, z = {event.z!r}')
+        if isinstance(event, Shock):
+            return self._accept_shock(event, schedule=True)
+        if isinstance(event, BaseAcceleration):
+            at_ns = self.acting_time(event.at_ns)
+            if len(self._future_profile) >= MAX_PENDING_BASE_ACCELERATION:
+                raise InputError(f'{MAX_PENDING_BASE_ACCELERATION} samples are already pending')
+            sim.add_base_acceleration(at_ns, event.x, event.y)
+            heapq.heappush(self._future_profile, at_ns)
+            event = replace(event, z=0.0)
+        elif isinstance(event, DriveAmplitude):
+            at_ns = self._now_only(event.at_ns)
+            sim.set_drive(amplitude=float(event.value), at_ns=at_ns)
+        elif isinstance(event, DriveFrequency):
+            at_ns = self._now_only(event.at_ns)
+            sim.set_drive(frequency_hz=float(event.value_hz), at_ns=at_ns)
+        elif isinstance(event, Reset):
+            at_ns = self._now_only(event.at_ns)
+            if at_ns != sim.time_ns:
+                raise InputError('reset: acts at the current simulation time only')
+            sim.reset()
+            self._discard_pending()
+        elif isinstance(event, ParameterChange):
+            at_ns = self._now_only(event.at_ns)
+            sim.update_parameters(event.changes, at_ns=at_ns)
+        else:
+            raise InputError(f'unknown input {event!r}')
+        self._accepted(replace(event, at_ns=at_ns))
+        return at_ns
+
+    def acting_time(self, at_ns: Optional[int]) -> int:
+        """
+        Return the simulation time (ns) an input stamped ``at_ns`` acts at (None: now).
+
+        Raises
+        ------
+        InputError
+            Too far in the past (beyond ``late_tolerance_ns``) or beyond ``inputs.horizon``.
+
+        """
+        now = self.sim.time_ns
+        if at_ns is None:
+            return now
+        at_ns = int(at_ns)
+        if at_ns >= now:
+            horizon_ns = int(round(self.config.run.input_horizon * 1e9))
+            if at_ns - now > horizon_ns:
+                raise InputError(
+                    f'stamp {at_ns * 1e-9:.9f} s is {(at_ns - now) * 1e-9:.6g} s ahead of the '
+                    f'simulation time {now * 1e-9:.9f} s, beyond inputs.horizon '
+                    f'({self.config.run.input_horizon:g} s)')
+            return at_ns
+        if now - at_ns <= self.late_tolerance_ns:
+            return now
+        raise InputError(f'stamp {at_ns * 1e-9:.9f} s is {(now - at_ns) * 1e-9:.6f} s in the '
+                         f'past (simulation time {now * 1e-9:.9f} s, tolerance '
+                         f'{self.late_tolerance_ns * 1e-9:g} s)')
+
+    def _now_only(self, at_ns: Optional[int]) -> int:
+        """Drive, reset and parameter changes act at a sample time at or after ``at_ns``."""
+        t = self.acting_time(at_ns)
+        period = self.sim.period_ns
+        return -(-t // period) * period
+
+    def _accept_shock(self, event: Shock, schedule: bool = False) -> int:
+        if schedule:
+            at_ns = self.acting_time(event.at_ns)
+            if len(self._shock_ends) >= MAX_PENDING_SHOCKS:
+                raise InputError(f'{MAX_PENDING_SHOCKS} shocks are already pending')
+            self.sim.shock(event.x, event.y, at_ns=at_ns)
+        else:
+            at_ns = int(event.at_ns)
+        heapq.heappush(self._shock_ends,
+                       at_ns + int(round(self.config.shock_duration_s * 1e9)))
+        self.stats.shock_at(at_ns)
+        self._accepted(replace(event, at_ns=at_ns, z=0.0))
+        return at_ns
+
+    def _accepted(self, event: Input) -> None:
+        self.accepted[event.topic] = self.accepted.get(event.topic, 0) + 1
+        heapq.heappush(self._to_sink, (int(event.at_ns), self._seq, event))
+        self._seq += 1
+
+    def _discard_pending(self) -> None:
+        """Forget what a reset discarded (the Simulator dropped it too)."""
+        now = self.sim.time_ns
+        self._flush_inputs(now)
+        self._to_sink = []
+        self._shock_ends = []
+        self._future_profile = []
+        self.stats.first_shock_ns = (self.stats.first_shock_ns
+                                     if self.stats.before_shock is not None else None)
+
+    def _flush_inputs(self, up_to_ns: int) -> None:
+        while self._to_sink and self._to_sink[0][0] <= up_to_ns:
+            _, _, event = heapq.heappop(self._to_sink)
+            self.sink.input(event)
+
+    def count_rejected(self, topic: str) -> None:
+        """Count an input of ``topic`` refused before it reached :meth:`apply` (e.g. by ROS)."""
+        self.rejected[topic] = self.rejected.get(topic, 0) + 1
+
+    def count_lost(self, topic: str, count: int) -> None:
+        """Count ``count`` messages of ``topic`` that the middleware reports lost."""
+        self.lost[topic] = self.lost.get(topic, 0) + int(count)
+
+    # ------------------------------------------------------------------ advancing
+    def advance(self, n_samples: int) -> Optional[Block]:
+        """
+        Advance by ``n_samples`` output periods and hand the block to the sink.
+
+        Returns
+        -------
+        Block or None
+            None when the block held a non-finite value (withheld, counted; the Simulator
+            should never produce one).
+
+        """
+        if self._wall0 is None:
+            self._wall0 = self._clock()
+        sim = self.sim
+        first = sim.sample_index
+        samples = sim.advance_samples(int(n_samples))
+        end_ns = sim.time_ns
+        self._flush_inputs(end_ns)
+        while self._shock_ends and self._shock_ends[0] <= end_ns:
+            heapq.heappop(self._shock_ends)
+        while self._future_profile and self._future_profile[0] <= end_ns:
+            heapq.heappop(self._future_profile)
+        if not all(np.all(np.isfinite(a)) for a in
+                   (samples.q, samples.gap, samples.min_gap, samples.capacitance)):
+            self.withheld_blocks += 1
+            return None
+        self.stats.add(samples, sim.sample_index)
+        block = Block(samples=samples, end_ns=end_ns, first_index=first)
+        self.blocks += 1
+        self.sink.block(block)
+        return block
+
+    # ------------------------------------------------------------------ reporting
+    def diagnostics(self, pacing: Pacing = Pacing(), finished: bool = False) -> Diagnostics:
+        """
+        Take a diagnostics snapshot and hand it to the sink.
+
+        Keys (always all of them, in this order): ``sim_time_s``, ``real_time_factor_target``,
+        ``real_time_factor_achieved`` (over the last interval), ``real_time_factor_average``,
+        ``lag_s``, ``steps``, ``blocks``, ``min_gap_m`` and ``min_gap_ratio`` (smallest outer
+        gap since the last snapshot), ``min_gap_ratio_run``, ``contact``, ``status``,
+        ``rejected_inputs`` and ``rejected_<topic>`` per input topic,
+        ``rejected_parameter_changes``, ``lost_inputs`` (messages the middleware reports
+        lost), ``pending_shocks``, ``pending_inputs``, ``accepted_shocks``,
+        ``drive_amplitude``, ``drive_frequency_hz``, ``withheld_nonfinite_blocks``.
+        """
+        sim = self.sim
+        stats = self.stats
+        self._flush_inputs(sim.time_ns)
+        gap = stats.take_interval_min_gap()
+        values: Dict[str, Any] = {
+            'sim_time_s': sim.time_s,
+            'real_time_factor_target': pacing.target,
+            'real_time_factor_achieved': pacing.achieved,
+            'real_time_factor_average': pacing.average,
+            'lag_s': pacing.lag_s,
+            'steps': sim.steps_taken,
+            'blocks': self.blocks,
+            'min_gap_m': gap,
+            'min_gap_ratio': gap / stats.gap_m,
+            'min_gap_ratio_run': (stats.min_gap / stats.gap_m
+                                  if math.isfinite(stats.min_gap) else 1.0),
+            'contact': not self.running,
+            'status': str(sim.status),
+            'rejected_inputs': sum(self.rejected.values()),
+        }
+        for topic in INPUT_TOPICS[:4]:
+            values[f'rejected_{topic.replace("/", "_")}'] = self.rejected[topic]
+        values['rejected_reset'] = self.rejected['events/reset']
+        values['rejected_parameter_changes'] = self.rejected['events/parameters']
+        values['lost_inputs'] = sum(self.lost.values())
+        values['pending_shocks'] = self.pending_shocks
+        values['pending_inputs'] = self.pending_inputs
+        values['accepted_shocks'] = self.accepted['shock']
+        drive = sim.config.drive
+        values['drive_amplitude'] = drive.amplitude
+        values['drive_frequency_hz'] = drive.frequency
+        values['withheld_nonfinite_blocks'] = self.withheld_blocks
+        if not self.running:
+            level, message = 'ERROR', f'{sim.status}: {sim.message} (~/reset recovers)'
+        elif pacing.lag_warn:
+            level = 'WARN'
+            message = f'falling behind real time by {pacing.lag_s / pacing.target:.2f} s'
+        else:
+            level, message = 'OK', 'finished' if finished else 'running'
+        diag = Diagnostics(t_ns=sim.time_ns, level=level, message=message, values=values)
+        self.sink.diagnostics(diag)
+        return diag
+
+    def wall_time_s(self) -> float:
+        """Return the wall time since the first block, s."""
+        return self._clock() - self._wall0 if self._wall0 is not None else 0.0
+
+    def summary(self, output: Optional[str] = None) -> RunSummary:
+        """Return the run's numbers (``ring_gyro run --json``)."""
+        sim = self.sim
+        wall = self.wall_time_s()
+        return RunSummary(
+            sim_time_s=sim.time_s, wall_time_s=wall,
+            real_time_factor=sim.time_s / wall if wall > 0 else math.inf,
+            peak_abs_m={n: float(v) for n, v in zip(sim.coordinates, self.stats.peak)},
+            final_abs_m=self.stats.final(), min_gap_m=self.stats.min_gap,
+            contact=not self.running, status=str(sim.status), message=sim.message,
+            samples=self.stats.samples, steps=sim.steps_taken, output=output)
+
+    def summary_text(self) -> str:
+        """Return the run's numbers in one line (the node's log)."""
+        text = self.stats.text()
+        if not self.running:
+            text += f'; {self.sim.status}: {self.sim.message}'
+        return text
+
+    def close(self) -> None:
+        """Close the sink (finalise a recording). Idempotent through the sink."""
+        self._flush_inputs(self.sim.time_ns)
+        sink, self.sink = self.sink, NullSink()
+        sink.close()
