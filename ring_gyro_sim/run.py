@@ -212,7 +212,7 @@ class Sink:
         """Take an accepted event; it acts now (``event.at_ns``: its acting time, ns)."""
 
     def block(self, block: Block) -> None:
-        """Take a simulated block (every sample finite)."""
+        """Take a simulated block; every sample in it is finite."""
 
     def diagnostics(self, diag: Diagnostics) -> None:
         """Take a diagnostics snapshot."""
