@@ -52,10 +52,12 @@ import numba
 from numba import njit
 import numpy as np
 from ring_gyro_sim import offline
+from ring_gyro_sim.analysis.nnm import drive_initial_state
 from ring_gyro_sim.core import forces, kernels
 from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.params import build_config, SimConfig, STANDARD_GRAVITY
 from ring_gyro_sim.core.simulator import Simulator
+from ring_gyro_sim.run import Run
 import scipy
 from scipy.integrate import solve_ivp
 
@@ -187,22 +189,22 @@ def bench_compile(children: bool) -> Dict[str, Any]:
     return out
 
 
-def run_chunks(sim: Simulator, duration_s: float) -> Tuple[float, float]:
-    """Advance ``sim`` in 10 ms chunks; return (wall s, process CPU s)."""
+def run_chunks(run: Run, duration_s: float) -> Tuple[float, float]:
+    """Advance ``run`` in 10 ms blocks, as the node does; return (wall s, process CPU s)."""
+    per_chunk = int(round(CHUNK_S / run.sim.period_s))
     chunks = int(round(duration_s / CHUNK_S))
     w0 = time.perf_counter()
     c0 = time.process_time()
     for _ in range(chunks):
-        sim.advance(CHUNK_S)
+        run.advance(per_chunk)
     return time.perf_counter() - w0, time.process_time() - c0
 
 
 def measure_rtf(config: SimConfig, state, duration_s: float) -> Dict[str, Any]:
     """Real-time factor and per-step costs of one configuration from ``state``."""
-    sim = Simulator(config)
-    if state is not None:
-        sim.set_state(*state)
-    wall, cpu = run_chunks(sim, duration_s)
+    run = Run(config, start_state=state)
+    sim = run.sim
+    wall, cpu = run_chunks(run, duration_s)
     out_ns = output_ns_per_sample(sim)
     method = config.integrator.method
     evals = evaluations_per_step(method)
@@ -339,20 +341,19 @@ class ScipyProblem:
 
 
 def simulator_window(config: SimConfig, state, n_samples: int) -> Tuple[np.ndarray, float]:
-    """Return the coordinates (K, n) of ``n_samples`` periods in 10 ms chunks, and the wall s."""
-    sim = Simulator(config)
-    sim.set_state(*state)
-    per_chunk = int(round(CHUNK_S / sim.period_s))
+    """Return the coordinates (K, n) of ``n_samples`` periods in 10 ms blocks, and the wall s."""
+    run = Run(config, start_state=state)
+    per_chunk = int(round(CHUNK_S / run.sim.period_s))
     parts = []
     w0 = time.perf_counter()
     done = 0
     while done < n_samples:
         size = min(per_chunk, n_samples - done)
-        parts.append(sim.advance_samples(size).q)
+        parts.append(run.advance(size).samples.q)
         done += size
     wall = time.perf_counter() - w0
-    if sim.status != 'running':
-        raise RuntimeError(f'simulator: {sim.message}')
+    if not run.running:
+        raise RuntimeError(f'simulator: {run.sim.message}')
     return np.concatenate(parts), wall
 
 
@@ -570,8 +571,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     log('start states: upper branch of the drive (shooting, not timed)')
     paper = build_config(paper_values())
     five = build_config(paper_values(**FIVE_MODES))
-    paper_state = offline.initial_state(paper)
-    five_state = offline.initial_state(five)
+    paper_state = drive_initial_state(paper)
+    five_state = drive_initial_state(five)
 
     rows = []
     for method in ('bm6', 'bm4', 'strang'):

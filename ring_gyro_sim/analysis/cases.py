@@ -16,7 +16,7 @@
 The paper's time-domain cases: drive + shock (section 3.4), N_R study and inner electrodes.
 
 Every case is a :class:`CaseSpec` (shock amplitude in g, Q_1, duration, start state, extra
-parameters) run by :func:`run_case` on the :class:`~ring_gyro_sim.core.simulator.Simulator`
+parameters) run by :func:`run_case` through the one run path (:class:`~ring_gyro_sim.run.Run`)
 and summarised in a :class:`CaseResult`: windowed positive envelopes of every coordinate and
 of the radial displacement (decimated, :mod:`ring_gyro_sim.analysis.envelope`), the branch
 the 2theta drive ends on, the time it returns to the upper branch, the smallest gap and
@@ -57,9 +57,11 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 from ring_gyro_sim.analysis import envelope as env
+from ring_gyro_sim.analysis import nnm
 from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.params import build_config, SimConfig, STANDARD_GRAVITY
-from ring_gyro_sim.core.simulator import Simulator
+from ring_gyro_sim.progress import Progress
+from ring_gyro_sim.run import Run, Shock
 
 FINAL_WINDOW_S = 0.2
 """Final values: mean envelope over the last 0.2 s."""
@@ -70,7 +72,6 @@ AFTER_SHOCK_S = 0.01
 DEFAULT_OUTPUT_RATE_HZ = 100000.0
 """Output rate of the case runs (the integration step is set apart, ``integrator.max_step``)."""
 CHUNK_S = 0.05
-PROGRESS_EVERY_S = 5.0
 
 PAPER_Q1 = 120000.0
 FIVE_MODE_FREQUENCIES_HZ = (11200.0, 15800.0, 22000.0, 36300.0, 59200.0)
@@ -264,7 +265,6 @@ def drive_branches(config: SimConfig) -> Optional[Branches]:
     Shooting from ``A_e Q_2 / (omega omega_2)`` (upper) and a tenth of it (lower), as
     ``drive.start_on``; an orbit that is not stable does not count as a branch.
     """
-    from ring_gyro_sim.analysis import nnm
     d = config.drive
     if d.amplitude == 0.0 or d.frequency == 0.0 or config.modes.count < 2:
         return None
@@ -450,28 +450,6 @@ def _key_numbers(r: CaseResult) -> Dict[str, Any]:
     return out
 
 
-class _Progress:
-    """Plain progress lines on stderr every few wall seconds."""
-
-    def __init__(self, name: str, total_s: float, enabled: bool) -> None:
-        self.name = name
-        self.total = total_s
-        self.enabled = enabled
-        self.start = time.monotonic()
-        self.last = self.start
-
-    def update(self, sim_s: float, q_m: np.ndarray, force: bool = False) -> None:
-        now = time.monotonic()
-        if not self.enabled or (now - self.last < PROGRESS_EVERY_S and not force):
-            return
-        self.last = now
-        amps = ' '.join(f'q{i + 1} {a * 1e6:.3f}' for i, a in enumerate(q_m))
-        rate = sim_s / max(now - self.start, 1e-9)
-        sys.stderr.write(f'[{self.name}] sim {sim_s:6.2f}/{self.total:.2f} s  x{rate:.2f} '
-                         f'real time  envelope (um): {amps}\n')
-        sys.stderr.flush()
-
-
 def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
              output_rate_hz: float = DEFAULT_OUTPUT_RATE_HZ,
              window_s: float = env.DEFAULT_WINDOW_S, progress: bool = True) -> CaseResult:
@@ -502,14 +480,11 @@ def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
     if output_rate_hz <= 2.0 * f_max:
         raise ValueError(f'output_rate_hz: must exceed twice the fastest mode '
                          f'({2.0 * f_max:.0f} Hz), got {output_rate_hz!r}')
-    from ring_gyro_sim.analysis import nnm
     branches = drive_branches(config)
-    state = nnm.drive_initial_state(config)
-    sim = Simulator(config)
-    if state is not None:
-        sim.set_state(*state)
+    run = Run(config, start_state=nnm.drive_initial_state(config))
+    sim = run.sim
     if spec.shock_g:
-        sim.shock(spec.shock_g * STANDARD_GRAVITY, at_ns=sim.time_ns)
+        run.apply(Shock(spec.shock_g * STANDARD_GRAVITY))
     names = list(sim.coordinates) + ['w0', 'wmax']
     acc = env.StreamingEnvelope(1.0 / sim.period_s, names, window_s, t0_s=sim.time_s)
     gap = config.electrodes.gap
@@ -517,7 +492,7 @@ def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
     min_gap = math.inf
     raw_t: List[np.ndarray] = []
     raw_q: List[np.ndarray] = []
-    bar = _Progress(spec.name, spec.duration_s, progress)
+    bar = Progress(spec.duration_s, progress, name=spec.name)
     wall0 = time.perf_counter()
     n_total = int(round(spec.duration_s / sim.period_s))
     chunk = max(1, int(round(CHUNK_S / sim.period_s)))
@@ -525,7 +500,7 @@ def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
     contact_time = math.nan
     while done < n_total:
         size = min(chunk, n_total - done)
-        s = sim.advance_samples(size)
+        s = run.advance(size).samples
         done += size
         if sim.status != 'running':
             keep = s.t < sim.contact_time_s if math.isfinite(sim.contact_time_s) else \
@@ -541,11 +516,13 @@ def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
                 sel = s.t < spec.keep_raw_s
                 raw_t.append(s.t[sel])
                 raw_q.append(s.q[sel])
-            bar.update(sim.time_s, np.max(np.abs(s.q), axis=0))
+            amps = np.max(np.abs(s.q), axis=0)
+            bar.update(sim.time_s, 'um: ' + ' '.join(f'{a * 1e6:.3f}' for a in amps))
         if sim.status != 'running':
             min_gap = 0.0
             break
     wall = time.perf_counter() - wall0
+    bar.close()
     result = CaseResult(
         spec=spec, envelope=acc.result(), branches=branches, gap_m=gap, min_gap_m=min_gap,
         contact=sim.status != 'running', status=sim.status, message=sim.message,
