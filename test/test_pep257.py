@@ -45,7 +45,8 @@ def linted_paths():
 
 
 def _fallback_pep257(paths):
-    """Run pydocstyle as ament_pep257.main does: (return code, report).
+    """
+    Run pydocstyle as ament_pep257.main does: (return code, report).
 
     ament_pep257 passes the configuration's select and ignore_decorators to
     ``pydocstyle.check`` but not its property decorators, so D401 applies to ``@property``
