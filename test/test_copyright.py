@@ -13,9 +13,10 @@
 # limitations under the License.
 
 """
-The copyright test of `ros2 pkg create`, runnable without ROS.
+The copyright test of `ros2 pkg create --build-type ament_python`, runnable without ROS.
 
-ament_copyright when it is installed, else its rule for Python files: a
+It calls ``ament_copyright.main.main`` as the generated test does when ament_copyright is
+installed (a ROS installation; it is not on PyPI), else applies its rule for Python files: a
 ``# Copyright <year> <holder>`` line followed by the Apache License 2.0 file header.
 """
 
@@ -23,6 +24,11 @@ from pathlib import Path
 import re
 
 import pytest
+
+try:
+    from ament_copyright.main import main
+except ImportError:  # not installed (not on PyPI): the rule below
+    main = None
 
 PACKAGE_ROOT = Path(__file__).resolve().parents[1]
 LINTED = ('ring_gyro_sim', 'test', 'setup.py', 'benchmarks')
@@ -86,10 +92,6 @@ def header_problem(text):
 @pytest.mark.copyright
 @pytest.mark.linter
 def test_copyright():
-    try:
-        from ament_copyright.main import main
-    except ImportError:
-        main = None
     if main is not None:
         rc = main(argv=[str(PACKAGE_ROOT / p) for p in LINTED if (PACKAGE_ROOT / p).exists()])
         assert rc == 0, 'Found errors'

@@ -13,9 +13,12 @@
 # limitations under the License.
 
 """
-The flake8 test of `ros2 pkg create`, runnable without ROS.
+The flake8 test of `ros2 pkg create --build-type ament_python`, runnable without ROS.
 
-ament_flake8 when it is installed, else flake8 itself with ament's settings and plugins.
+It calls ``ament_flake8.main.main_with_errors`` as the generated test does (PyPI
+``ros-jazzy-ament-flake8``, in requirements-dev.txt). Only when ament_flake8 is not installed does
+it fall back to flake8 itself with ament's configuration and the plugins an ament installation
+brings. The control test checks that whichever of the two runs reports each kind of violation.
 """
 
 from pathlib import Path
@@ -24,6 +27,11 @@ import sys
 import textwrap
 
 import pytest
+
+try:
+    from ament_flake8.main import main_with_errors
+except ImportError:  # not installed: the flake8 fallback below
+    main_with_errors = None
 
 PACKAGE_ROOT = Path(__file__).resolve().parents[1]
 LINTED = ('ring_gyro_sim', 'test', 'setup.py', 'benchmarks')
@@ -57,27 +65,29 @@ def _missing_plugins():
             if importlib.util.find_spec(module) is None]
 
 
-@pytest.mark.flake8
-@pytest.mark.linter
-def test_flake8(tmp_path):
-    try:
-        from ament_flake8.main import main_with_errors
-    except ImportError:
-        main_with_errors = None
-    if main_with_errors is not None:
-        rc, errors = main_with_errors(argv=linted_paths())
-        assert rc == 0, \
-            'Found %d code style errors / warnings:\n' % len(errors) + '\n'.join(errors)
-        return
+def _fallback_flake8(tmp_path, paths):
+    """Run flake8 with ament's settings: (return code, report)."""
     missing = _missing_plugins()
     assert not missing, f'flake8 plugins missing (pip install {" ".join(missing)})'
     config = tmp_path / 'ament_flake8.ini'
     config.write_text(AMENT_FLAKE8_INI, encoding='utf-8')
     result = subprocess.run(
-        [sys.executable, '-m', 'flake8', f'--config={config}', *linted_paths()],
+        [sys.executable, '-m', 'flake8', f'--config={config}', *paths],
         cwd=PACKAGE_ROOT, capture_output=True, text=True, check=False)
-    assert result.returncode == 0, \
-        f'flake8 found code style errors / warnings:\n{result.stdout}{result.stderr}'
+    return result.returncode, result.stdout + result.stderr
+
+
+@pytest.mark.flake8
+@pytest.mark.linter
+def test_flake8(tmp_path):
+    if main_with_errors is not None:
+        rc, errors = main_with_errors(argv=linted_paths())
+        assert rc == 0, \
+            'Found %d code style errors / warnings:\n' % len(errors) + \
+            '\n'.join(errors)
+        return
+    rc, report = _fallback_flake8(tmp_path, linted_paths())
+    assert rc == 0, f'flake8 found code style errors / warnings:\n{report}'
 
 
 @pytest.mark.flake8
@@ -90,13 +100,12 @@ def test_flake8(tmp_path):
     ('import os\n', 'F401'),
 ])
 def test_flake8_settings_catch(tmp_path, source, code):
-    """Control: the fallback's settings and plugins do report each kind of violation."""
-    if _missing_plugins():
-        pytest.fail('flake8 plugins missing: ' + ', '.join(_missing_plugins()))
-    config = tmp_path / 'ament_flake8.ini'
-    config.write_text(AMENT_FLAKE8_INI, encoding='utf-8')
+    """Control: the linter test_flake8 runs does report each kind of violation."""
     sample = tmp_path / 'sample.py'
     sample.write_text(source, encoding='utf-8')
-    result = subprocess.run([sys.executable, '-m', 'flake8', f'--config={config}', str(sample)],
-                            capture_output=True, text=True, check=False)
-    assert result.returncode == 1 and f' {code} ' in result.stdout, result.stdout
+    if main_with_errors is not None:
+        rc, errors = main_with_errors(argv=[str(sample)])
+        report = '\n'.join(errors)
+    else:
+        rc, report = _fallback_flake8(tmp_path, [str(sample)])
+    assert rc == 1 and f' {code} ' in report, report

@@ -237,7 +237,7 @@ class ForcedOrbit:
 
     @property
     def branch_stable(self) -> bool:
-        """The multipliers of the cos coordinates inside the unit circle."""
+        """Return whether the multipliers of the cos coordinates lie inside the unit circle."""
         return bool(np.all(np.abs(self.floquet_multipliers) < 1.0))
 
     @property

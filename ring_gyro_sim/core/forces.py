@@ -138,7 +138,7 @@ class ForceModel:
 
     @property
     def n_coordinates(self) -> int:
-        """Number of simulated coordinates."""
+        """Return the number of simulated coordinates."""
         return int(self.harmonics.size)
 
 
