@@ -218,17 +218,17 @@ class Simulator:
 
     @property
     def config(self) -> SimConfig:
-        """The configuration in force."""
+        """Return the configuration in force."""
         return self._config
 
     @property
     def time_ns(self) -> int:
-        """Current simulation time, ns."""
+        """Return the current simulation time, ns."""
         return self.sample_index * self.period_ns
 
     @property
     def time_s(self) -> float:
-        """Current simulation time, s."""
+        """Return the current simulation time, s."""
         return self.time_ns * 1e-9
 
     @property

@@ -211,17 +211,17 @@ class BagWriter:
 
     @property
     def path(self) -> pathlib.Path:
-        """The MCAP file being written."""
+        """Return the MCAP file being written."""
         return self._path
 
     @property
     def closed(self) -> bool:
-        """True once :meth:`finish` has run."""
+        """Tell whether :meth:`finish` has run."""
         return self._closed
 
     @property
     def message_count(self) -> int:
-        """Number of messages written so far."""
+        """Return the number of messages written so far."""
         return self._message_count
 
     def __enter__(self):
