@@ -30,7 +30,7 @@ setup(
         ('share/' + package_name + '/config', glob('config/*.yaml')),
     ],
     install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'mcap', 'PyYAML', 'zstandard',
-                      'lz4'],
+                      'lz4', 'tqdm'],
     extras_require={'plots': ['matplotlib']},
     zip_safe=True,
     maintainer='ring_gyro_sim developers',

@@ -425,8 +425,9 @@ class Run:
 
     @property
     def pending_inputs(self) -> int:
-        """Return the number of accepted inputs that have not acted yet."""
-        return len(self._to_sink)
+        """Return the number of accepted inputs stamped after the current simulation time."""
+        now = self.sim.time_ns
+        return sum(1 for t_ns, _, _ in self._to_sink if t_ns > now)
 
     # ------------------------------------------------------------------ inputs
     def apply(self, event: Input) -> int:

@@ -1,0 +1,178 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Tests of run.py, the one run path: when inputs act, what is refused and counted, reset, the
+order the sink sees things in, the diagnostics keys, and the bounded cost of pending inputs.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from ring_gyro_sim import run as run_mod
+from ring_gyro_sim.core.errors import InputError, ParameterError
+from ring_gyro_sim.core.params import build_config, STANDARD_GRAVITY
+from ring_gyro_sim.run import (BaseAcceleration, DriveAmplitude, ParameterChange, Reset, Run,
+                               Shock, Sink)
+
+REST = {'drive.amplitude': 0.0, 'drive.start_on': 'rest'}
+BLOCK = 2000  # samples of one 10 ms block at 200 kHz
+PEAK = 2000 * STANDARD_GRAVITY
+
+
+class Collect(Sink):
+    """A sink that keeps what it is given, in order."""
+
+    def __init__(self):
+        self.calls = []
+
+    def start(self, state):
+        self.calls.append(('start', 0, state))
+
+    def input(self, event):
+        self.calls.append(('input', event.at_ns, event))
+
+    def block(self, block):
+        self.calls.append(('block', block.end_ns, block))
+
+    def diagnostics(self, diag):
+        self.calls.append(('diagnostics', diag.t_ns, diag))
+
+
+def rest_run(sink=None, **extra):
+    return Run(build_config({**REST, **extra}), sink=sink)
+
+
+def test_a_stamp_beyond_the_horizon_is_refused_counted_and_changes_nothing():
+    run = rest_run(**{'inputs.horizon': 1.0})
+    with pytest.raises(InputError, match=r'inputs\.horizon'):
+        run.apply(BaseAcceleration(x=100.0, at_ns=2_145_916_800 * 10 ** 9))  # 2038
+    with pytest.raises(InputError, match=r'inputs\.horizon'):
+        run.apply(Shock(x=PEAK, at_ns=1_000_000_001))
+    assert run.rejected['base_acceleration'] == 1 and run.rejected['shock'] == 1
+    assert run.pending_inputs == 0 and run.pending_shocks == 0
+    # The topic is not locked: a normal sample now is taken ("stamps must increase" would
+    # have refused it had the 2038 one been kept).
+    assert run.apply(BaseAcceleration(x=100.0, at_ns=1_000_000)) == 1_000_000
+    # At the horizon itself it is still taken.
+    assert run.apply(Shock(x=PEAK, at_ns=1_000_000_000)) == 1_000_000_000
+
+
+def test_late_and_past_stamps():
+    run = Run(build_config(REST), late_tolerance_ns=BLOCK * 5000)
+    run.advance(3 * BLOCK)
+    now = run.time_ns
+    assert run.apply(Shock(x=PEAK, at_ns=now - BLOCK * 5000)) == now  # late: acts now
+    with pytest.raises(InputError, match='in the past'):
+        run.apply(Shock(x=PEAK, at_ns=now - BLOCK * 5000 - 1))
+    assert run.rejected['shock'] == 1 and run.accepted['shock'] == 1
+
+
+def test_non_finite_components_are_refused_z_is_otherwise_ignored():
+    run = rest_run()
+    for bad in (Shock(x=math.nan), Shock(x=1.0, z=math.inf),
+                BaseAcceleration(x=1.0, y=-math.inf)):
+        with pytest.raises(InputError, match='not finite'):
+            run.apply(bad)
+    assert sum(run.rejected.values()) == 3
+    run.apply(Shock(x=0.0, z=5.0))  # out of plane: not modelled, accepted
+    assert run.accepted['shock'] == 1
+
+
+def test_reset_discards_everything_pending():
+    sink = Collect()
+    run = rest_run(sink, **{'scenario.shock_times': [0.05], 'scenario.shock_peaks': [PEAK]})
+    run.apply(Shock(x=PEAK, at_ns=30_000_000))
+    run.apply(BaseAcceleration(x=500.0, at_ns=20_000_000))
+    run.apply(BaseAcceleration(x=500.0, at_ns=40_000_000))
+    assert run.pending_shocks == 2 and run.pending_inputs == 4
+    run.advance(BLOCK)
+    run.apply(Reset())
+    assert run.pending_shocks == 0 and run.pending_inputs == 0
+    # A profile may start again at any stamp after the reset.
+    run.apply(BaseAcceleration(x=0.0, at_ns=15_000_000))
+    for _ in range(6):
+        block = run.advance(BLOCK)
+        assert np.all(block.samples.q == 0.0)  # no shock, no profile acted after the reset
+    # What the reset discarded was never handed to the sink (it never acted).
+    inputs = [c[2] for c in sink.calls if c[0] == 'input']
+    assert [type(e).__name__ for e in inputs] == ['Reset', 'BaseAcceleration']
+
+
+def test_without_reset_the_same_inputs_move_the_ring():
+    """Control for the test above: the pending inputs do act when nothing discards them."""
+    run = rest_run(**{'scenario.shock_times': [0.05], 'scenario.shock_peaks': [PEAK]})
+    run.apply(Shock(x=PEAK, at_ns=30_000_000))
+    peaks = [np.max(np.abs(run.advance(BLOCK).samples.q)) for _ in range(7)]
+    assert peaks[0] == 0.0 and max(peaks) > 1e-7
+
+
+def test_the_sink_sees_inputs_in_log_time_order_before_their_block():
+    sink = Collect()
+    run = rest_run(sink, **{'scenario.shock_times': [0.025], 'scenario.shock_peaks': [PEAK]})
+    run.apply(DriveAmplitude(0.0))
+    run.apply(Shock(x=PEAK, at_ns=12_345_678))
+    run.apply(ParameterChange({'electrodes.outer_voltage': 70.0}))
+    for _ in range(3):
+        run.advance(BLOCK)
+    run.diagnostics()
+    times = [c[1] for c in sink.calls]
+    assert times == sorted(times)
+    kinds = [(c[0], c[1]) for c in sink.calls]
+    assert kinds.index(('input', 12_345_678)) == kinds.index(('block', 20_000_000)) - 1
+    assert ('input', 25_000_000) in kinds and kinds[0][0] == 'start'
+
+
+def test_diagnostics_have_the_same_keys_whatever_happened():
+    quiet = rest_run()
+    quiet.advance(BLOCK)
+    busy = rest_run()
+    busy.advance(BLOCK)
+    with pytest.raises(InputError):
+        busy.apply(Shock(x=math.nan))
+    with pytest.raises(ParameterError):
+        busy.apply(ParameterChange({'electrodes.gap': -1.0}))
+    a, b = quiet.diagnostics(), busy.diagnostics()
+    assert list(a.values) == list(b.values)
+    assert b.values['rejected_inputs'] == 2 and b.values['rejected_parameter_changes'] == 1
+    assert a.level == b.level == 'OK'
+
+
+def test_pending_limits_are_refused_with_the_reason(monkeypatch):
+    monkeypatch.setattr(run_mod, 'MAX_PENDING_SHOCKS', 3)
+    run = rest_run()
+    for k in range(3):
+        run.apply(Shock(x=1.0, at_ns=(k + 1) * 1_000_000))
+    with pytest.raises(InputError, match='3 shocks are already pending'):
+        run.apply(Shock(x=1.0, at_ns=5_000_000))
+
+
+def test_a_flood_of_future_samples_does_not_reach_the_kernel():
+    """The stretch handed to the kernel holds the samples it can use, not all pending ones."""
+    run = rest_run()
+    for k in range(100_000):
+        run.apply(BaseAcceleration(x=1.0, at_ns=(k + 1) * 10_000))  # 1 s of 100 kHz samples
+    sim = run.sim
+    t, x, _ = sim._profile_arrays(0.0, BLOCK * sim.period_s)
+    assert 0 < t.size <= BLOCK * sim.period_s / 10e-6 + 4
+    run.advance(BLOCK)
+    t, _, _ = sim._profile_arrays(sim.time_s, sim.time_s + BLOCK * sim.period_s)
+    assert t[0] <= sim.time_s and t.size <= BLOCK * sim.period_s / 10e-6 + 4
+
+
+def test_a_huge_value_is_summarised_in_exponent_form():
+    assert run_mod.format_number(1.7e308) == '1.7000e+308'
+    assert run_mod.format_number(1.7e302, 1e6) == '1.7000e+308'
+    assert run_mod.format_number(5.7465e-6, 1e6) == '5.7465'
