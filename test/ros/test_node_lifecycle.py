@@ -24,6 +24,8 @@ a second node) and each test checks one of them.
 import math
 import re
 
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
 from node_harness import NodeProcess, params_yaml, start_node
 import pytest
 from ring_gyro_sim.offline import run_offline
@@ -133,3 +135,35 @@ def test_the_node_name_and_namespace_are_remappable(processes):
     assert "ignoring 'electrodes.outer_voltag': not a parameter of ring_gyro_sim" in log
     topics = {m.topic for m in read_messages(workdir / 'run.mcap')}
     assert '/bench/gyro_b/modal_displacement' in topics
+
+
+def _topics_and_diagnostics_keys(path):
+    """Return (channel topics, key lists of every /diagnostics status) read by mcap_ros2."""
+    with open(path, 'rb') as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        topics = sorted(c.topic for c in reader.get_summary().channels.values())
+        keys = [[kv.key for kv in status.values]
+                for _, _, _, msg in reader.iter_decoded_messages(topics=['/diagnostics'])
+                for status in msg.status]
+    return topics, keys
+
+
+def test_node_and_offline_recordings_look_the_same(processes, tmp_path):
+    """Issue 9: the same scenario recorded by the node and by ring_gyro run."""
+    proc, workdir = processes['duration']
+    assert proc.wait(EXIT_TIMEOUT_S) == 0, proc.output()
+    offline_path = tmp_path / 'offline.mcap'
+    run_offline(load_yaml(str(workdir / 'params.yaml')), output=str(offline_path),
+                progress=False)
+    node_topics, node_keys = _topics_and_diagnostics_keys(workdir / 'run.mcap')
+    off_topics, off_keys = _topics_and_diagnostics_keys(offline_path)
+    assert node_topics == off_topics
+    assert '/ring_gyro/shock' in node_topics and '/diagnostics' in node_topics
+    assert node_keys and off_keys
+    assert all(k == node_keys[0] for k in node_keys + off_keys)
+    # The recorded samples are the same too (the same Run): compare the block log times.
+    node_blocks = [m.log_time_ns for m in read_messages(workdir / 'run.mcap')
+                   if m.topic == '/ring_gyro/modal_displacement']
+    off_blocks = [m.log_time_ns for m in read_messages(offline_path)
+                  if m.topic == '/ring_gyro/modal_displacement']
+    assert node_blocks == off_blocks

@@ -1,0 +1,125 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+What a careless or hostile user does to the node (issue 10), on one paced node process.
+
+Inputs stamped far ahead are refused with the reason and counted, and do not lock a topic;
+``~/reset`` discards everything pending; ``/diagnostics`` is stamped with the node's ROS
+clock and names the instance (the node runs under a remapped name here).
+"""
+
+# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# isort: off
+import time
+
+from geometry_msgs.msg import AccelStamped
+from node_harness import Probe, start_node
+import numpy as np
+import pytest
+from ring_gyro_sim.ros import conversions
+# isort: on
+
+NAME = 'gyro_hostile'
+CONFIG = {'drive.amplitude': 0.0, 'drive.start_on': 'rest', 'output.rate': 100000.0,
+          'real_time_factor': 1.0, 'inputs.horizon': 5.0}
+YEAR_2038_NS = 2_145_916_800 * 10 ** 9
+PEAK = 98066.5
+
+
+@pytest.fixture(scope='module')
+def hostile(ros, tmp_path_factory):
+    workdir = tmp_path_factory.mktemp('hostile')
+    node = start_node(workdir, CONFIG, '-r', f'__node:={NAME}', node=NAME)
+    probe = None
+    try:
+        probe = Probe(target=f'/{NAME}')
+        probe.wait_connected()
+        yield node, probe
+    finally:
+        if probe is not None:
+            probe.destroy_node()
+        node.stop()
+        print(node.output()[-3000:])
+
+
+def accel(probe, at_ns, x):
+    msg = AccelStamped()
+    msg.header.stamp = conversions.ns_to_stamp(at_ns)
+    msg.accel.linear.x = float(x)
+    probe.accel_pub.publish(msg)
+
+
+def counters(probe, after_wall, keys, timeout=10.0):
+    """Wait for a diagnostics message newer than ``after_wall``; return the ``keys``."""
+    probe.spin_until(lambda: probe.latest_diagnostics(after_wall) is not None, timeout,
+                     'fresh diagnostics')
+    values = probe.latest_diagnostics(after_wall)
+    return {k: values[k] for k in keys}
+
+
+def test_far_future_stamps_are_refused_and_do_not_lock_the_topic(hostile):
+    node, probe = hostile
+    keys = ('rejected_base_acceleration', 'rejected_shock', 'pending_inputs')
+    before = counters(probe, 0.0, keys)
+    accel(probe, YEAR_2038_NS, 1.0)
+    probe.shock(PEAK, at_ns=probe.last_time_ns() + 1000 * 10 ** 9)
+    now_ns = probe.last_time_ns()
+    accel(probe, now_ns + 300_000_000, 0.0)  # a normal sample is still taken
+    accel(probe, now_ns + 310_000_000, 0.0)
+    wall = time.monotonic()
+    probe.spin_for(1.5)
+    after = counters(probe, wall, keys)
+    assert after['rejected_base_acceleration'] == str(int(before['rejected_base_acceleration'])
+                                                      + 1)
+    assert after['rejected_shock'] == str(int(before['rejected_shock']) + 1)
+    log = node.output()
+    assert 'beyond inputs.horizon (5 s)' in log
+
+
+def test_reset_discards_a_pending_shock(hostile):
+    node, probe = hostile
+    at_ns = probe.last_time_ns() + 600_000_000
+    probe.shock(PEAK, at_ns=at_ns)
+    probe.spin_for(0.2)
+    assert probe.reset().success
+    probe.wait_sim_time(at_ns + 200_000_000, timeout=10.0)
+    _, data = probe.stacked('modal_displacement', at_ns * 1e-9 - 0.01)
+    t = data[:, 0]
+    q1 = data[:, 1]
+    assert t[0] * 1e9 < at_ns < t[-1] * 1e9
+    assert np.all(q1 == 0.0), 'the shock acted after the reset'
+
+
+def test_diagnostics_name_the_instance_and_carry_ros_time(hostile):
+    _, probe = hostile
+    wall = time.monotonic()
+    probe.spin_until(lambda: probe.latest_diagnostics(wall) is not None, 10.0, 'diagnostics')
+    status = next(s for w, s, _ in reversed(probe.diagnostics) if w >= wall)
+    assert status.name == f'{NAME}: simulator'
+    assert status.hardware_id == f'ring_gyro_sim:/{NAME}'
+
+
+def test_diagnostics_header_is_the_node_clock(hostile):
+    _, probe = hostile
+    stamps = []
+    sub = probe.create_subscription(
+        conversions.DiagnosticArray, '/diagnostics',
+        lambda msg: stamps.append(conversions.stamp_to_ns(msg.header.stamp)), 10)
+    try:
+        probe.spin_until(lambda: stamps, 10.0, 'a diagnostics message')
+    finally:
+        probe.destroy_subscription(sub)
+    # ROS time without use_sim_time is the system clock (the simulation time is seconds).
+    assert abs(stamps[-1] * 1e-9 - time.time()) < 30.0
