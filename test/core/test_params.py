@@ -147,7 +147,7 @@ def test_static_pull_in_is_rejected_with_mechanical_frequencies():
                        'electrodes.fold_linear_stiffness': False}, 'electrodes.outer_voltage')
     assert 'pull-in' in message
     message = rejects({'electrodes.inner_voltage': 1e4,
-                       'electrodes.fold_linear_stiffness': False}, 'electrodes.outer_voltage')
+                       'electrodes.fold_linear_stiffness': False}, 'electrodes.inner_voltage')
     assert 'pull-in' in message
 
 
