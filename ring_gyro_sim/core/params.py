@@ -163,12 +163,12 @@ class ParamSpec:
 
     @property
     def group(self) -> str:
-        """The :class:`SimConfig` attribute holding the field (``'run'``)."""
+        """Return the :class:`SimConfig` attribute holding the field (``'run'``)."""
         return self.field.split('.', 1)[0]
 
     @property
     def attribute(self) -> str:
-        """The attribute of the group's dataclass (``'record_path'``)."""
+        """Return the attribute of the group's dataclass (``'record_path'``)."""
         return self.field.split('.', 1)[1]
 
 
