@@ -102,6 +102,7 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from ring_gyro_sim.core.errors import InputError, ParameterError, RingGyroError
 from ring_gyro_sim.core.simulator import Samples, Simulator
+from ring_gyro_sim.paramfile import check_node_arguments
 from ring_gyro_sim.ros import conversions, parameters
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import Float64, Float64MultiArray
@@ -204,7 +205,7 @@ class RunStats:
         return ', '.join(parts)
 
 
-class RingGyroNode(Node):
+class RingGyroNode(parameters.CountedParameterRefusals, Node):
     """The simulator behind topics, parameters and a reset service (see the module doc)."""
 
     def __init__(self, node_name: str = 'ring_gyro', **kwargs) -> None:
@@ -250,7 +251,6 @@ class RingGyroNode(Node):
         self._pending_profile: collections.deque = collections.deque()
         self._rejected: Dict[str, int] = {}
         self._reject_log: Dict[Tuple[str, str], Tuple[float, int]] = {}
-        self._rejected_parameters = 0
         self._ignored_z = set()
         self._contact_logged = False
         self._nonfinite_blocks = 0
@@ -531,9 +531,7 @@ class RingGyroNode(Node):
             config, changed = parameters.updated_config(self.sim.config, params)
             if changed:
                 self.sim.reconfigure(config)
-        except (ParameterError, InputError) as exc:
-            self._rejected_parameters += 1
-            self.get_logger().warn(f'parameter change refused: {exc}')
+        except (ParameterError, InputError) as exc:  # counted and logged by the mixin
             return SetParametersResult(successful=False, reason=str(exc))
         if not changed:
             return SetParametersResult(successful=True)
@@ -583,7 +581,7 @@ class RingGyroNode(Node):
         }
         for topic in ('shock', 'base_acceleration', 'drive/amplitude', 'drive/frequency'):
             values[f'rejected_{topic.replace("/", "_")}'] = self._rejected.get(topic, 0)
-        values['rejected_parameter_changes'] = self._rejected_parameters
+        values.update(self.parameter_refusal_counts())  # total and per kind
         values['pending_shocks'] = len(self._pending_shocks)
         values['accepted_shocks'] = self._accepted_shocks
         drive = sim.config.drive
@@ -631,6 +629,11 @@ class _StopOnSignal:
 
 def main(args=None) -> int:
     """Entry point of ``ring_gyro_node``: exit code 0 on a clean end, 1 if it cannot start."""
+    try:  # one verdict on the params files with `ring_gyro run` (paramfile.py)
+        check_node_arguments(sys.argv if args is None else args)
+    except ParameterError as exc:
+        print(f'[FATAL] [ring_gyro_node]: cannot start: {exc}', file=sys.stderr)
+        return 1
     try:
         # The node handles SIGINT and SIGTERM itself (below) instead of rclpy's handlers,
         # which would shut the context down before the summary and diagnostics go out.
