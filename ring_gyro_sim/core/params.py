@@ -176,10 +176,9 @@ _POSITIVE = {'minimum': 0.0, 'open_minimum': True}
 _NON_NEGATIVE = {'minimum': 0.0}
 _TIME = {'minimum': 0.0, 'maximum': MAX_TIME_S,
          'range_note': 'ROS stamps (builtin_interfaces/Time.sec) are int32'}
-_VOLTAGE_NOTE = ('finite; with the other voltage, K_c (eq. 26) must stay below m omega^2 of '
-                 'every coordinate (static pull-in of the ring with these frequencies taken as '
-                 'mechanical): 215.6 V for the default device, the descriptor gives the '
-                 'limit of the configuration')
+_VOLTAGE_NOTE = ('K_c (eq. 26) of both voltages below m omega^2 of every coordinate: the static '
+                 'pull-in voltage of the ring with its frequencies taken as mechanical, '
+                 '215.6 V for the default device')
 
 PARAMETERS: Tuple[ParamSpec, ...] = (
     ParamSpec('modes.frequencies', 'modes.frequencies', 'float_list',

@@ -242,8 +242,8 @@ def _descriptor_refusal(node, param: Parameter) -> Optional[Tuple[str, str]]:
         if not edge and not low < value < high:
             spec = params.SPECS.get(param.name)
             note = f' ({spec.range_note})' if spec is not None and spec.range_note else ''
-            return 'range', (f'{param.name}: must be between {params.format_number(low)} and '
-                             f'{params.format_number(high)}{note}, got {value!r}')
+            return 'range', (f'{param.name}: must be between {low:.6g} and {high:.6g}{note}, '
+                             f'got {value!r}')
     return None
 
 
