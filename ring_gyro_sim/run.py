@@ -68,6 +68,7 @@ from ring_gyro_sim.core.simulator import channel_names, Samples, Simulator
 
 __all__ = ['BaseAcceleration', 'Block', 'Diagnostics', 'DriveAmplitude', 'DriveFrequency',
            'Input', 'MAX_PENDING_BASE_ACCELERATION', 'MAX_PENDING_SHOCKS', 'NullSink',
+           'PARAMETER_REFUSAL_KINDS',
            'Pacing', 'ParameterChange', 'Reset', 'Run', 'RunStats', 'RunSummary', 'Shock',
            'Sink', 'channel_names', 'format_number']
 
@@ -77,6 +78,9 @@ MAX_PENDING_BASE_ACCELERATION = 100_000
 """Base-acceleration samples stamped in the future; beyond this one is refused."""
 SUMMARY_WINDOW_S = 0.01
 """Window (s) of the final amplitudes and of the q2 amplitude before the first shock."""
+PARAMETER_REFUSAL_KINDS = ('undeclared', 'read_only', 'range', 'invalid')
+"""Kinds of refused parameter changes: the first three are refused by ROS before the run
+sees them (``ros/parameters.py``), ``invalid`` by the run's validation."""
 INPUT_TOPICS = ('shock', 'base_acceleration', 'drive/amplitude', 'drive/frequency',
                 'events/reset', 'events/parameters')
 """Input topics (relative names) in the order the diagnostics list their counts."""
@@ -384,6 +388,7 @@ class Run:
         self.rejected: Dict[str, int] = {topic: 0 for topic in INPUT_TOPICS}
         self.accepted: Dict[str, int] = {topic: 0 for topic in INPUT_TOPICS}
         self.lost: Dict[str, int] = {}
+        self.parameter_refusals: Dict[str, int] = {k: 0 for k in PARAMETER_REFUSAL_KINDS}
         self.blocks = 0
         self.withheld_blocks = 0
         self._clock = clock
@@ -443,7 +448,7 @@ class Run:
         try:
             return self._apply(event)
         except (InputError, ParameterError):
-            self.rejected[event.topic] = self.rejected.get(event.topic, 0) + 1
+            self.count_rejected(event.topic)
             raise
 
     def _apply(self, event: Input) -> int:
@@ -548,9 +553,16 @@ class Run:
             _, _, event = heapq.heappop(self._to_sink)
             self.sink.input(event)
 
-    def count_rejected(self, topic: str) -> None:
-        """Count an input of ``topic`` refused before it reached :meth:`apply` (e.g. by ROS)."""
+    def count_rejected(self, topic: str, kind: str = 'invalid') -> None:
+        """
+        Count a refused input of ``topic``; :meth:`apply` calls it, and so may the caller.
+
+        The caller counts what is refused before it reaches :meth:`apply` (a ROS parameter
+        refused by its descriptor: ``kind`` one of :data:`PARAMETER_REFUSAL_KINDS`).
+        """
         self.rejected[topic] = self.rejected.get(topic, 0) + 1
+        if topic == ParameterChange.topic:
+            self.parameter_refusals[kind] = self.parameter_refusals.get(kind, 0) + 1
 
     def count_lost(self, topic: str, count: int) -> None:
         """Count ``count`` messages of ``topic`` that the middleware reports lost."""
@@ -599,7 +611,8 @@ class Run:
         ``lag_s``, ``steps``, ``blocks``, ``min_gap_m`` and ``min_gap_ratio`` (smallest outer
         gap since the last snapshot), ``min_gap_ratio_run``, ``contact``, ``status``,
         ``rejected_inputs`` and ``rejected_<topic>`` per input topic,
-        ``rejected_parameter_changes``, ``lost_inputs`` (messages the middleware reports
+        ``rejected_parameter_changes`` and ``rejected_parameter_<kind>`` (kinds of
+        :data:`PARAMETER_REFUSAL_KINDS`), ``lost_inputs`` (messages the middleware reports
         lost), ``pending_shocks``, ``pending_inputs``, ``accepted_shocks``,
         ``drive_amplitude``, ``drive_frequency_hz``, ``withheld_nonfinite_blocks``.
         """
@@ -627,6 +640,8 @@ class Run:
             values[f'rejected_{topic.replace("/", "_")}'] = self.rejected[topic]
         values['rejected_reset'] = self.rejected['events/reset']
         values['rejected_parameter_changes'] = self.rejected['events/parameters']
+        for kind, count in self.parameter_refusals.items():
+            values[f'rejected_parameter_{kind}'] = count
         values['lost_inputs'] = sum(self.lost.values())
         values['pending_shocks'] = self.pending_shocks
         values['pending_inputs'] = self.pending_inputs

@@ -13,8 +13,10 @@
 # limitations under the License.
 
 """
-Tests of run.py, the one run path: when inputs act, what is refused and counted, reset, the
-order the sink sees things in, the diagnostics keys, and the bounded cost of pending inputs.
+Tests of run.py, the one run path.
+
+When inputs act, what is refused and counted, reset, the order the sink sees things in, the
+diagnostics keys, and the bounded cost of pending inputs.
 """
 
 import math

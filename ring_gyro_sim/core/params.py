@@ -13,25 +13,52 @@
 # limitations under the License.
 
 """
-Parameters of a run: one table, frozen dataclasses, one loader.
+Parameters of a run: one table, frozen dataclasses generated from it, one loader.
 
-The single table :data:`PARAMETERS` lists every parameter once: its dotted ROS name, type,
-default, unit, description, allowed range and whether a change needs a restart. The ROS node
-declares its parameters from this table (``ros/parameters.py``) and the offline command line
-reads the same YAML file through :func:`ring_gyro_sim.paramfile.load_yaml`, so one file drives
-both.
+The table :data:`PARAMETERS` is the single source: each row gives a parameter's dotted ROS
+name, the dataclass field it fills (``field``, e.g. ``'run.record_path'``), its kind, default,
+unit, description, allowed range with the reason for it, the allowed choices and whether a
+change needs a restart. From the rows come
 
-:func:`build_config` turns a flat ``{dotted name: value}`` mapping into a :class:`SimConfig`
-of frozen dataclasses grouped by concern; each dataclass validates itself in
-``__post_init__`` and raises :class:`~ring_gyro_sim.core.errors.ParameterError` naming the
-parameter and the reason. Everything is SI (m, s, kg, V, Hz where the name says *frequency*).
+* the defaults of the dataclasses (:class:`RingParams`, ..., :class:`RunParams`; each class
+  only lists its field names and types, :func:`_parameter_group` fills in the defaults and
+  refuses a class field no row fills, or a row whose field does not exist);
+* the per-value checks (finite, range, choices), run by each dataclass's ``__post_init__``;
+  a class adds only what one row cannot say (list lengths, span vs count, ...), and
+  :class:`SimConfig` the checks across groups (static pull-in, memory of a block);
+* :func:`build_config` (flat ``{dotted name: value}`` -> :class:`SimConfig`) and
+  :func:`to_flat` (its inverse: ``build_config(to_flat(c)) == c``);
+* the ROS parameter descriptors (``ros/parameters.py``).
+
+Every check raises :class:`~ring_gyro_sim.core.errors.ParameterError` with the text
+``'<dotted name>: <reason>'``. Everything is SI (m, s, kg, V, Hz where the name says
+*frequency*). The ROS node declares its parameters from the table and ``ring_gyro run`` reads
+the same YAML file through :func:`ring_gyro_sim.paramfile.check_params_file`, so one file
+drives both with one verdict.
+
+Physical limits (see each row's ``range_note``)
+    * ``electrodes.outer_voltage`` / ``inner_voltage``: the electrostatic stiffness
+      ``K_c = 2 pi A_eps (r_o V_o^2 + r_i V_i^2) / d_g^2`` (eq. 26) must stay below the
+      stiffness ``m_i omega_i^2`` of every coordinate (:meth:`SimConfig.voltage_limits`).
+      With mechanical frequencies (``fold_linear_stiffness: false``) that is static pull-in.
+      With the paper's softened frequencies (the default) it is the static pull-in voltage of
+      the same ring with its frequencies taken as mechanical: beyond it the folded model
+      stands for a ring more than half of whose mechanical stiffness the bias cancels, and
+      the rest state's escape displacement along q1 shrinks like ``d_g sqrt(m omega^2 / K_c)``
+      (default device, untruncated force: 0.87 d_g at the calibrated 78 V, 0.61 d_g at the
+      limit, 0.17 d_g at 1 kV, 2 nm at 1 MV). Default device: |V_o| <= 215.6 V (V_i = 0),
+      |V_i| <= 217.6 V (V_o = 0); the calibrated 78 V is at K_c / (m_1 omega_1^2) = 0.13.
+    * ``output.rate`` <= 10 MHz, ``output.block_duration`` <= 1 s and at most
+      :data:`MAX_BLOCK_BYTES` of block messages per block: see :data:`MAX_BLOCK_BYTES`.
+    * times (``duration``, ``scenario.shock_times``, ``inputs.horizon``) <=
+      :data:`MAX_TIME_S`: ROS stamps (``builtin_interfaces/Time.sec``) are int32.
 
 Defaults are the studied device of the paper (section 3.1, Table 1), N_R = 3, N_T = 10, with
 the calibrated outer voltage (see ``config/default.yaml`` and the README for how it was
 obtained).
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 import math
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
@@ -55,115 +82,230 @@ DEFAULT_OUTER_VOLTAGE = 78.0
 DEFAULT_DRIVE_AMPLITUDE = 0.065
 DEFAULT_DRIVE_FREQUENCY = 15798.6
 DRIVE_START_CHOICES = ('rest', 'upper_branch', 'lower_branch')
+INTEGRATOR_METHODS = ('bm6', 'bm4', 'strang')
+RECORD_COMPRESSIONS = ('zstd', 'lz4', 'none')
+
+MAX_MODES = 20
+"""Largest Ritz order N_R the kernels support."""
+MAX_TIME_S = float(2 ** 31 - 1)
+"""Latest simulation time, s: ``builtin_interfaces/Time.sec`` is int32 (68 years)."""
+MAX_OUTPUT_RATE_HZ = 1e7
+"""
+Highest ``output.rate``, Hz (period 100 ns).
+
+450 samples per period of the paper's fastest mode (22 kHz) and 10x the bandwidth of any
+sense electronics a 10-100 kHz ring gyroscope has; every sample costs at least one
+integration step and ``8 (4 + n + 2 K)`` bytes of messages, so a higher rate only costs.
+"""
+MAX_BLOCK_DURATION_S = 1.0
+"""
+Longest ``output.block_duration``, s.
+
+A block is published once its last sample time is reached, so its first sample is
+``block_duration`` old when it goes out, inputs stamped up to one block in the past are
+accepted as late arrivals, and a stop waits for the block boundary: 1 s is the most a live
+consumer can be asked to wait (``/diagnostics`` comes at 1 Hz).
+"""
+MAX_BLOCK_BYTES = 4 * 2 ** 20
+"""
+Most bytes of the three block messages of one block (``8 (4 + n + 2 K)`` per sample).
+
+The block publishers keep up to 50 blocks each for a slow reliable subscriber (``ros/node.py``),
+so the node's memory for them stays below 50 x 4 MiB = 200 MiB whatever the rate; the default
+block (2000 samples x 23 values) is 368 kB. ``output.rate: 1e9`` with 10 ms blocks (1.8 GB per
+block) is refused before anything is allocated.
+"""
+
+LIST_KINDS = ('float_list', 'str_list')
 
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """One row of the parameter table."""
+    """
+    One row of the parameter table.
+
+    Attributes
+    ----------
+    name : str
+        Dotted ROS parameter name (``'record.path'``).
+    field : str
+        ``'<group>.<attribute>'`` of :class:`SimConfig` the value fills (``'run.record_path'``);
+        a property instead of a dataclass field for a value derived from others
+        (``modes.count``: the length of ``modes.frequencies``).
+    kind : str
+        ``'float'``, ``'int'``, ``'bool'``, ``'str'``, ``'float_list'`` or ``'str_list'``.
+    default, unit, description
+        As the ROS descriptor shows them.
+    minimum, maximum : float or None
+        Allowed range of the value (of every element of a list); ``open_minimum``: the
+        minimum itself is refused (``> minimum``).
+    range_note : str
+        Why the range is what it is (in the refusal message and the descriptor).
+    choices : tuple of str
+        Allowed values of a ``'str'`` parameter (empty: any).
+    read_only : bool
+        A change needs a restart (the node refuses it at run time).
+
+    """
 
     name: str
-    kind: str  # 'float', 'int', 'bool', 'str', 'float_list', 'str_list'
+    field: str
+    kind: str
     default: Any
     unit: str
     description: str
     minimum: Optional[float] = None
     maximum: Optional[float] = None
+    open_minimum: bool = False
+    range_note: str = ''
+    choices: Tuple[str, ...] = ()
     read_only: bool = True
 
+    @property
+    def group(self) -> str:
+        """Return the :class:`SimConfig` attribute holding the field (``'run'``)."""
+        return self.field.split('.', 1)[0]
+
+    @property
+    def attribute(self) -> str:
+        """Return the attribute of the group's dataclass (``'record_path'``)."""
+        return self.field.split('.', 1)[1]
+
+
+_POSITIVE = {'minimum': 0.0, 'open_minimum': True}
+_NON_NEGATIVE = {'minimum': 0.0}
+_TIME = {'minimum': 0.0, 'maximum': MAX_TIME_S,
+         'range_note': 'ROS stamps (builtin_interfaces/Time.sec) are int32'}
+_VOLTAGE_NOTE = ('K_c (eq. 26) of both voltages below m omega^2 of every coordinate: the static '
+                 'pull-in voltage of the ring with its frequencies taken as mechanical, '
+                 '215.6 V for the default device')
 
 PARAMETERS: Tuple[ParamSpec, ...] = (
-    ParamSpec('modes.frequencies', 'float_list', [11200.0, 15800.0, 22000.0], 'Hz',
+    ParamSpec('modes.frequencies', 'modes.frequencies', 'float_list',
+              [11200.0, 15800.0, 22000.0], 'Hz',
               'natural frequency of each n-theta mode, n = 1..N_R (length = N_R); '
-              'empty = computed from ring and legs'),
-    ParamSpec('modes.quality_factors', 'float_list', [120000.0, 64700.0, 170000.0], '-',
+              'empty = computed from ring and legs', **_POSITIVE),
+    ParamSpec('modes.quality_factors', 'modes.quality_factors', 'float_list',
+              [120000.0, 64700.0, 170000.0], '-',
               'quality factor Q_n of each mode (same length as modes.frequencies)',
+              minimum=0.5, open_minimum=True, range_note='underdamped modes only',
               read_only=False),
-    ParamSpec('modes.count', 'int', 0, '-',
-              'number of modes N_R when modes.frequencies is empty (0 = use its length)', 0, 20),
-    ParamSpec('modes.companions', 'bool', False, '-',
+    ParamSpec('modes.count', 'modes.count', 'int', 0, '-',
+              'number of modes N_R when modes.frequencies is empty (0 = use its length)',
+              0, MAX_MODES, range_note='the kernels support up to 20 modes'),
+    ParamSpec('modes.companions', 'modes.companions', 'bool', False, '-',
               'also simulate the sin(n theta) companion coordinates q_n^s'),
-    ParamSpec('modes.companion_frequencies', 'float_list', [], 'Hz',
-              'frequencies of the companions (empty = same as modes.frequencies)'),
-    ParamSpec('modes.companion_quality_factors', 'float_list', [], '-',
-              'Q of the companions (empty = same as modes.quality_factors)', read_only=False),
-    ParamSpec('ring.radius', 'float', 1.5e-3, 'm', 'mean ring radius r', 0.0),
-    ParamSpec('ring.thickness', 'float', 18e-6, 'm', 'radial thickness h', 0.0),
-    ParamSpec('ring.length', 'float', 150e-6, 'm', 'axial length l', 0.0),
-    ParamSpec('ring.youngs_modulus', 'float', 150e9, 'Pa', 'Young modulus E', 0.0),
-    ParamSpec('ring.density', 'float', 2330.0, 'kg/m^3', 'density rho', 0.0),
-    ParamSpec('legs.count', 'int', 8, '-', 'number of (pairs of) support legs N_l', 0, 64),
-    ParamSpec('legs.angle', 'float', 0.0, 'rad', 'angle alpha of the last leg'),
-    ParamSpec('legs.mass', 'float', 0.0, 'kg',
-              'point mass m_l of one leg (0 = neglected in the modal masses, as the paper)', 0.0),
-    ParamSpec('legs.radial_stiffness', 'float', 0.0, 'N/m',
-              'radial stiffness k_r of one leg (used only when modes.frequencies is empty)', 0.0),
-    ParamSpec('legs.tangential_stiffness', 'float', 0.0, 'N/m',
-              'tangential stiffness k_t of one leg (used only when modes.frequencies is empty)',
-              0.0),
-    ParamSpec('electrodes.outer_voltage', 'float', DEFAULT_OUTER_VOLTAGE, 'V',
-              'outer electrode bias V_o', read_only=False),
-    ParamSpec('electrodes.inner_voltage', 'float', 0.0, 'V', 'inner electrode bias V_i',
+    ParamSpec('modes.companion_frequencies', 'modes.companion_frequencies', 'float_list', [],
+              'Hz', 'frequencies of the companions (empty = same as modes.frequencies)',
+              **_POSITIVE),
+    ParamSpec('modes.companion_quality_factors', 'modes.companion_quality_factors',
+              'float_list', [], '-',
+              'Q of the companions (empty = same as modes.quality_factors)',
+              minimum=0.5, open_minimum=True, range_note='underdamped modes only',
               read_only=False),
-    ParamSpec('electrodes.gap', 'float', 10e-6, 'm', 'nominal electrode gap d_g', 0.0),
-    ParamSpec('electrodes.outer_radius', 'float', 0.0, 'm',
-              'mean radius r_o of the outer capacitors (0 = r + (h + d_g)/2)', 0.0),
-    ParamSpec('electrodes.inner_radius', 'float', 0.0, 'm',
-              'mean radius r_i of the inner capacitors (0 = r - (h + d_g)/2)', 0.0),
-    ParamSpec('electrodes.relative_permittivity', 'float', 1.0, '-',
-              'relative permittivity eps of eq. (18)', 0.0),
-    ParamSpec('electrodes.taylor_terms', 'int', 10, '-',
+    ParamSpec('ring.radius', 'ring.radius', 'float', 1.5e-3, 'm', 'mean ring radius r',
+              **_POSITIVE),
+    ParamSpec('ring.thickness', 'ring.thickness', 'float', 18e-6, 'm', 'radial thickness h',
+              **_POSITIVE),
+    ParamSpec('ring.length', 'ring.length', 'float', 150e-6, 'm', 'axial length l',
+              **_POSITIVE),
+    ParamSpec('ring.youngs_modulus', 'ring.youngs_modulus', 'float', 150e9, 'Pa',
+              'Young modulus E', **_POSITIVE),
+    ParamSpec('ring.density', 'ring.density', 'float', 2330.0, 'kg/m^3', 'density rho',
+              **_POSITIVE),
+    ParamSpec('legs.count', 'legs.count', 'int', 8, '-', 'number of (pairs of) support legs N_l',
+              0, 64),
+    ParamSpec('legs.angle', 'legs.angle', 'float', 0.0, 'rad', 'angle alpha of the last leg'),
+    ParamSpec('legs.mass', 'legs.mass', 'float', 0.0, 'kg',
+              'point mass m_l of one leg (0 = neglected in the modal masses, as the paper)',
+              **_NON_NEGATIVE),
+    ParamSpec('legs.radial_stiffness', 'legs.radial_stiffness', 'float', 0.0, 'N/m',
+              'radial stiffness k_r of one leg (used only when modes.frequencies is empty)',
+              **_NON_NEGATIVE),
+    ParamSpec('legs.tangential_stiffness', 'legs.tangential_stiffness', 'float', 0.0, 'N/m',
+              'tangential stiffness k_t of one leg (used only when modes.frequencies is empty)',
+              **_NON_NEGATIVE),
+    ParamSpec('electrodes.outer_voltage', 'electrodes.outer_voltage', 'float',
+              DEFAULT_OUTER_VOLTAGE, 'V', 'outer electrode bias V_o',
+              range_note=_VOLTAGE_NOTE, read_only=False),
+    ParamSpec('electrodes.inner_voltage', 'electrodes.inner_voltage', 'float', 0.0, 'V',
+              'inner electrode bias V_i', range_note=_VOLTAGE_NOTE, read_only=False),
+    ParamSpec('electrodes.gap', 'electrodes.gap', 'float', 10e-6, 'm',
+              'nominal electrode gap d_g', **_POSITIVE),
+    ParamSpec('electrodes.outer_radius', 'electrodes.outer_radius', 'float', 0.0, 'm',
+              'mean radius r_o of the outer capacitors (0 = r + (h + d_g)/2)',
+              range_note='0 = default', **_NON_NEGATIVE),
+    ParamSpec('electrodes.inner_radius', 'electrodes.inner_radius', 'float', 0.0, 'm',
+              'mean radius r_i of the inner capacitors (0 = r - (h + d_g)/2)',
+              range_note='0 = default', **_NON_NEGATIVE),
+    ParamSpec('electrodes.relative_permittivity', 'electrodes.relative_permittivity', 'float',
+              1.0, '-', 'relative permittivity eps of eq. (18)', minimum=1.0,
+              range_note='no dielectric in the gap has eps < 1 (vacuum: 1)'),
+    ParamSpec('electrodes.taylor_terms', 'electrodes.taylor_terms', 'int', 10, '-',
               'N_T, order of the Taylor series of the force (0 = untruncated parallel plate)',
-              0, 40),
-    ParamSpec('electrodes.fold_linear_stiffness', 'bool', True, '-',
+              0, 40, range_note='0 (untruncated) or 3..40'),
+    ParamSpec('electrodes.fold_linear_stiffness', 'electrodes.fold_linear_stiffness', 'bool',
+              True, '-',
               'true: modes.frequencies already contain the linear electrostatic stiffness '
               '(paper, section 3.1); false: they are mechanical and K_c (eq. 26) is added'),
-    ParamSpec('electrodes.count', 'int', 8, '-',
+    ParamSpec('electrodes.count', 'electrodes.count', 'int', 8, '-',
               'number K of outer sense electrodes (outputs e0..e{K-1})', 1, 360),
-    ParamSpec('electrodes.span', 'float', 0.0, 'rad',
-              'angular span of one sense electrode (0 = 2 pi / K)', 0.0, 2.0 * math.pi),
-    ParamSpec('shock.duration', 'float', 0.0, 's',
-              'half-sine shock duration T_s (0 = one tenth of the 2theta period)', 0.0,
-              read_only=False),
-    ParamSpec('drive.amplitude', 'float', DEFAULT_DRIVE_AMPLITUDE, 'm/s^2',
+    ParamSpec('electrodes.span', 'electrodes.span', 'float', 0.0, 'rad',
+              'angular span of one sense electrode (0 = 2 pi / K)', 0.0, 2.0 * math.pi,
+              range_note='at most 2 pi / electrodes.count: electrodes do not overlap'),
+    ParamSpec('shock.duration', 'run.shock_duration', 'float', 0.0, 's',
+              'half-sine shock duration T_s (0 = one tenth of the 2theta period)',
+              **_NON_NEGATIVE, read_only=False),
+    ParamSpec('drive.amplitude', 'drive.amplitude', 'float', DEFAULT_DRIVE_AMPLITUDE, 'm/s^2',
               'harmonic drive on the 2theta mode per unit modal mass (A_e)', read_only=False),
-    ParamSpec('drive.frequency', 'float', DEFAULT_DRIVE_FREQUENCY, 'Hz', 'drive frequency',
-              0.0, read_only=False),
-    ParamSpec('drive.start_on', 'str', 'upper_branch', '-',
+    ParamSpec('drive.frequency', 'drive.frequency', 'float', DEFAULT_DRIVE_FREQUENCY, 'Hz',
+              'drive frequency', **_NON_NEGATIVE, read_only=False),
+    ParamSpec('drive.start_on', 'drive.start_on', 'str', 'upper_branch', '-',
               'initial state: rest, or the periodic response to the initial drive on its '
-              'upper_branch or lower_branch (as the paper starts Cases 1-4)'),
-    ParamSpec('integrator.method', 'str', 'bm6', '-',
+              'upper_branch or lower_branch (as the paper starts Cases 1-4)',
+              choices=DRIVE_START_CHOICES),
+    ParamSpec('integrator.method', 'integrator.method', 'str', 'bm6', '-',
               'splitting method: bm6 (order 6, 11 forces per step), bm4 (order 4, 6) or strang '
-              '(order 2, 1); see core/kernels.py'),
-    ParamSpec('integrator.max_step', 'float', 0.0, 's',
-              'largest integration step (0 = automatic, see core/kernels.py)', 0.0),
-    ParamSpec('real_time_factor', 'float', 1.0, '-',
-              'simulated seconds per wall second (0 = as fast as possible)', 0.0,
+              '(order 2, 1); see core/kernels.py', choices=INTEGRATOR_METHODS),
+    ParamSpec('integrator.max_step', 'integrator.max_step', 'float', 0.0, 's',
+              'largest integration step (0 = automatic, see core/kernels.py)', **_NON_NEGATIVE),
+    ParamSpec('real_time_factor', 'run.real_time_factor', 'float', 1.0, '-',
+              'simulated seconds per wall second (0 = as fast as possible)', **_NON_NEGATIVE,
               read_only=False),
-    ParamSpec('duration', 'float', 0.0, 's',
-              'stop after this much simulated time (0 = run until shut down)', 0.0),
-    ParamSpec('output.rate', 'float', 200000.0, 'Hz',
-              'samples per second in the published blocks (1e9 / rate must be whole ns)', 0.0),
-    ParamSpec('output.block_duration', 'float', 0.01, 's',
-              'simulated time covered by one published block', 0.0),
-    ParamSpec('record.path', 'str', '', '-', 'MCAP file to record the run to (empty = none)'),
-    ParamSpec('record.topics', 'str_list', [], '-',
+    ParamSpec('duration', 'run.duration', 'float', 0.0, 's',
+              'stop after this much simulated time (0 = run until shut down)', **_TIME),
+    ParamSpec('output.rate', 'run.output_rate', 'float', 200000.0, 'Hz',
+              'samples per second in the published blocks (1e9 / rate must be whole ns)',
+              0.0, MAX_OUTPUT_RATE_HZ, open_minimum=True,
+              range_note='at most 10 MHz: 450 samples per period of the fastest mode; a '
+              'higher rate costs steps and memory and shows nothing new'),
+    ParamSpec('output.block_duration', 'run.block_duration', 'float', 0.01, 's',
+              'simulated time covered by one published block', 0.0, MAX_BLOCK_DURATION_S,
+              open_minimum=True,
+              range_note='at most 1 s: a block goes out when its last sample is due, so its '
+              'first sample waits this long; at most 4 MiB of messages per block'),
+    ParamSpec('record.path', 'run.record_path', 'str', '', '-',
+              'MCAP file to record the run to (empty = none)'),
+    ParamSpec('record.topics', 'run.record_topics', 'str_list', [], '-',
               'topics a recording holds, relative names as published (e.g. modal_displacement, '
               'shock, /diagnostics); empty = all. Inputs needed to re-simulate are always kept'),
-    ParamSpec('record.decimation', 'int', 1, '-',
+    ParamSpec('record.decimation', 'run.record_decimation', 'int', 1, '-',
               'record every N-th sample of the block topics (1 = every sample)', 1, 1000000),
-    ParamSpec('record.compression', 'str', 'zstd', '-',
-              'chunk compression of the recording: zstd, lz4 or none (as rosbag2 offers)'),
-    ParamSpec('record.overwrite', 'bool', False, '-',
+    ParamSpec('record.compression', 'run.record_compression', 'str', 'zstd', '-',
+              'chunk compression of the recording: zstd, lz4 or none (as rosbag2 offers)',
+              choices=RECORD_COMPRESSIONS),
+    ParamSpec('record.overwrite', 'run.record_overwrite', 'bool', False, '-',
               'replace an existing file at record.path (false: refuse it, as rosbag2 does)'),
-    ParamSpec('inputs.horizon', 'float', 60.0, 's',
-              'inputs stamped further ahead of the simulation time than this are refused', 0.0,
-              read_only=False),
-    ParamSpec('publish_clock', 'bool', False, '-', 'publish the simulation time on /clock'),
-    ParamSpec('scenario.shock_times', 'float_list', [], 's',
-              'simulation times of scheduled x shocks'),
-    ParamSpec('scenario.shock_peaks', 'float_list', [], 'm/s^2',
+    ParamSpec('inputs.horizon', 'run.input_horizon', 'float', 60.0, 's',
+              'inputs stamped further ahead of the simulation time than this are refused',
+              **_TIME, read_only=False),
+    ParamSpec('publish_clock', 'run.publish_clock', 'bool', False, '-',
+              'publish the simulation time on /clock'),
+    ParamSpec('scenario.shock_times', 'run.shock_times', 'float_list', [], 's',
+              'simulation times of scheduled x shocks', **_TIME),
+    ParamSpec('scenario.shock_peaks', 'run.shock_peaks', 'float_list', [], 'm/s^2',
               'peak base accelerations of the scheduled shocks (same length)'),
-    ParamSpec('scenario.shock_angles', 'float_list', [], 'deg',
+    ParamSpec('scenario.shock_angles', 'run.shock_angles', 'float_list', [], 'deg',
               'direction of each scheduled shock, from x towards y (empty = all along x; '
               'else the same length as scenario.shock_times)'),
 )
@@ -175,15 +317,12 @@ def _fail(name: str, reason: str) -> ParameterError:
     return ParameterError(f'{name}: {reason}')
 
 
-def _finite(name: str, value: float) -> None:
-    if not math.isfinite(value):
-        raise _fail(name, f'must be finite, got {value!r}')
-
-
-def _positive(name: str, value: float) -> None:
-    _finite(name, value)
-    if value <= 0.0:
-        raise _fail(name, f'must be > 0, got {value!r}')
+def format_number(x: float) -> str:
+    """Return ``x`` short (``%g``) when that is exact, else in full (``repr``)."""
+    if isinstance(x, int) and not isinstance(x, bool):
+        return str(x)
+    short = f'{x:g}'
+    return short if float(short) == x else repr(float(x))
 
 
 def coerce(name: str, value: Any) -> Any:
@@ -203,7 +342,7 @@ def coerce(name: str, value: Any) -> Any:
     if spec is None:
         raise _fail(name, 'unknown parameter')
     if value is None:
-        return [] if spec.kind in ('float_list', 'str_list') else spec.default
+        return [] if spec.kind in LIST_KINDS else spec.default
     if spec.kind == 'float':
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise _fail(name, f'expected a number, got {value!r}')
@@ -237,31 +376,89 @@ def coerce(name: str, value: Any) -> Any:
     return out
 
 
-def _check_range(spec: ParamSpec, value: Any) -> None:
-    values = value if spec.kind == 'float_list' else [value]
-    for v in values:
-        if spec.kind in ('float', 'float_list'):
-            _finite(spec.name, v)
-        if spec.kind in ('float', 'int', 'float_list'):
-            if spec.minimum is not None and v < spec.minimum:
-                raise _fail(spec.name, f'must be >= {spec.minimum}, got {v!r}')
-            if spec.maximum is not None and v > spec.maximum:
-                raise _fail(spec.name, f'must be <= {spec.maximum}, got {v!r}')
+def check_value(spec: ParamSpec, value: Any) -> None:
+    """
+    Check one value (of its kind already) against its row: finite, range, choices.
+
+    Raises
+    ------
+    ParameterError
+        ``'<name>: must be ... , got <value>'``, with the row's ``range_note``.
+
+    """
+    note = f' ({spec.range_note})' if spec.range_note else ''
+    if spec.choices and value not in spec.choices:
+        raise _fail(spec.name, f'must be one of {", ".join(spec.choices)}, got {value!r}')
+    if spec.kind not in ('float', 'int', 'float_list'):
+        return
+    for v in (value if spec.kind == 'float_list' else (value,)):
+        if spec.kind != 'int' and not math.isfinite(v):
+            raise _fail(spec.name, f'must be finite, got {v!r}')
+        low, high = spec.minimum, spec.maximum
+        if low is not None and (v <= low if spec.open_minimum else v < low):
+            sign = '>' if spec.open_minimum else '>='
+            raise _fail(spec.name, f'must be {sign} {format_number(low)}{note}, got {v!r}')
+        if high is not None and v > high:
+            raise _fail(spec.name, f'must be <= {format_number(high)}{note}, got {v!r}')
 
 
-@dataclass(frozen=True)
+def _field_value(spec: ParamSpec, value: Any) -> Any:
+    """Return a flat value as the dataclass holds it (lists as tuples)."""
+    return tuple(value) if spec.kind in LIST_KINDS else value
+
+
+_DERIVED: Tuple[ParamSpec, ...] = ()
+"""Rows whose field is a property computed from other fields (checked by build_config)."""
+
+
+def _parameter_group(group: str):
+    """
+    Make a frozen dataclass of the rows of ``group`` (class decorator).
+
+    The class lists its field names and types; the decorator sets each field's default from
+    its row and a ``__post_init__`` that checks every field against its row, then calls the
+    class's own ``_check`` (what no single row can say). A class field that no row fills, or
+    a row whose field is neither a class field nor a property, is a ``TypeError`` at import.
+    """
+    def make(cls):
+        global _DERIVED
+        rows = [p for p in PARAMETERS if p.group == group]
+        annotations = cls.__dict__.get('__annotations__', {})
+        by_attribute = {p.attribute: p for p in rows}
+        for name in annotations:
+            if name not in by_attribute:
+                raise TypeError(f'{cls.__name__}.{name}: no row of PARAMETERS fills it')
+        checked = []
+        for spec in rows:
+            if spec.attribute in annotations:
+                setattr(cls, spec.attribute, _field_value(spec, spec.default))
+                checked.append(spec)
+            elif isinstance(cls.__dict__.get(spec.attribute), property):
+                _DERIVED += (spec,)
+            else:
+                raise TypeError(f'{spec.name}: {cls.__name__} has no field {spec.attribute!r}')
+        own_check = cls.__dict__.get('_check')
+
+        def __post_init__(self) -> None:
+            for spec in checked:
+                check_value(spec, getattr(self, spec.attribute))
+            if own_check is not None:
+                own_check(self)
+
+        cls.__post_init__ = __post_init__
+        return dataclass(frozen=True)(cls)
+    return make
+
+
+@_parameter_group('ring')
 class RingParams:
     """Ring geometry and material (section 3.1), SI units."""
 
-    radius: float = 1.5e-3
-    thickness: float = 18e-6
-    length: float = 150e-6
-    youngs_modulus: float = 150e9
-    density: float = 2330.0
-
-    def __post_init__(self) -> None:
-        for name in ('radius', 'thickness', 'length', 'youngs_modulus', 'density'):
-            _positive(f'ring.{name}', getattr(self, name))
+    radius: float
+    thickness: float
+    length: float
+    youngs_modulus: float
+    density: float
 
     @property
     def mass(self) -> float:
@@ -269,28 +466,18 @@ class RingParams:
         return self.density * 2.0 * math.pi * self.radius * self.thickness * self.length
 
 
-@dataclass(frozen=True)
+@_parameter_group('legs')
 class LegParams:
     """Support legs (section 2.3)."""
 
-    count: int = 8
-    angle: float = 0.0
-    mass: float = 0.0
-    radial_stiffness: float = 0.0
-    tangential_stiffness: float = 0.0
-
-    def __post_init__(self) -> None:
-        if self.count < 0:
-            raise _fail('legs.count', f'must be >= 0, got {self.count}')
-        _finite('legs.angle', self.angle)
-        for name in ('mass', 'radial_stiffness', 'tangential_stiffness'):
-            v = getattr(self, name)
-            _finite(f'legs.{name}', v)
-            if v < 0.0:
-                raise _fail(f'legs.{name}', f'must be >= 0, got {v!r}')
+    count: int
+    angle: float
+    mass: float
+    radial_stiffness: float
+    tangential_stiffness: float
 
 
-@dataclass(frozen=True)
+@_parameter_group('modes')
 class ModeParams:
     """
     Linear modes: frequency (Hz) and Q of every coordinate.
@@ -299,32 +486,24 @@ class ModeParams:
     coordinates follow, with their own frequencies (for split pairs such as 4theta with 8 legs).
     """
 
-    frequencies: Tuple[float, ...] = (11200.0, 15800.0, 22000.0)
-    quality_factors: Tuple[float, ...] = (120000.0, 64700.0, 170000.0)
-    companions: bool = False
-    companion_frequencies: Tuple[float, ...] = ()
-    companion_quality_factors: Tuple[float, ...] = ()
+    frequencies: Tuple[float, ...]
+    quality_factors: Tuple[float, ...]
+    companions: bool
+    companion_frequencies: Tuple[float, ...]
+    companion_quality_factors: Tuple[float, ...]
 
-    def __post_init__(self) -> None:
+    def _check(self) -> None:
         n = len(self.frequencies)
         if n == 0:
             raise _fail('modes.frequencies', 'needs at least one mode')
-        if n > 20:
-            raise _fail('modes.frequencies', f'at most 20 modes are supported, got {n}')
-        for f in self.frequencies:
-            _positive('modes.frequencies', f)
-        if len(self.quality_factors) != n:
-            raise _fail('modes.quality_factors',
-                        f'has {len(self.quality_factors)} values but modes.frequencies has {n}')
-        for q in self.quality_factors:
-            _check_q('modes.quality_factors', q)
-        for name, values, check in (
-                ('modes.companion_frequencies', self.companion_frequencies, _positive),
-                ('modes.companion_quality_factors', self.companion_quality_factors, _check_q)):
-            if values and len(values) != n:
+        if n > MAX_MODES:
+            raise _fail('modes.frequencies', f'at most {MAX_MODES} modes are supported, got {n}')
+        for name, values in (('modes.quality_factors', self.quality_factors),
+                             ('modes.companion_frequencies', self.companion_frequencies),
+                             ('modes.companion_quality_factors',
+                              self.companion_quality_factors)):
+            if (values or name == 'modes.quality_factors') and len(values) != n:
                 raise _fail(name, f'has {len(values)} values but modes.frequencies has {n}')
-            for v in values:
-                check(name, v)
 
     @property
     def count(self) -> int:
@@ -346,145 +525,82 @@ class ModeParams:
         return q
 
 
-def _check_q(name: str, q: float) -> None:
-    _finite(name, q)
-    if q <= 0.5:
-        raise _fail(name, f'must be > 0.5 (underdamped modes only), got {q!r}')
-
-
-@dataclass(frozen=True)
+@_parameter_group('electrodes')
 class ElectrodeParams:
     """Electrodes and electrostatic force model (section 2.4)."""
 
-    outer_voltage: float = DEFAULT_OUTER_VOLTAGE
-    inner_voltage: float = 0.0
-    gap: float = 10e-6
-    outer_radius: float = 0.0
-    inner_radius: float = 0.0
-    relative_permittivity: float = 1.0
-    taylor_terms: int = 10
-    fold_linear_stiffness: bool = True
-    count: int = 8
-    span: float = 0.0
+    outer_voltage: float
+    inner_voltage: float
+    gap: float
+    outer_radius: float
+    inner_radius: float
+    relative_permittivity: float
+    taylor_terms: int
+    fold_linear_stiffness: bool
+    count: int
+    span: float
 
-    def __post_init__(self) -> None:
-        _finite('electrodes.outer_voltage', self.outer_voltage)
-        _finite('electrodes.inner_voltage', self.inner_voltage)
-        _positive('electrodes.gap', self.gap)
-        for name in ('outer_radius', 'inner_radius'):
-            v = getattr(self, name)
-            _finite(f'electrodes.{name}', v)
-            if v < 0.0:
-                raise _fail(f'electrodes.{name}', f'must be >= 0 (0 = default), got {v!r}')
-        _positive('electrodes.relative_permittivity', self.relative_permittivity)
-        if self.taylor_terms != 0 and not 3 <= self.taylor_terms <= 40:
+    def _check(self) -> None:
+        if self.taylor_terms in (1, 2):
             raise _fail('electrodes.taylor_terms',
                         f'must be 0 (untruncated) or between 3 and 40, got {self.taylor_terms}')
-        if self.count < 1:
-            raise _fail('electrodes.count', f'must be >= 1, got {self.count}')
-        _finite('electrodes.span', self.span)
-        if not 0.0 <= self.span <= 2.0 * math.pi / self.count + 1e-12:
+        if self.span > 2.0 * math.pi / self.count + 1e-12:
             raise _fail('electrodes.span',
                         f'must be between 0 and 2 pi / electrodes.count, got {self.span!r}')
 
 
-@dataclass(frozen=True)
+@_parameter_group('drive')
 class DriveParams:
     """Harmonic drive F_ext,2 = A_e cos(2 pi f t) of the 2theta mode (section 3.4)."""
 
-    amplitude: float = DEFAULT_DRIVE_AMPLITUDE
-    frequency: float = DEFAULT_DRIVE_FREQUENCY
-    start_on: str = 'upper_branch'
-
-    def __post_init__(self) -> None:
-        if self.start_on not in DRIVE_START_CHOICES:
-            raise _fail('drive.start_on', f'must be one of {", ".join(DRIVE_START_CHOICES)}, '
-                        f'got {self.start_on!r}')
-        _finite('drive.amplitude', self.amplitude)
-        _finite('drive.frequency', self.frequency)
-        if self.frequency < 0.0:
-            raise _fail('drive.frequency', f'must be >= 0, got {self.frequency!r}')
+    amplitude: float
+    frequency: float
+    start_on: str
 
 
-INTEGRATOR_METHODS = ('bm6', 'bm4', 'strang')
-RECORD_COMPRESSIONS = ('zstd', 'lz4', 'none')
-
-
-@dataclass(frozen=True)
+@_parameter_group('integrator')
 class IntegratorParams:
     """Choice of the splitting method and of the largest step, s."""
 
-    method: str = 'bm6'
-    max_step: float = 0.0
-
-    def __post_init__(self) -> None:
-        if self.method not in INTEGRATOR_METHODS:
-            raise _fail('integrator.method',
-                        f'must be one of {", ".join(INTEGRATOR_METHODS)}, got {self.method!r}')
-        _finite('integrator.max_step', self.max_step)
-        if self.max_step < 0.0:
-            raise _fail('integrator.max_step', f'must be >= 0, got {self.max_step!r}')
+    method: str
+    max_step: float
 
 
-@dataclass(frozen=True)
+@_parameter_group('run')
 class RunParams:
     """Pacing, output, recording and scheduled inputs."""
 
-    real_time_factor: float = 1.0
-    duration: float = 0.0
-    output_rate: float = 200000.0
-    block_duration: float = 0.01
-    record_path: str = ''
-    publish_clock: bool = False
-    shock_duration: float = 0.0
-    shock_times: Tuple[float, ...] = ()
-    shock_peaks: Tuple[float, ...] = ()
-    shock_angles: Tuple[float, ...] = ()
-    record_topics: Tuple[str, ...] = ()
-    record_decimation: int = 1
-    record_compression: str = 'zstd'
-    record_overwrite: bool = False
-    input_horizon: float = 60.0
+    real_time_factor: float
+    duration: float
+    output_rate: float
+    block_duration: float
+    record_path: str
+    publish_clock: bool
+    shock_duration: float
+    shock_times: Tuple[float, ...]
+    shock_peaks: Tuple[float, ...]
+    shock_angles: Tuple[float, ...]
+    record_topics: Tuple[str, ...]
+    record_decimation: int
+    record_compression: str
+    record_overwrite: bool
+    input_horizon: float
 
-    def __post_init__(self) -> None:
-        for name, v in (('real_time_factor', self.real_time_factor),
-                        ('duration', self.duration), ('shock.duration', self.shock_duration)):
-            _finite(name, v)
-            if v < 0.0:
-                raise _fail(name, f'must be >= 0, got {v!r}')
-        _positive('output.rate', self.output_rate)
+    def _check(self) -> None:
         period_ns = 1e9 / self.output_rate
         if abs(period_ns - round(period_ns)) > 1e-6 * period_ns or round(period_ns) < 1:
             raise _fail('output.rate',
                         f'1e9 / rate must be a whole number of ns, got rate {self.output_rate!r}')
-        _positive('output.block_duration', self.block_duration)
         if self.block_duration * self.output_rate < 1.0 - 1e-9:
             raise _fail('output.block_duration', 'must hold at least one output sample')
         if len(self.shock_times) != len(self.shock_peaks):
             raise _fail('scenario.shock_peaks',
                         f'has {len(self.shock_peaks)} values but scenario.shock_times has '
                         f'{len(self.shock_times)}')
-        for t in self.shock_times:
-            _finite('scenario.shock_times', t)
-            if t < 0.0:
-                raise _fail('scenario.shock_times', f'must be >= 0, got {t!r}')
-        for a in self.shock_peaks:
-            _finite('scenario.shock_peaks', a)
         if self.shock_angles and len(self.shock_angles) != len(self.shock_times):
             raise _fail('scenario.shock_angles',
                         f'has {len(self.shock_angles)} values but scenario.shock_times has '
                         f'{len(self.shock_times)}')
-        for a in self.shock_angles:
-            _finite('scenario.shock_angles', a)
-        if self.record_compression not in RECORD_COMPRESSIONS:
-            raise _fail('record.compression',
-                        f'must be one of {", ".join(RECORD_COMPRESSIONS)}, '
-                        f'got {self.record_compression!r}')
-        if self.record_decimation < 1:
-            raise _fail('record.decimation', f'must be >= 1, got {self.record_decimation}')
-        _finite('inputs.horizon', self.input_horizon)
-        if self.input_horizon < 0.0:
-            raise _fail('inputs.horizon', f'must be >= 0, got {self.input_horizon!r}')
 
     def scheduled_shocks(self) -> List[Tuple[int, float, float]]:
         """Return the scheduled shocks as ``(start ns, peak x, peak y)`` (m/s^2)."""
@@ -502,6 +618,11 @@ class RunParams:
     def output_period_ns(self) -> int:
         """Output sample period, integer ns."""
         return int(round(1e9 / self.output_rate))
+
+    @property
+    def block_samples(self) -> int:
+        """Output samples per published block (at least one)."""
+        return max(1, int(round(self.block_duration / (self.output_period_ns * 1e-9))))
 
 
 @dataclass(frozen=True)
@@ -530,18 +651,51 @@ class SimConfig:
                         'a shock off the x axis drives q1s: needs modes.companions')
         if self.drive.amplitude != 0.0 and self.modes.count < 2:
             raise _fail('drive.amplitude', 'drives the 2theta mode: needs at least 2 modes')
-        # Static pull-in (linear stability): the softest coordinate must keep a positive
-        # linear stiffness once the electrostatic stiffness K_c (eq. 26) is in. With
-        # fold_linear_stiffness the frequencies are the electrically softened ones (the paper's
-        # Table 1), so a positive frequency is already linearly stable and no voltage is refused
-        # here: the mechanical stiffness implied is m omega^2 + K_c. What remains is dynamic
-        # pull-in (the well narrows as V_o grows), which the Simulator reports as contact.
-        for i, (f_hz, ratio) in enumerate(zip(self.modes.coordinate_frequencies(),
-                                              self.electrostatic_softening_ratios())):
-            if ratio >= 1.0:
-                raise _fail('electrodes.outer_voltage',
-                            f'at or beyond static pull-in: the electrostatic stiffness is '
-                            f'{ratio:.3g} times the stiffness of coordinate {i} ({f_hz} Hz)')
+        self._check_voltages()
+        self._check_block_memory()
+
+    def _check_voltages(self) -> None:
+        # K_c (eq. 26) below m omega^2 of every coordinate: static pull-in with mechanical
+        # frequencies; with folded (electrically softened) ones the static pull-in voltage of
+        # the ring with its frequencies taken as mechanical (module docstring).
+        e = self.electrodes
+        kc = self.electrostatic_stiffness()
+        for i, (f_hz, k) in enumerate(zip(self.modes.coordinate_frequencies(),
+                                          self.linear_stiffnesses())):
+            if kc < k:
+                continue
+            inner = self.inner_radius * e.inner_voltage ** 2
+            outer = self.outer_radius * e.outer_voltage ** 2
+            name = 'electrodes.inner_voltage' if inner > outer else 'electrodes.outer_voltage'
+            v_o, v_i = self.voltage_limits()
+            limits = f'|V_o| < {v_o:.4g} V with V_i = 0, |V_i| < {v_i:.4g} V with V_o = 0'
+            if e.fold_linear_stiffness:
+                raise _fail(name, f'beyond the static pull-in voltage of the ring with these '
+                            f'frequencies taken as mechanical: the electrostatic stiffness '
+                            f'K_c (eq. 26) is {kc / k:.3g} times m omega^2 of coordinate {i} '
+                            f'({f_hz} Hz), the model needs it below ({limits})')
+            raise _fail(name, f'at or beyond static pull-in: the electrostatic stiffness is '
+                        f'{kc / k:.3g} times the stiffness of coordinate {i} ({f_hz} Hz) '
+                        f'({limits})')
+
+    def _check_block_memory(self) -> None:
+        r = self.run
+        values = self.block_values_per_sample()
+        size = 8 * values * r.block_samples
+        if size > MAX_BLOCK_BYTES:
+            most = MAX_BLOCK_BYTES // (8 * values)
+            raise _fail('output.block_duration',
+                        f'a block of {r.block_samples} samples (output.rate '
+                        f'{format_number(r.output_rate)} Hz x {format_number(r.block_duration)}'
+                        f' s) of {values} values is {size / 2 ** 20:.4g} MiB of messages, more '
+                        f'than the {MAX_BLOCK_BYTES // 2 ** 20} MiB a block may hold: at most '
+                        f'{most} samples per block here (output.block_duration <= '
+                        f'{format_number(most / r.output_rate)} s at this rate)')
+
+    def block_values_per_sample(self) -> int:
+        """Values per sample in the three block messages: t + q, t + K gaps + min, t + K C."""
+        n = self.modes.count * (2 if self.modes.companions else 1)
+        return 4 + n + 2 * self.electrodes.count
 
     @property
     def outer_radius(self) -> float:
@@ -568,6 +722,30 @@ class SimConfig:
         masses = [total * (n * n + 1.0) / (2.0 * n * n) for n in range(1, n_modes + 1)]
         return masses + (masses if self.modes.companions else [])
 
+    def linear_stiffnesses(self) -> List[float]:
+        """Return m omega^2 of every coordinate, N/m (the frequencies as given)."""
+        return [m * (2.0 * math.pi * f) ** 2
+                for m, f in zip(self.modal_masses(), self.modes.coordinate_frequencies())]
+
+    def electrostatic_stiffness(self) -> float:
+        """K_c = 2 pi A_eps (r_o V_o^2 + r_i V_i^2) / d_g^2 of eq. (26), N/m."""
+        e = self.electrodes
+        return 2.0 * math.pi * self.a_eps * (
+            self.outer_radius * e.outer_voltage ** 2
+            + self.inner_radius * e.inner_voltage ** 2) / e.gap ** 2
+
+    def voltage_limits(self) -> Tuple[float, float]:
+        """
+        Return the largest |V_o| (with V_i = 0) and |V_i| (with V_o = 0) the model takes, V.
+
+        Both voltages together must keep K_c (eq. 26) below ``min(m omega^2)``; see the module
+        docstring for why. Default device: 215.6 V and 217.6 V.
+        """
+        k_min = min(self.linear_stiffnesses())
+        unit = 2.0 * math.pi * self.a_eps / self.electrodes.gap ** 2
+        return (math.sqrt(k_min / (unit * self.outer_radius)),
+                math.sqrt(k_min / (unit * self.inner_radius)))
+
     def electrostatic_softening_ratios(self) -> List[float]:
         """
         Return K_c / k_mech per coordinate, eq. (26) (>= 1 means static pull-in).
@@ -575,17 +753,9 @@ class SimConfig:
         k_mech = m omega^2, or m omega^2 + K_c when the frequencies already contain K_c
         (``fold_linear_stiffness``), in which case the ratio is below 1 for any voltage.
         """
-        e = self.electrodes
-        kc = 2.0 * math.pi * self.a_eps * (
-            self.outer_radius * e.outer_voltage ** 2
-            + self.inner_radius * e.inner_voltage ** 2) / e.gap ** 2
-        out = []
-        for m, f in zip(self.modal_masses(), self.modes.coordinate_frequencies()):
-            k_mech = m * (2.0 * math.pi * f) ** 2
-            if e.fold_linear_stiffness:
-                k_mech += kc  # Table 1 frequencies already include -K_c.
-            out.append(kc / k_mech)
-        return out
+        kc = self.electrostatic_stiffness()
+        fold = self.electrodes.fold_linear_stiffness
+        return [kc / (k + kc if fold else k) for k in self.linear_stiffnesses()]
 
     @property
     def shock_duration_s(self) -> float:
@@ -595,6 +765,9 @@ class SimConfig:
         freqs = self.modes.frequencies
         f2 = freqs[1] if len(freqs) > 1 else freqs[0]
         return 0.1 / f2
+
+
+_GROUPS = {f.name: f.default_factory for f in fields(SimConfig)}
 
 
 def defaults() -> Dict[str, Any]:
@@ -620,49 +793,19 @@ def build_config(values: Mapping[str, Any], *, frequencies_from_legs=None) -> Si
     flat = defaults()
     for name, raw in values.items():
         flat[name] = coerce(name, raw)
-    for name, value in flat.items():
-        _check_range(SPECS[name], value)
-    ring = RingParams(**{k: flat[f'ring.{k}'] for k in
-                         ('radius', 'thickness', 'length', 'youngs_modulus', 'density')})
-    legs = LegParams(count=flat['legs.count'], angle=flat['legs.angle'], mass=flat['legs.mass'],
-                     radial_stiffness=flat['legs.radial_stiffness'],
-                     tangential_stiffness=flat['legs.tangential_stiffness'])
-    freqs = tuple(flat['modes.frequencies'])
-    if not freqs:
-        freqs = _frequencies_from_structure(ring, legs, flat['modes.count'])
-    modes = ModeParams(frequencies=freqs,
-                       quality_factors=tuple(flat['modes.quality_factors']),
-                       companions=flat['modes.companions'],
-                       companion_frequencies=tuple(flat['modes.companion_frequencies']),
-                       companion_quality_factors=tuple(flat['modes.companion_quality_factors']))
-    electrodes = ElectrodeParams(
-        outer_voltage=flat['electrodes.outer_voltage'],
-        inner_voltage=flat['electrodes.inner_voltage'],
-        gap=flat['electrodes.gap'], outer_radius=flat['electrodes.outer_radius'],
-        inner_radius=flat['electrodes.inner_radius'],
-        relative_permittivity=flat['electrodes.relative_permittivity'],
-        taylor_terms=flat['electrodes.taylor_terms'],
-        fold_linear_stiffness=flat['electrodes.fold_linear_stiffness'],
-        count=flat['electrodes.count'], span=flat['electrodes.span'])
-    drive = DriveParams(amplitude=flat['drive.amplitude'], frequency=flat['drive.frequency'],
-                        start_on=flat['drive.start_on'])
-    integrator = IntegratorParams(method=flat['integrator.method'],
-                                  max_step=flat['integrator.max_step'])
-    run = RunParams(real_time_factor=flat['real_time_factor'], duration=flat['duration'],
-                    output_rate=flat['output.rate'],
-                    block_duration=flat['output.block_duration'],
-                    record_path=flat['record.path'], publish_clock=flat['publish_clock'],
-                    shock_duration=flat['shock.duration'],
-                    shock_times=tuple(flat['scenario.shock_times']),
-                    shock_peaks=tuple(flat['scenario.shock_peaks']),
-                    shock_angles=tuple(flat['scenario.shock_angles']),
-                    record_topics=tuple(flat['record.topics']),
-                    record_decimation=flat['record.decimation'],
-                    record_compression=flat['record.compression'],
-                    record_overwrite=flat['record.overwrite'],
-                    input_horizon=flat['inputs.horizon'])
-    return SimConfig(ring=ring, legs=legs, modes=modes, electrodes=electrodes, drive=drive,
-                     integrator=integrator, run=run)
+    for spec in _DERIVED:
+        check_value(spec, flat[spec.name])
+    kwargs: Dict[str, Dict[str, Any]] = {group: {} for group in _GROUPS}
+    for spec in PARAMETERS:
+        if spec not in _DERIVED:
+            kwargs[spec.group][spec.attribute] = _field_value(spec, flat[spec.name])
+    built: Dict[str, Any] = {}
+    for group, cls in _GROUPS.items():
+        if group == 'modes' and not kwargs[group]['frequencies']:
+            kwargs[group]['frequencies'] = _frequencies_from_structure(
+                built['ring'], built['legs'], flat['modes.count'])
+        built[group] = cls(**kwargs[group])
+    return SimConfig(**built)
 
 
 def _frequencies_from_structure(ring: RingParams, legs: LegParams,
@@ -682,45 +825,11 @@ def _frequencies_from_structure(ring: RingParams, legs: LegParams,
 
 def to_flat(config: SimConfig) -> Dict[str, Any]:
     """Return the flat ``{dotted name: value}`` mapping that rebuilds ``config`` (for metadata)."""
-    c = config
-    return {
-        'modes.frequencies': list(c.modes.frequencies),
-        'modes.quality_factors': list(c.modes.quality_factors),
-        'modes.count': c.modes.count,
-        'modes.companions': c.modes.companions,
-        'modes.companion_frequencies': list(c.modes.companion_frequencies),
-        'modes.companion_quality_factors': list(c.modes.companion_quality_factors),
-        'ring.radius': c.ring.radius, 'ring.thickness': c.ring.thickness,
-        'ring.length': c.ring.length, 'ring.youngs_modulus': c.ring.youngs_modulus,
-        'ring.density': c.ring.density,
-        'legs.count': c.legs.count, 'legs.angle': c.legs.angle, 'legs.mass': c.legs.mass,
-        'legs.radial_stiffness': c.legs.radial_stiffness,
-        'legs.tangential_stiffness': c.legs.tangential_stiffness,
-        'electrodes.outer_voltage': c.electrodes.outer_voltage,
-        'electrodes.inner_voltage': c.electrodes.inner_voltage,
-        'electrodes.gap': c.electrodes.gap,
-        'electrodes.outer_radius': c.electrodes.outer_radius,
-        'electrodes.inner_radius': c.electrodes.inner_radius,
-        'electrodes.relative_permittivity': c.electrodes.relative_permittivity,
-        'electrodes.taylor_terms': c.electrodes.taylor_terms,
-        'electrodes.fold_linear_stiffness': c.electrodes.fold_linear_stiffness,
-        'electrodes.count': c.electrodes.count, 'electrodes.span': c.electrodes.span,
-        'shock.duration': c.run.shock_duration,
-        'drive.amplitude': c.drive.amplitude, 'drive.frequency': c.drive.frequency,
-        'drive.start_on': c.drive.start_on,
-        'integrator.method': c.integrator.method, 'integrator.max_step': c.integrator.max_step,
-        'real_time_factor': c.run.real_time_factor, 'duration': c.run.duration,
-        'output.rate': c.run.output_rate, 'output.block_duration': c.run.block_duration,
-        'record.path': c.run.record_path, 'publish_clock': c.run.publish_clock,
-        'scenario.shock_times': list(c.run.shock_times),
-        'scenario.shock_peaks': list(c.run.shock_peaks),
-        'scenario.shock_angles': list(c.run.shock_angles),
-        'record.topics': list(c.run.record_topics),
-        'record.decimation': c.run.record_decimation,
-        'record.compression': c.run.record_compression,
-        'record.overwrite': c.run.record_overwrite,
-        'inputs.horizon': c.run.input_horizon,
-    }
+    out: Dict[str, Any] = {}
+    for spec in PARAMETERS:
+        value = getattr(getattr(config, spec.group), spec.attribute)
+        out[spec.name] = list(value) if spec.kind in LIST_KINDS else value
+    return out
 
 
 def flatten(tree: Mapping[str, Any], prefix: str = '') -> Dict[str, Any]:

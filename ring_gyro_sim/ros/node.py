@@ -65,7 +65,8 @@ QoS
     ``1 / output.block_duration`` messages per second; a best-effort subscriber connects too
     but may lose blocks. Inputs: reliable, keep last 1000 (``~/shock``,
     ``~/base_acceleration``) and 10 (drive), drained completely before every block: a flood
-    is refused and counted by the run (pending limits), never stored without bound. ``/diagnostics`` and ``/clock``: reliable, keep last 10.
+    is refused and counted by the run (pending limits), never stored without bound.
+    ``/diagnostics`` and ``/clock``: reliable, keep last 10.
 
 Diagnostics (about 1 Hz)
     One status named ``<node>: simulator``, ``hardware_id`` ``ring_gyro_sim:<fully
@@ -97,6 +98,7 @@ from rclpy.signals import SignalHandlerOptions
 from ring_gyro_sim import run as run_mod
 from ring_gyro_sim.analysis.nnm import drive_initial_state
 from ring_gyro_sim.core.errors import InputError, ParameterError, RingGyroError
+from ring_gyro_sim.paramfile import check_node_arguments
 from ring_gyro_sim.ros import conversions, parameters
 from ring_gyro_sim.ros.recorder import RunRecorder
 from ring_gyro_sim.ros.sinks import Publishers, RosSink
@@ -122,7 +124,7 @@ REJECT_LOG_PERIOD_S = 5.0
 _NUMBER = re.compile(r'[-+]?\d[\d.]*(e[-+]?\d+)?')
 
 
-class RingGyroNode(Node):
+class RingGyroNode(parameters.CountedParameterRefusals, Node):
     """The simulator behind topics, parameters and a reset service (see the module doc)."""
 
     def __init__(self, node_name: str = 'ring_gyro', **kwargs) -> None:
@@ -389,18 +391,25 @@ class RingGyroNode(Node):
         self.get_logger().info(response.message)
         return response
 
+    def on_parameter_refusal(self, kind: str, name: str, reason: str) -> None:
+        """Log a refused parameter change (the mixin) and count it on the run."""
+        super().on_parameter_refusal(kind, name, reason)
+        if kind != 'invalid' and self.run is not None:  # 'invalid': counted by the run
+            self.run.count_rejected(run_mod.ParameterChange.topic, kind)
+
     def _on_set_parameters(self, params) -> SetParametersResult:
+        # A refusal here is logged by the mixin (CountedParameterRefusals) as 'invalid'.
         old_rtf = self.real_time_factor
         try:
             _, changed = parameters.updated_config(self.run.config, params)
         except (ParameterError, InputError) as exc:
             self.run.count_rejected(run_mod.ParameterChange.topic)
-            return self._refuse_parameters(exc)
+            return SetParametersResult(successful=False, reason=str(exc))
         if changed:
             try:
                 self.run.apply(run_mod.ParameterChange(changed))  # counts a refusal
             except (ParameterError, InputError) as exc:
-                return self._refuse_parameters(exc)
+                return SetParametersResult(successful=False, reason=str(exc))
         if not changed:
             return SetParametersResult(successful=True)
         t_ns = self.run.time_ns
@@ -410,10 +419,6 @@ class RingGyroNode(Node):
         self.get_logger().info(f'parameters applied at simulation time {t_ns * 1e-9:.9f} s: '
                                + ', '.join(f'{k} = {v}' for k, v in changed.items()))
         return SetParametersResult(successful=True)
-
-    def _refuse_parameters(self, exc: Exception) -> SetParametersResult:
-        self.get_logger().warn(f'parameter change refused: {exc}')
-        return SetParametersResult(successful=False, reason=str(exc))
 
     # ------------------------------------------------------------------ diagnostics
     def _on_diagnostics_timer(self) -> None:
@@ -467,6 +472,11 @@ class _StopOnSignal:
 
 def main(args=None) -> int:
     """Entry point of ``ring_gyro_node``: exit code 0 on a clean end, 1 if it cannot start."""
+    try:  # one verdict on the params files with `ring_gyro run` (paramfile.py)
+        check_node_arguments(sys.argv if args is None else args)
+    except ParameterError as exc:
+        print(f'[FATAL] [ring_gyro_node]: cannot start: {exc}', file=sys.stderr)
+        return 1
     try:
         # The node handles SIGINT and SIGTERM itself (below) instead of rclpy's handlers,
         # which would shut the context down before the summary and diagnostics go out.

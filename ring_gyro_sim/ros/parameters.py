@@ -16,10 +16,13 @@
 ROS parameters of the node, declared from the one table ``core.params.PARAMETERS``.
 
 :func:`declare_parameters` declares every row with a descriptor (description with the unit,
-range, read-only where a change needs a restart) and builds the
-:class:`~ring_gyro_sim.core.params.SimConfig`; :func:`updated_config` is what the node's
-set-parameters callback uses to validate a run-time change: it rebuilds the configuration
-with :func:`~ring_gyro_sim.core.params.build_config`, whose
+range with the reason for it, choices, read-only where a change needs a restart) and builds
+the :class:`~ring_gyro_sim.core.params.SimConfig`; the voltages' ranges are then narrowed to
+the configuration's limit (:meth:`~ring_gyro_sim.core.params.SimConfig.voltage_limits`: the
+read-only geometry fixes it). An override with a name that is not in the table (``-p`` or a
+params file) is refused, naming the closest known name. :func:`updated_config` is what the
+node's set-parameters callback uses to validate a run-time change: it rebuilds the
+configuration with :func:`~ring_gyro_sim.core.params.build_config`, whose
 :class:`~ring_gyro_sim.core.errors.ParameterError` text ('<name>: <reason>') becomes the
 refusal reason.
 
@@ -27,48 +30,90 @@ All parameters are dynamically typed: users write ``14000`` for ``14000.0`` (rcl
 over an INTEGER) and an empty YAML list arrives as "not set";
 :func:`~ring_gyro_sim.core.params.coerce` turns both into the kind the table says, and refuses
 anything else by name.
+
+Refusals rclpy makes itself
+    rclpy checks a change against the descriptors (read-only, range) and refuses undeclared
+    names before the node's on-set callback runs, so the node never sees those; and for an
+    undeclared name its reason is ``Invalid access to undeclared parameter(s): []``
+    (``Node._check_undeclared_parameters`` consumes its generator in ``any()`` before listing
+    it). :class:`CountedParameterRefusals`, a mixin placed before ``rclpy.node.Node``,
+    overrides the public ``Node.set_parameters_atomically`` (what both the ``set_parameters``
+    and the ``set_parameters_atomically`` services call, see rclpy's
+    ``parameter_service.py``) and ``Node.set_parameters``: every refusal, rclpy's and the
+    callback's, gets a reason ``'<name>: <reason>'``, is counted by kind (``undeclared``,
+    ``read_only``, ``range``, ``invalid``) and passed to :meth:`on_parameter_refusal`, which
+    logs it (at most every few seconds per kind and name).
 """
 
 import math
-from typing import Any, Dict, Iterable, List, Mapping, Tuple
+import time
+from typing import Any, Dict, Iterable, List, Mapping, Optional, Tuple
 
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-from rclpy.exceptions import InvalidParameterValueException
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                SetParametersResult)
+from rclpy.exceptions import InvalidParameterValueException, ParameterNotDeclaredException
 from rclpy.parameter import Parameter
 
 from ring_gyro_sim.core import params
 from ring_gyro_sim.core.errors import ParameterError
+from ring_gyro_sim.paramfile import is_ros_parameter, ROS_OWN_PARAMETERS, \
+    unknown_parameter_message
+
+__all__ = ['CountedParameterRefusals', 'declare_parameters', 'descriptor', 'plain',
+           'REFUSAL_KINDS', 'ROS_OWN_PARAMETERS', 'unknown_overrides', 'updated_config']
 
 _INT_LIMIT = 2 ** 63 - 1
-_CHOICES = {'drive.start_on': params.DRIVE_START_CHOICES,
-            'integrator.method': params.INTEGRATOR_METHODS,
-            'record.compression': params.RECORD_COMPRESSIONS}
-# Parameters rclpy itself declares on every node (not ours, never refused here).
-ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
+_VOLTAGES = ('electrodes.outer_voltage', 'electrodes.inner_voltage')
+REFUSAL_KINDS = ('undeclared', 'read_only', 'range', 'invalid')
+"""Kinds of refused parameter changes, as counted on /diagnostics."""
+REFUSAL_LOG_PERIOD_S = 5.0
 
 
-def descriptor(spec: params.ParamSpec) -> ParameterDescriptor:
-    """Return the ParameterDescriptor of one row of the table."""
+def _range(spec: params.ParamSpec,
+           config: Optional[params.SimConfig]) -> Tuple[Optional[float], Optional[float]]:
+    if config is not None and spec.name in _VOLTAGES:
+        limit = config.voltage_limits()[_VOLTAGES.index(spec.name)]
+        return -limit, limit
+    return spec.minimum, spec.maximum
+
+
+def descriptor(spec: params.ParamSpec,
+               config: Optional[params.SimConfig] = None) -> ParameterDescriptor:
+    """
+    Return the ParameterDescriptor of one row of the table.
+
+    With ``config`` the voltages' ranges are that configuration's limits (else unbounded:
+    they depend on the geometry).
+    """
     unit = 'dimensionless' if spec.unit == '-' else spec.unit
     constraints: List[str] = []
     d = ParameterDescriptor(name=spec.name, description=f'{spec.description} [{unit}]',
                             read_only=spec.read_only, dynamic_typing=True)
-    if spec.kind == 'float' and (spec.minimum is not None or spec.maximum is not None):
+    low, high = _range(spec, config)
+    if spec.kind == 'float' and (low is not None or high is not None):
         d.floating_point_range = [FloatingPointRange(
-            from_value=-math.inf if spec.minimum is None else float(spec.minimum),
-            to_value=math.inf if spec.maximum is None else float(spec.maximum), step=0.0)]
+            from_value=-math.inf if low is None else float(low),
+            to_value=math.inf if high is None else float(high), step=0.0)]
     elif spec.kind == 'int':
         d.integer_range = [IntegerRange(
-            from_value=-_INT_LIMIT if spec.minimum is None else int(spec.minimum),
-            to_value=_INT_LIMIT if spec.maximum is None else int(spec.maximum), step=1)]
+            from_value=-_INT_LIMIT if low is None else int(low),
+            to_value=_INT_LIMIT if high is None else int(high), step=1)]
     if spec.kind == 'float':
         constraints.append('a number (integer literals are accepted)')
     elif spec.kind == 'float_list':
         constraints.append('a list of numbers (an empty list means empty)')
     elif spec.kind == 'str_list':
         constraints.append('a list of strings (an empty list means empty)')
-    if spec.name in _CHOICES:
-        constraints.append('one of ' + ', '.join(_CHOICES[spec.name]))
+    if spec.kind in ('float', 'int', 'float_list') and (low is not None or high is not None):
+        left = '(' if spec.open_minimum else '['
+        text = (f'{left}{"-inf" if low is None else params.format_number(low)}, '
+                f'{"inf" if high is None else params.format_number(high)}]')
+        constraints.append(f'range {text}' + ('' if spec.kind != 'float_list' else
+                                              ' for every element'))
+    if spec.range_note:
+        constraints.append(spec.range_note)
+    if spec.choices:
+        constraints.append('one of ' + ', '.join(spec.choices))
     if spec.read_only:
         constraints.append('read-only: set it in the params file (a change needs a restart)')
     d.additional_constraints = '; '.join(constraints)
@@ -94,10 +139,14 @@ def declare_parameters(node) -> params.SimConfig:
     Raises
     ------
     ParameterError
-        A value is refused (by a descriptor range or by :func:`build_config`); the message
-        starts with the parameter name.
+        An override that is not a parameter of the table, or a value refused (by a
+        descriptor range or by :func:`build_config`); the message starts with the parameter
+        name.
 
     """
+    message = unknown_parameter_message(unknown_overrides(node))
+    if message:
+        raise ParameterError(message)
     for spec in params.PARAMETERS:
         try:
             node.declare_parameter(spec.name, _default(spec), descriptor(spec))
@@ -105,7 +154,10 @@ def declare_parameters(node) -> params.SimConfig:
             raise ParameterError(_explain(node, spec) or f'{spec.name}: {_reason(exc)}') \
                 from None
     values = {spec.name: plain(node.get_parameter(spec.name).value) for spec in params.PARAMETERS}
-    return params.build_config(values)
+    config = params.build_config(values)
+    for name in _VOLTAGES:
+        node.set_descriptor(name, descriptor(params.SPECS[name], config))
+    return config
 
 
 def unknown_overrides(node) -> List[str]:
@@ -113,8 +165,7 @@ def unknown_overrides(node) -> List[str]:
     # rclpy has no public accessor for the overrides it was started with.
     overrides: Mapping[str, Any] = getattr(node, '_parameter_overrides', {}) or {}
     return sorted(name for name in overrides
-                  if name not in params.SPECS and name not in ROS_OWN_PARAMETERS
-                  and not name.startswith('qos_overrides.'))
+                  if name not in params.SPECS and not is_ros_parameter(name))
 
 
 def plain(value: Any) -> Any:
@@ -146,10 +197,10 @@ def updated_config(current: params.SimConfig,
     flat = params.to_flat(current)
     changed: Dict[str, Any] = {}
     for p in changes:
-        if p.name in ROS_OWN_PARAMETERS:
+        if is_ros_parameter(p.name):
             continue
         if p.name not in params.SPECS:
-            raise ParameterError(f'{p.name}: unknown parameter')
+            raise ParameterError(unknown_parameter_message([p.name]))
         value = plain(p.value)
         if value is None and params.SPECS[p.name].kind not in ('float_list', 'str_list'):
             raise ParameterError(f'{p.name}: cannot be unset at run time')
@@ -173,3 +224,93 @@ def _explain(node, spec: params.ParamSpec) -> str:
 def _reason(exc: InvalidParameterValueException) -> str:
     text = str(exc.args[0]) if exc.args else str(exc)
     return text.split('Reason: ', 1)[-1]
+
+
+def _descriptor_refusal(node, param: Parameter) -> Optional[Tuple[str, str]]:
+    """Return (kind, reason) if rclpy's descriptor check refuses ``param``, else None."""
+    d = node.describe_parameter(param.name)
+    if d.read_only:
+        return 'read_only', (f'{param.name}: read-only, set it in the params file (a change '
+                             f'needs a restart)')
+    value = param.value
+    ranges = (d.floating_point_range if param.type_ == Parameter.Type.DOUBLE
+              else d.integer_range if param.type_ == Parameter.Type.INTEGER else [])
+    if ranges:
+        r = ranges[0]
+        low, high = min(r.from_value, r.to_value), max(r.from_value, r.to_value)
+        edge = any(math.isclose(value, x, rel_tol=node.PARAM_REL_TOL) for x in (low, high))
+        if not edge and not low < value < high:
+            spec = params.SPECS.get(param.name)
+            note = f' ({spec.range_note})' if spec is not None and spec.range_note else ''
+            return 'range', (f'{param.name}: must be between {low:.6g} and {high:.6g}{note}, '
+                             f'got {value!r}')
+    return None
+
+
+class CountedParameterRefusals:
+    """
+    Mixin for an ``rclpy.node.Node``: every refused parameter change counted and explained.
+
+    Put it before ``Node`` in the bases. See the module docstring for the rclpy hooks used.
+    :attr:`parameter_refusals` counts by kind (:data:`REFUSAL_KINDS`); override
+    :meth:`on_parameter_refusal` to act on each refusal (the default logs it).
+    """
+
+    def __init__(self, *args, **kwargs) -> None:
+        self.parameter_refusals: Dict[str, int] = {kind: 0 for kind in REFUSAL_KINDS}
+        self._refusal_log: Dict[Tuple[str, str], Tuple[float, int]] = {}
+        super().__init__(*args, **kwargs)
+
+    def set_parameters_atomically(self, parameter_list: List[Parameter]) -> SetParametersResult:
+        """Set as ``Node.set_parameters_atomically``; a refusal is counted, named and logged."""
+        undeclared = [p.name for p in parameter_list if not self.has_parameter(p.name)]
+        if undeclared and not getattr(self, '_allow_undeclared_parameters', False):
+            reason = (unknown_parameter_message(undeclared)
+                      or f'{undeclared[0]}: not a declared parameter')
+            return self._refuse('undeclared', undeclared[0], reason)
+        for param in parameter_list:
+            found = _descriptor_refusal(self, param)
+            if found is not None:
+                # rclpy refuses it too (its check runs first); its reason is ours now.
+                result = super().set_parameters_atomically(parameter_list)
+                if result.successful:  # rclpy's edge tolerance let it through
+                    return result
+                return self._refuse(found[0], param.name, found[1])
+        try:
+            result = super().set_parameters_atomically(parameter_list)
+        except ParameterNotDeclaredException:  # declared meanwhile by another thread
+            return self._refuse('undeclared', undeclared[0] if undeclared else '?',
+                                'not a declared parameter')
+        if not result.successful:
+            name = result.reason.split(':', 1)[0] if ':' in result.reason else \
+                (parameter_list[0].name if parameter_list else '?')
+            return self._refuse('invalid', name, result.reason)
+        return result
+
+    def set_parameters(self, parameter_list: List[Parameter]) -> List[SetParametersResult]:
+        """Set one by one as ``Node.set_parameters``, each through the counted path."""
+        return [self.set_parameters_atomically([p]) for p in parameter_list]
+
+    def parameter_refusal_counts(self) -> Dict[str, int]:
+        """Return ``rejected_parameter_changes`` (total) and one key per kind, for diagnostics."""
+        counts = {'rejected_parameter_changes': sum(self.parameter_refusals.values())}
+        counts.update({f'rejected_parameter_{kind}': n
+                       for kind, n in self.parameter_refusals.items()})
+        return counts
+
+    def on_parameter_refusal(self, kind: str, name: str, reason: str) -> None:
+        """Log a refusal, at most every REFUSAL_LOG_PERIOD_S per kind and name."""
+        now = time.monotonic()
+        key = (kind, name)
+        last, suppressed = self._refusal_log.get(key, (-math.inf, 0))
+        if now - last < REFUSAL_LOG_PERIOD_S:
+            self._refusal_log[key] = (last, suppressed + 1)
+            return
+        more = f' ({suppressed} more like it since the last message)' if suppressed else ''
+        self.get_logger().warn(f'parameter change refused ({kind}): {reason}{more}')
+        self._refusal_log[key] = (now, 0)
+
+    def _refuse(self, kind: str, name: str, reason: str) -> SetParametersResult:
+        self.parameter_refusals[kind] += 1
+        self.on_parameter_refusal(kind, name, reason)
+        return SetParametersResult(successful=False, reason=reason)

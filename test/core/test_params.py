@@ -80,7 +80,7 @@ def test_nan_is_rejected_everywhere(name):
 
 
 @pytest.mark.parametrize('text', [
-    'electrodes.gap: .nan\n',
+    'ring_gyro: {ros__parameters: {electrodes.gap: .nan}}\n',
     'ring_gyro:\n  ros__parameters:\n    electrodes:\n      gap: .nan\n',
     '/**:\n  ros__parameters:\n    electrodes: {gap: .NaN}\n',
 ])
@@ -147,7 +147,7 @@ def test_static_pull_in_is_rejected_with_mechanical_frequencies():
                        'electrodes.fold_linear_stiffness': False}, 'electrodes.outer_voltage')
     assert 'pull-in' in message
     message = rejects({'electrodes.inner_voltage': 1e4,
-                       'electrodes.fold_linear_stiffness': False}, 'electrodes.outer_voltage')
+                       'electrodes.fold_linear_stiffness': False}, 'electrodes.inner_voltage')
     assert 'pull-in' in message
 
 
@@ -167,7 +167,8 @@ def test_pull_in_threshold_with_mechanical_frequencies():
 def test_unknown_parameter():
     message = rejects({'electrodes.voltage': 80.0}, 'electrodes.voltage')
     assert 'unknown' in message
-    rejects(parameters_from_yaml_text('ring_gyro:\n  ros__parameters:\n    typo: 1\n'), 'typo')
+    with pytest.raises(ParameterError, match=r'^typo: unknown parameter'):
+        parameters_from_yaml_text('ring_gyro:\n  ros__parameters:\n    typo: 1\n')
 
 
 @pytest.mark.parametrize('name, value', [
@@ -189,7 +190,8 @@ def test_wrong_type(name, value):
 
 
 def test_wrong_type_from_yaml():
-    rejects(parameters_from_yaml_text('electrodes:\n  gap: ten microns\n'), 'electrodes.gap')
+    text = 'ring_gyro:\n  ros__parameters:\n    electrodes:\n      gap: ten microns\n'
+    rejects(parameters_from_yaml_text(text), 'electrodes.gap')
 
 
 @pytest.mark.parametrize('times, peaks', [([0.1, 0.2], [1.0]), ([], [1.0]), ([0.1], [])])
@@ -228,27 +230,37 @@ def test_exponent_forms_that_rcl_reads_as_double(literal, value):
     PyYAML's YAML 1.1 resolver reads ``150.0e9``, ``1e-5`` and ``2e5`` as strings; the same
     file must drive the node and the offline command line (style.md, convention 5).
     """
-    flat = parameters_from_yaml_text(f'ring_gyro:\n  ros__parameters:\n    x: {literal}\n')
-    assert flat == {'x': value}
+    flat = parameters_from_yaml_text(f'ring_gyro:\n  ros__parameters:\n    duration: {literal}\n')
+    assert flat == {'duration': value}
 
 
 def test_whole_float_accepted_for_int():
     assert build_config({'electrodes.taylor_terms': 12.0}).electrodes.taylor_terms == 12
 
 
-@pytest.mark.parametrize('literal', ['[]', '~', 'null', ''])
-def test_empty_yaml_list_and_null_give_empty_list(literal):
+def test_empty_yaml_list_gives_empty_list():
     text = ('ring_gyro:\n  ros__parameters:\n    scenario:\n'
-            f'      shock_times: {literal}\n      shock_peaks: {literal}\n')
+            '      shock_times: []\n      shock_peaks: []\n')
     flat = parameters_from_yaml_text(text)
     config = build_config(flat)
     assert config.run.shock_times == ()
     assert config.run.shock_peaks == ()
 
 
-def test_null_scalar_gives_the_default():
-    config = build_config(parameters_from_yaml_text('electrodes:\n  gap: ~\n'))
-    assert config.electrodes.gap == SPECS['electrodes.gap'].default
+@pytest.mark.parametrize('literal', ['~', 'null'])
+def test_yaml_null_is_a_string_as_rcl_reads_it(literal):
+    """Rcl types ``~`` and ``null`` as strings (parse.c get_value), so the node refuses them."""
+    text = f'ring_gyro:\n  ros__parameters:\n    scenario:\n      shock_times: {literal}\n'
+    assert parameters_from_yaml_text(text) == {'scenario.shock_times': literal}
+    rejects(parameters_from_yaml_text(text), 'scenario.shock_times')
+    text = f'ring_gyro:\n  ros__parameters:\n    electrodes:\n      gap: {literal}\n'
+    rejects(parameters_from_yaml_text(text), 'electrodes.gap')
+
+
+def test_an_empty_value_is_refused_as_rcl_refuses_it():
+    text = 'ring_gyro:\n  ros__parameters:\n    scenario:\n      shock_times:\n    duration: 1.0\n'
+    with pytest.raises(ParameterError, match=r'^scenario.shock_times: no value .*line 4'):
+        parameters_from_yaml_text(text)
 
 
 def test_wildcard_and_node_sections_are_both_read():
@@ -270,10 +282,18 @@ def test_wildcard_and_node_sections_are_both_read():
     assert config.modes.companions
 
 
-@pytest.mark.parametrize('key', ['/ring_gyro', '/sensors/ring_gyro', '"**"', '"/*"'])
+@pytest.mark.parametrize('key', ['/ring_gyro', '"**"', '"/*"', '/**/ring_gyro'])
 def test_qualified_node_names_are_read(key):
     flat = parameters_from_yaml_text(f'{key}:\n  ros__parameters:\n    duration: 4.0\n')
     assert flat == {'duration': 4.0}
+
+
+def test_a_namespaced_section_applies_only_in_its_namespace():
+    """Rcl applies '/sensors/ring_gyro' to /sensors/ring_gyro only (checked with rclpy)."""
+    text = '/sensors/ring_gyro:\n  ros__parameters:\n    duration: 4.0\n'
+    assert parameters_from_yaml_text(text, node_name='/sensors/ring_gyro') == {'duration': 4.0}
+    with pytest.raises(ParameterError, match='no ros__parameters section'):
+        parameters_from_yaml_text(text)
 
 
 def test_other_node_name_argument():
@@ -286,7 +306,7 @@ def test_file_for_another_node_fails_clearly():
     with pytest.raises(ParameterError) as info:
         parameters_from_yaml_text(text)
     message = str(info.value)
-    assert 'ros__parameters' in message and "'ring_gyro'" in message and '/**' in message
+    assert 'ros__parameters' in message and "'/ring_gyro'" in message and '/**' in message
 
 
 @pytest.mark.parametrize('text', ['a: [1, 2\n', '- 1\n- 2\n'])
@@ -295,8 +315,11 @@ def test_bad_yaml_fails_with_parameter_error(text):
         parameters_from_yaml_text(text)
 
 
-def test_empty_yaml_gives_defaults():
-    assert build_config(parameters_from_yaml_text('')) == build_config({})
+@pytest.mark.parametrize('text', ['', '# nothing here\n', '/**:\n  ros__parameters: {}\n'])
+def test_a_file_that_sets_nothing_is_refused(text):
+    """Rcl reads these as "no parameters": the node would run silently on its defaults."""
+    with pytest.raises(ParameterError, match='params file'):
+        parameters_from_yaml_text(text)
 
 
 # -- round trip and shipped files -------------------------------------------------------------
@@ -346,3 +369,89 @@ def test_demo_yaml_loads():
 def test_missing_file_fails_with_parameter_error(tmp_path):
     with pytest.raises(ParameterError, match='params file'):
         load_yaml(str(tmp_path / 'nope.yaml'))
+
+
+# -- physical ranges --------------------------------------------------------------------------
+
+def test_voltage_limit_with_folded_frequencies():
+    """
+    Folded (Table 1) frequencies: K_c (eq. 26) must stay below m_1 omega_1^2.
+
+    215.6 V is that limit for the default device, computed here independently of
+    ``voltage_limits`` from the modal mass, the 1theta frequency and eq. (26).
+    """
+    config = build_config({})
+    m1 = config.modal_masses()[0]
+    k1 = m1 * (2.0 * math.pi * config.modes.frequencies[0]) ** 2
+    v_limit = math.sqrt(k1 * config.electrodes.gap ** 2
+                        / (2.0 * math.pi * config.a_eps * config.outer_radius))
+    assert v_limit == pytest.approx(215.59, abs=0.01)
+    assert config.voltage_limits()[0] == pytest.approx(v_limit, rel=1e-12)
+    build_config({'electrodes.outer_voltage': -0.999 * v_limit})
+    message = rejects({'electrodes.outer_voltage': 1.001 * v_limit}, 'electrodes.outer_voltage')
+    assert 'pull-in' in message and '215.6 V' in message
+    rejects({'electrodes.outer_voltage': 1e6}, 'electrodes.outer_voltage')  # issue 9
+    # Both together: each alone is below its limit, the sum of eq. (26) is not.
+    v_o, v_i = config.voltage_limits()
+    build_config({'electrodes.outer_voltage': 0.7 * v_o, 'electrodes.inner_voltage': 0.7 * v_i})
+    rejects({'electrodes.outer_voltage': 0.8 * v_o, 'electrodes.inner_voltage': 0.7 * v_i},
+            'electrodes.outer_voltage')
+    rejects({'electrodes.outer_voltage': 0.7 * v_o, 'electrodes.inner_voltage': 0.8 * v_i},
+            'electrodes.inner_voltage')
+
+
+@pytest.mark.parametrize('values, name', [
+    ({'electrodes.relative_permittivity': 0.5}, 'electrodes.relative_permittivity'),
+    ({'output.rate': 1e9}, 'output.rate'),                          # issue 10 item 4
+    ({'output.rate': 2e7}, 'output.rate'),
+    ({'output.block_duration': 10.0}, 'output.block_duration'),      # issue 10 item 4
+    ({'duration': 2.0 ** 31}, 'duration'),
+    ({'scenario.shock_times': [2.0 ** 31], 'scenario.shock_peaks': [1.0]},
+     'scenario.shock_times'),
+    ({'inputs.horizon': 1e300}, 'inputs.horizon'),
+])
+def test_out_of_physical_range(values, name):
+    rejects(values, name)
+
+
+def test_block_memory_is_bounded():
+    """
+    At most MAX_BLOCK_BYTES (4 MiB) of block messages per block.
+
+    Default channels: t + 3 q, t + 8 gaps + min gap, t + 8 C = 23 values = 184 bytes per
+    sample, so 4 MiB / 184 B = 22795 samples: 0.11 s at 200 kHz fits, 0.12 s does not.
+    """
+    assert build_config({}).block_values_per_sample() == 23
+    assert build_config({'output.block_duration': 0.11}).run.block_samples == 22000
+    message = rejects({'output.block_duration': 0.12}, 'output.block_duration')
+    assert '22795 samples per block' in message and 'MiB' in message
+    # 10 MHz with the default 10 ms block: 100 000 samples, refused before any allocation.
+    rejects({'output.rate': 1e7}, 'output.block_duration')
+    build_config({'output.rate': 1e7, 'output.block_duration': 0.002})
+    # More channels, fewer samples: 360 electrodes -> 4 + 3 + 720 values per sample.
+    rejects({'electrodes.count': 360}, 'output.block_duration')
+
+
+def test_every_numeric_row_is_checked_by_its_dataclass():
+    """A value the row refuses is refused by the dataclass too (one check, from the row)."""
+    from dataclasses import replace
+    config = build_config({})
+    with pytest.raises(ParameterError, match='^electrodes.relative_permittivity:'):
+        replace(config.electrodes, relative_permittivity=0.9)
+    with pytest.raises(ParameterError, match='^output.rate:'):
+        replace(config.run, output_rate=1e9)
+    with pytest.raises(ParameterError, match='^modes.quality_factors:'):
+        replace(config.modes, quality_factors=(1e5, 0.4, 1e5))
+
+
+def test_a_class_field_without_a_row_is_refused_at_import():
+    from ring_gyro_sim.core import params
+    cls = type('Extra', (), {'__annotations__': {'radius': float, 'colour': str}})
+    with pytest.raises(TypeError, match='Extra.colour: no row'):
+        params._parameter_group('ring')(cls)
+
+
+def test_field_paths_name_real_attributes():
+    config = build_config({})
+    for spec in PARAMETERS:
+        assert hasattr(getattr(config, spec.group), spec.attribute), spec.field
