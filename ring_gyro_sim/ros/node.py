@@ -33,9 +33,10 @@ Pacing
     ``duration`` > 0 ends the run after that much simulated time; SIGINT or SIGTERM end it
     at the next block boundary. Either way: final diagnostics, a summary in the log (peak
     |q1|, smallest gap, q2 amplitude before the first shock and over the last 10 ms), the
-    recording finalised, exit code 0. A bad parameter file or value, an unwritable
-    ``record.path`` or a failed ``drive.start_on`` orbit: one FATAL line naming the
-    parameter, exit code 1.
+    recording finalised, exit code 0. A signal before that, during start-up, ends the
+    process at once, exit code 0, without a traceback (see ``ring_gyro_sim.ros``). A bad
+    parameter file or value, an unwritable ``record.path`` or a failed ``drive.start_on``
+    orbit: one FATAL line naming the parameter, exit code 1.
 
 Parameter handling
     Declared from the one table (``ros/parameters.py``), dynamically typed so that integer
@@ -102,7 +103,7 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from ring_gyro_sim.core.errors import InputError, ParameterError, RingGyroError
 from ring_gyro_sim.core.simulator import Samples, Simulator
-from ring_gyro_sim.ros import conversions, parameters
+from ring_gyro_sim.ros import conversions, EARLY_SIGNALS, parameters
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
@@ -643,6 +644,10 @@ def main(args=None) -> int:
     node = None
     code = 0
     try:
+        if EARLY_SIGNALS:  # during the imports or rclpy.init: end before starting
+            name = signal.Signals(EARLY_SIGNALS[0]).name
+            print(f'[INFO] [ring_gyro_node]: stopped ({name}) during start-up', file=sys.stderr)
+            return 0
         node = RingGyroNode()
         stop.node = node
         rclpy.spin_until_future_complete(node, node.finished)
