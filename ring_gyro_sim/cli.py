@@ -49,6 +49,9 @@ def _parser() -> argparse.ArgumentParser:
     rep.add_argument('--rate', type=float, default=1.0, help='playback speed factor')
     rep.add_argument('--clock', action='store_true', help='publish /clock from the log times')
     rep.add_argument('--topics', nargs='+', help='only these topics')
+    rep.add_argument('--max-gap', type=float, default=None, metavar='SECONDS',
+                     help='shorten longer gaps between log times to this, with a warning '
+                          '(default 1 s; inf keeps them)')
 
     cal = sub.add_parser('calibrate', help='outer voltage that puts the 1theta backbone '
                                            'through a target point (Fig. 4)')
@@ -139,10 +142,11 @@ def cmd_run(args) -> int:
 
 def cmd_replay(args) -> int:
     """``ring_gyro replay``."""
-    from ring_gyro_sim.replay import replay
-    count = replay(args.recording, rate=args.rate, clock=args.clock, topics=args.topics)
-    print(f'replayed {count} messages', file=sys.stderr)
-    return 0
+    from ring_gyro_sim.replay import MAX_GAP_S, replay
+    result = replay(args.recording, rate=args.rate, clock=args.clock, topics=args.topics,
+                    max_gap_s=MAX_GAP_S if args.max_gap is None else args.max_gap)
+    print(f'ring_gyro replay: {result.describe()}', file=sys.stderr)
+    return 0  # also when SIGINT / SIGTERM stopped it (the note says so)
 
 
 def cmd_calibrate(args) -> int:
