@@ -162,7 +162,16 @@ def cmd_calibrate(args) -> int:
     return 0
 
 
-def _write_result(result, output: str, **plot_options) -> str:
+def _plots_available(verb: str) -> bool:
+    """Tell whether matplotlib is there; if not, say so once (before computing) and how."""
+    from ring_gyro_sim.analysis import plotting
+    if plotting.available():
+        return True
+    print(f'ring_gyro {verb}: {plotting.MISSING_MATPLOTLIB}', file=sys.stderr)
+    return False
+
+
+def _write_result(result, output: str, plots: bool, **plot_options) -> Optional[str]:
     """Write ``result`` to the CSV ``output`` and its plot beside it; return the PNG path."""
     from pathlib import Path
     csv = Path(output)
@@ -170,6 +179,9 @@ def _write_result(result, output: str, **plot_options) -> str:
         raise RingGyroError(f'-o {output}: give the CSV file; the PNG is written beside it')
     png = csv.with_suffix('.png')
     result.to_csv(csv)
+    if not plots:
+        print(f'wrote {csv}; plot skipped (no matplotlib)', file=sys.stderr)
+        return None
     result.plot(png, **plot_options)
     return str(png)
 
@@ -177,10 +189,11 @@ def _write_result(result, output: str, **plot_options) -> str:
 def cmd_backbone(args) -> int:
     """``ring_gyro backbone``."""
     from ring_gyro_sim.analysis import hbm
+    plots = _plots_available('backbone')
     config = _load(args.params, args.node_name)
     result = hbm.backbone(config, mode=args.mode, taylor_terms=args.taylor_terms,
                           max_amplitude_m=args.max_amplitude, harmonics=args.harmonics)
-    png = _write_result(result, args.output)
+    png = _write_result(result, args.output, plots)
     print(json.dumps({'csv': args.output, 'png': png, 'points': int(result.amplitude_m.size),
                       'taylor_terms': result.taylor_terms, 'harmonics': result.harmonics,
                       'amplitude_m': float(result.amplitude_m[-1]),
@@ -192,11 +205,12 @@ def cmd_backbone(args) -> int:
 def cmd_frf(args) -> int:
     """``ring_gyro frf``."""
     from ring_gyro_sim.analysis import hbm
+    plots = _plots_available('frf')
     config = _load(args.params, args.node_name)
     result = hbm.frf(config, mode=args.mode, f_range_hz=tuple(args.f_range),
                      drive_amplitude=args.drive_amplitude, harmonics=args.harmonics,
                      taylor_terms=args.taylor_terms, stability=args.stability)
-    png = _write_result(result, args.output, marker_hz=config.drive.frequency)
+    png = _write_result(result, args.output, plots, marker_hz=config.drive.frequency)
     print(json.dumps({'csv': args.output, 'png': png, 'points': int(result.frequency_hz.size),
                       'drive_amplitude': result.drive_amplitude,
                       'fold_frequencies_hz': list(result.fold_frequencies_hz),
@@ -208,7 +222,11 @@ def cmd_frf(args) -> int:
 def cmd_report(args) -> int:
     """``ring_gyro report``."""
     from ring_gyro_sim.analysis.report import build_report
+    plots = _plots_available('report')
     summary = build_report(args.out, quick=args.quick, workers=args.workers)
+    if not plots:
+        print(f'ring_gyro report: figures skipped (no matplotlib); CSVs and summary in '
+              f'{args.out}', file=sys.stderr)
     print(json.dumps({'out': args.out, 'quick': args.quick,
                       'wall_time_s': summary['wall_time_s'],
                       'cases': {c['name']: c.get('final_branch') for c in summary['cases']}}))
