@@ -113,7 +113,8 @@ def _load(path: Optional[str], node_name: str = 'ring_gyro'):
 
 
 def _fixed(value: float, digits: int = 4) -> str:
-    """Format ``value`` with ``digits`` decimals, or in exponent form when huge or not finite.
+    """
+    Format ``value`` with ``digits`` decimals, or in exponent form when huge or not finite.
 
     ``f'{1.7e308:.4f}'`` has 313 characters: a state blown up by a huge input must not print
     like that.
