@@ -49,6 +49,9 @@ def _parser() -> argparse.ArgumentParser:
     rep.add_argument('--rate', type=float, default=1.0, help='playback speed factor')
     rep.add_argument('--clock', action='store_true', help='publish /clock from the log times')
     rep.add_argument('--topics', nargs='+', help='only these topics')
+    rep.add_argument('--max-gap', type=float, default=None, metavar='SECONDS',
+                     help='shorten longer gaps between log times to this, with a warning '
+                          '(default 1 s; inf keeps them)')
 
     cal = sub.add_parser('calibrate', help='outer voltage that puts the 1theta backbone '
                                            'through a target point (Fig. 4)')
@@ -109,6 +112,16 @@ def _load(path: Optional[str], node_name: str = 'ring_gyro'):
     return load_yaml(path, node_name) if path else build_config({})
 
 
+def _fixed(value: float, digits: int = 4) -> str:
+    """
+    Format ``value`` with ``digits`` decimals, or in exponent form when huge or not finite.
+
+    ``f'{1.7e308:.4f}'`` has 313 characters: a state blown up by a huge input must not print
+    like that.
+    """
+    return f'{value:.{digits}f}' if abs(value) < 1e9 else f'{value:.{digits}g}'
+
+
 def cmd_run(args) -> int:
     """``ring_gyro run``."""
     from ring_gyro_sim import offline
@@ -127,9 +140,9 @@ def cmd_run(args) -> int:
         print(f'simulated {summary.sim_time_s:.4f} s in {summary.wall_time_s:.2f} s '
               f'(x{summary.real_time_factor:.1f} real time), status {summary.status}')
         for name, peak in summary.peak_abs_m.items():
-            print(f'  {name}: peak {peak * 1e6:.4f} um, last 10 ms '
-                  f'{summary.final_abs_m[name] * 1e6:.4f} um')
-        print(f'  smallest outer gap {summary.min_gap_m * 1e6:.4f} um')
+            print(f'  {name}: peak {_fixed(peak * 1e6)} um, last 10 ms '
+                  f'{_fixed(summary.final_abs_m[name] * 1e6)} um')
+        print(f'  smallest outer gap {_fixed(summary.min_gap_m * 1e6)} um')
         if summary.message:
             print(f'  {summary.message}')
         if summary.output:
@@ -139,10 +152,11 @@ def cmd_run(args) -> int:
 
 def cmd_replay(args) -> int:
     """``ring_gyro replay``."""
-    from ring_gyro_sim.replay import replay
-    count = replay(args.recording, rate=args.rate, clock=args.clock, topics=args.topics)
-    print(f'replayed {count} messages', file=sys.stderr)
-    return 0
+    from ring_gyro_sim.replay import MAX_GAP_S, replay
+    result = replay(args.recording, rate=args.rate, clock=args.clock, topics=args.topics,
+                    max_gap_s=MAX_GAP_S if args.max_gap is None else args.max_gap)
+    print(f'ring_gyro replay: {result.describe()}', file=sys.stderr)
+    return 0  # also when SIGINT / SIGTERM stopped it (the note says so)
 
 
 def cmd_calibrate(args) -> int:
@@ -158,7 +172,16 @@ def cmd_calibrate(args) -> int:
     return 0
 
 
-def _write_result(result, output: str, **plot_options) -> str:
+def _plots_available(verb: str) -> bool:
+    """Tell whether matplotlib is there; if not, say so once (before computing) and how."""
+    from ring_gyro_sim.analysis import plotting
+    if plotting.available():
+        return True
+    print(f'ring_gyro {verb}: {plotting.MISSING_MATPLOTLIB}', file=sys.stderr)
+    return False
+
+
+def _write_result(result, output: str, plots: bool, **plot_options) -> Optional[str]:
     """Write ``result`` to the CSV ``output`` and its plot beside it; return the PNG path."""
     from pathlib import Path
     csv = Path(output)
@@ -166,6 +189,9 @@ def _write_result(result, output: str, **plot_options) -> str:
         raise RingGyroError(f'-o {output}: give the CSV file; the PNG is written beside it')
     png = csv.with_suffix('.png')
     result.to_csv(csv)
+    if not plots:
+        print(f'wrote {csv}; plot skipped (no matplotlib)', file=sys.stderr)
+        return None
     result.plot(png, **plot_options)
     return str(png)
 
@@ -173,10 +199,11 @@ def _write_result(result, output: str, **plot_options) -> str:
 def cmd_backbone(args) -> int:
     """``ring_gyro backbone``."""
     from ring_gyro_sim.analysis import hbm
+    plots = _plots_available('backbone')
     config = _load(args.params, args.node_name)
     result = hbm.backbone(config, mode=args.mode, taylor_terms=args.taylor_terms,
                           max_amplitude_m=args.max_amplitude, harmonics=args.harmonics)
-    png = _write_result(result, args.output)
+    png = _write_result(result, args.output, plots)
     print(json.dumps({'csv': args.output, 'png': png, 'points': int(result.amplitude_m.size),
                       'taylor_terms': result.taylor_terms, 'harmonics': result.harmonics,
                       'amplitude_m': float(result.amplitude_m[-1]),
@@ -188,11 +215,12 @@ def cmd_backbone(args) -> int:
 def cmd_frf(args) -> int:
     """``ring_gyro frf``."""
     from ring_gyro_sim.analysis import hbm
+    plots = _plots_available('frf')
     config = _load(args.params, args.node_name)
     result = hbm.frf(config, mode=args.mode, f_range_hz=tuple(args.f_range),
                      drive_amplitude=args.drive_amplitude, harmonics=args.harmonics,
                      taylor_terms=args.taylor_terms, stability=args.stability)
-    png = _write_result(result, args.output, marker_hz=config.drive.frequency)
+    png = _write_result(result, args.output, plots, marker_hz=config.drive.frequency)
     print(json.dumps({'csv': args.output, 'png': png, 'points': int(result.frequency_hz.size),
                       'drive_amplitude': result.drive_amplitude,
                       'fold_frequencies_hz': list(result.fold_frequencies_hz),
@@ -204,7 +232,11 @@ def cmd_frf(args) -> int:
 def cmd_report(args) -> int:
     """``ring_gyro report``."""
     from ring_gyro_sim.analysis.report import build_report
+    plots = _plots_available('report')
     summary = build_report(args.out, quick=args.quick, workers=args.workers)
+    if not plots:
+        print(f'ring_gyro report: figures skipped (no matplotlib); CSVs and summary in '
+              f'{args.out}', file=sys.stderr)
     print(json.dumps({'out': args.out, 'quick': args.quick,
                       'wall_time_s': summary['wall_time_s'],
                       'cases': {c['name']: c.get('final_branch') for c in summary['cases']}}))

@@ -20,22 +20,173 @@ Messages are published in log-time order, already serialized (no decode / re-enc
 KeepLast(100): what the node offers, so estimators with default subscriptions connect.
 With ``--clock`` the log time is also published on ``/clock`` before each message (for
 subscribers that run on ``use_sim_time``).
+
+Gaps
+    A gap between two consecutive log times longer than ``max_gap_s`` (``--max-gap``,
+    default :data:`MAX_GAP_S`; ``inf`` keeps every gap) is shortened to ``max_gap_s``, with a
+    warning naming where: an input stamped years ahead (a 2038 stamp) does not make replay
+    wait for years. The later messages keep their spacing.
+
+Signals
+    SIGINT (Ctrl-C) and SIGTERM stop the replay within :data:`SIGNAL_LATENCY_S` (also during
+    the discovery wait and any gap), the node is destroyed and rclpy shut down:
+    :attr:`ReplayResult.stopped_by` names the signal and ``ring_gyro replay`` exits with code 0,
+    saying how many messages were published. A second signal stops at once.
+
+Files
+    The recording is checked before ROS starts: an empty (0-byte) file, a file that is not
+    MCAP, an incomplete one (no summary: a killed recorder or a cut-off copy), one whose
+    chunks cannot be read, or a selection with no messages is refused with a
+    :class:`~ring_gyro_sim.recording.errors.RecordingError` naming the file and the reason
+    (exit code 1).
 """
 
+from dataclasses import dataclass
+import math
+import signal
+import sys
+import threading
 import time
-from typing import Iterable, Optional
+from typing import Callable, Iterable, List, Optional
 
 from ring_gyro_sim.core.errors import InputError
+from ring_gyro_sim.recording.errors import RecordingError
+
+__all__: List[str] = ['DISCOVERY_WAIT_S', 'MAX_GAP_S', 'ReplayResult', 'check_recording',
+                      'replay']
 
 DISCOVERY_WAIT_S = 3.0
 """Time given to subscribers to discover the new publishers before the first message."""
+MAX_GAP_S = 1.0
+"""Longest gap between consecutive log times that replay keeps, s (of log time). Gaps in a
+recording of the node or of ``ring_gyro run`` are one block (10 ms by default); a scheduled
+shock or an input may come later, but hardly a second after the last block."""
+SIGNAL_LATENCY_S = 0.05
+"""Longest single sleep, s: how soon a signal is acted on."""
+MAX_GAP_WARNINGS = 5
+"""Gap warnings printed in one replay (the rest are only counted)."""
+_MCAP_MAGIC = b'\x89MCAP0\r\n'
+
+
+@dataclass
+class ReplayResult:
+    """
+    What one replay did.
+
+    Attributes
+    ----------
+    published : int
+        Messages published (without /clock).
+    total : int
+        Messages selected for replay.
+    stopped_by : str or None
+        'SIGINT' or 'SIGTERM' if a signal stopped the replay, else None.
+    shortened_gaps : int
+        Gaps longer than ``max_gap_s`` that were shortened.
+    skipped_s : float
+        Log time skipped by shortening them, s.
+
+    """
+
+    published: int
+    total: int
+    stopped_by: Optional[str] = None
+    shortened_gaps: int = 0
+    skipped_s: float = 0.0
+
+    def describe(self) -> str:
+        """Return the one-line note ``ring_gyro replay`` prints at the end."""
+        if self.stopped_by:
+            text = (f'stopped by {self.stopped_by}: replayed {self.published} of '
+                    f'{self.total} messages')
+        else:
+            text = f'replayed {self.published} messages'
+        if self.shortened_gaps:
+            text += (f' ({self.shortened_gaps} gap(s) shortened, {self.skipped_s:.6g} s of '
+                     'log time skipped)')
+        return text
+
+
+def check_recording(path, topics: Optional[Iterable[str]] = None) -> int:
+    """
+    Check that ``path`` is a complete MCAP recording with messages to replay.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The recording.
+    topics : iterable of str, optional
+        Only these topics (each must be in the recording).
+
+    Returns
+    -------
+    int
+        The number of messages selected.
+
+    Raises
+    ------
+    RecordingError
+        The file is missing, empty, not MCAP, incomplete (no summary) or has no messages to
+        replay; the message names the file and the reason.
+
+    """
+    from mcap.reader import SeekingReader
+    name = repr(str(path))
+    try:
+        with open(path, 'rb') as stream:
+            magic = stream.read(len(_MCAP_MAGIC))
+            size = stream.seek(0, 2)
+            if size == 0:
+                raise RecordingError(f'recording {name} is empty (0 bytes)')
+            if magic != _MCAP_MAGIC:
+                raise RecordingError(f'{name} is not an MCAP file ({size} bytes, no MCAP '
+                                     'magic at the start)')
+            stream.seek(0)
+            try:
+                summary = SeekingReader(stream).get_summary()
+            except Exception:  # noqa: B902 - whatever a cut-off file makes mcap raise
+                summary = None
+    except OSError as exc:
+        raise RecordingError(f'cannot read recording {name}: {exc.strerror or exc}') from exc
+    if summary is None or summary.statistics is None:
+        raise RecordingError(
+            f'recording {name} is incomplete: it has no summary (the recorder was killed or '
+            'the file was cut off); replay needs a complete file')
+    counts = summary.statistics.channel_message_counts
+    by_topic = {}
+    for channel_id, channel in summary.channels.items():
+        by_topic[channel.topic] = by_topic.get(channel.topic, 0) + counts.get(channel_id, 0)
+    if topics:
+        unknown = sorted(set(topics) - set(by_topic))
+        if unknown:
+            raise RecordingError(f'--topics: {", ".join(unknown)} not in recording {name} '
+                                 f'(it has {", ".join(sorted(by_topic)) or "no topics"})')
+        by_topic = {t: n for t, n in by_topic.items() if t in set(topics)}
+    total = sum(by_topic.values())
+    if total == 0:
+        raise RecordingError(f'recording {name} holds no messages'
+                             + (' on the selected topics' if topics else ''))
+    return total
+
+
+class _Stop:
+    """SIGINT / SIGTERM handler: note the first signal, raise KeyboardInterrupt on the second."""
+
+    def __init__(self) -> None:
+        self.signal: Optional[str] = None
+
+    def __call__(self, signum, frame) -> None:
+        if self.signal is not None:
+            raise KeyboardInterrupt
+        self.signal = signal.Signals(signum).name
 
 
 def replay(path: str, rate: float = 1.0, clock: bool = False,
            topics: Optional[Iterable[str]] = None, discovery_wait_s: float = DISCOVERY_WAIT_S,
-           node_name: str = 'ring_gyro_replay') -> int:
+           node_name: str = 'ring_gyro_replay', max_gap_s: float = MAX_GAP_S,
+           warn: Optional[Callable[[str], None]] = None) -> ReplayResult:
     """
-    Publish the messages of ``path``; returns how many were published.
+    Publish the messages of ``path``; see the module docstring.
 
     Parameters
     ----------
@@ -51,60 +202,156 @@ def replay(path: str, rate: float = 1.0, clock: bool = False,
         Wall time to wait after creating the publishers, so that subscribers discover them, s.
     node_name : str
         Name of the publishing node.
+    max_gap_s : float
+        Longest gap between consecutive log times kept, s (``inf``: all), > 0.
+    warn : callable, optional
+        Called with each warning line (default: printed on stderr).
+
+    Returns
+    -------
+    ReplayResult
+        How many messages were published and whether a signal stopped the replay.
+
+    Raises
+    ------
+    InputError
+        A bad ``rate`` or ``max_gap_s``.
+    RecordingError
+        The file cannot be replayed (see :func:`check_recording`) or a chunk cannot be read.
 
     """
-    if not rate > 0.0:
-        raise InputError(f'rate: must be > 0, got {rate!r}')
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    if not rate > 0.0 or not math.isfinite(rate):
+        raise InputError(f'rate: must be a finite number > 0, got {rate!r}')
+    if not max_gap_s > 0.0:
+        raise InputError(f'max_gap: must be > 0 s (inf keeps every gap), got {max_gap_s!r}')
+    topics = list(topics) if topics else None
+    if warn is None:
+        def warn(line):
+            print(f'ring_gyro replay: warning: {line}', file=sys.stderr)
+    total = check_recording(path, topics)
+    stop = _Stop()
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return _publish(path, rate, clock, topics, discovery_wait_s, node_name, max_gap_s,
+                        warn, total, stop)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
-    from ring_gyro_sim.recording.reader import read_messages, read_topics
-    from ring_gyro_sim.recording.schemas import message_class
-    from ring_gyro_sim.ros.conversions import clock_message
 
+def _publish(path, rate, clock, topics, discovery_wait_s, node_name, max_gap_s, warn, total,
+             stop) -> ReplayResult:
+    result = ReplayResult(published=0, total=total)
+    try:
+        import rclpy
+        from rclpy.executors import ExternalShutdownException
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+        from rclpy.signals import SignalHandlerOptions
+
+        from ring_gyro_sim.recording.reader import read_messages, read_topics
+        from ring_gyro_sim.recording.schemas import message_class
+        from ring_gyro_sim.ros.conversions import clock_message
+    except KeyboardInterrupt:  # a second signal during the imports
+        result.stopped_by = stop.signal
+        return result
+    if stop.signal:
+        result.stopped_by = stop.signal
+        return result
     wanted = set(topics) if topics else None
     types = {t: name for t, name in read_topics(path).items() if wanted is None or t in wanted}
-    messages = read_messages(path, topics=list(topics) if topics else None)
-    rclpy.init()
-    node = rclpy.create_node(node_name)
-    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-    # Every publisher before the discovery wait, so that no topic's first message is lost.
-    publishers = {t: node.create_publisher(message_class(name), t, qos)
-                  for t, name in types.items()}
-    clock_pub = node.create_publisher(message_class('rosgraph_msgs/msg/Clock'), '/clock',
-                                      qos) if clock else None
-    count = 0
+    # Our own handlers (above), not rclpy's: those would shut the context down under a publish.
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = None
     try:
-        first = None
-        start = None
+        node = rclpy.create_node(node_name)
+        qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        # Every publisher before the discovery wait, so that no topic's first message is lost.
+        publishers = {t: node.create_publisher(message_class(name), t, qos)
+                      for t, name in types.items()}
+        clock_pub = node.create_publisher(message_class('rosgraph_msgs/msg/Clock'), '/clock',
+                                          qos) if clock else None
+        messages = _checked(read_messages(path, topics=topics), path)
+        first = previous = None
+        start = 0.0
+        skipped_ns = 0
+        max_gap_ns = max_gap_s * 1e9
         for m in messages:
+            if stop.signal:
+                break
             if m.topic not in publishers:
                 publishers[m.topic] = node.create_publisher(message_class(m.type_name),
                                                             m.topic, qos)
             if first is None:
-                _wait(node, discovery_wait_s)
-                first = m.log_time_ns
+                if not _spin_for(node, discovery_wait_s, stop):
+                    break
+                first = previous = m.log_time_ns
                 start = time.monotonic()
-            due = start + (m.log_time_ns - first) * 1e-9 / rate
-            delay = due - time.monotonic()
-            if delay > 0.0:
-                time.sleep(delay)
+            gap_ns = m.log_time_ns - previous
+            if gap_ns > max_gap_ns:
+                skipped_ns += gap_ns - max_gap_ns
+                result.shortened_gaps += 1
+                result.skipped_s = skipped_ns * 1e-9
+                if result.shortened_gaps <= MAX_GAP_WARNINGS:
+                    warn(f'a gap of {gap_ns * 1e-9:.6g} s in the log times before the message '
+                         f'on {m.topic} at {m.log_time_ns * 1e-9:.6g} s: shortened to '
+                         f'{max_gap_s:g} s (--max-gap)')
+            previous = m.log_time_ns
+            due = start + (m.log_time_ns - first - skipped_ns) * 1e-9 / rate
+            if not _sleep_until(due, stop):
+                break
             if clock_pub is not None:
                 clock_pub.publish(clock_message(m.log_time_ns))
             publishers[m.topic].publish(m.data)
-            count += 1
-        _wait(node, 0.5)  # let reliable publishers deliver the tail
+            result.published += 1
+        else:
+            _spin_for(node, 0.5, stop)  # let reliable publishers deliver the tail
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        pass  # a second signal, or the context shut down from outside
     finally:
-        node.destroy_node()
+        if node is not None:
+            node.destroy_node()
         rclpy.try_shutdown()
-    return count
+    result.stopped_by = stop.signal
+    return result
 
 
-def _wait(node, seconds: float) -> None:
+def _checked(messages, path):
+    """Yield ``messages``; a chunk that cannot be read raises RecordingError naming ``path``."""
+    iterator = iter(messages)
+    count = 0
+    while True:
+        try:
+            m = next(iterator)
+        except StopIteration:
+            return
+        except RecordingError:
+            raise
+        except Exception as exc:  # noqa: B902 - mcap, zstd, CRC errors of a damaged chunk
+            raise RecordingError(f'recording {str(path)!r} is damaged after {count} messages: '
+                                 f'{type(exc).__name__}: {exc}') from exc
+        count += 1
+        yield m
+
+
+def _sleep_until(due: float, stop) -> bool:
+    """Sleep until monotonic time ``due`` in short slices; False if a signal came first."""
+    while not stop.signal:
+        delay = due - time.monotonic()
+        if delay <= 0.0:
+            return True
+        time.sleep(min(delay, SIGNAL_LATENCY_S))
+    return False
+
+
+def _spin_for(node, seconds: float, stop) -> bool:
+    """Serve the node's events for ``seconds``; False if a signal came first."""
     import rclpy
     end = time.monotonic() + seconds
     while time.monotonic() < end:
-        rclpy.spin_once(node, timeout_sec=0.05)
+        if stop.signal:
+            return False
+        rclpy.spin_once(node, timeout_sec=min(SIGNAL_LATENCY_S, max(end - time.monotonic(),
+                                                                    0.0)))
+    return not stop.signal

@@ -24,6 +24,8 @@ machine, so that it neither disturbs nor is disturbed by other sessions.
 import os
 import pathlib
 import random
+import re
+import signal
 import subprocess
 import sys
 import time
@@ -38,6 +40,8 @@ from ring_gyro_sim import cli
 from ring_gyro_sim.core.params import build_config
 from ring_gyro_sim.offline import run_offline
 from ring_gyro_sim.recording.reader import decode, read_messages
+from ring_gyro_sim.recording.writer import BagWriter
+from ring_gyro_sim.replay import MAX_GAP_S
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray
 
@@ -86,8 +90,12 @@ class Received:
         return len(self.topic(name))
 
 
-def replay_and_receive(path, *args, timeout=60.0):
-    """Run ``ring_gyro replay path *args`` in its own process and receive what it publishes."""
+def replay_and_receive(path, *args, timeout=60.0, during=None):
+    """
+    Run ``ring_gyro replay path *args`` in its own process and receive what it publishes.
+
+    ``during(proc, items)``, if given, is called between the spins while the replay runs.
+    """
     context = rclpy.Context()
     rclpy.init(context=context, domain_id=DOMAIN_ID)
     node = rclpy.create_node(f'replay_probe_{os.getpid()}', context=context)
@@ -103,7 +111,7 @@ def replay_and_receive(path, *args, timeout=60.0):
         [str(REPO_ROOT)] + [p for p in env.get('PYTHONPATH', '').split(os.pathsep) if p])
     env['ROS_DOMAIN_ID'] = str(DOMAIN_ID)
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    err_path = pathlib.Path(path).with_suffix(f'.{len(args)}.stderr')
+    err_path = pathlib.Path(path).with_suffix(f'.{len(args)}.{time.monotonic_ns()}.stderr')
     try:
         with open(err_path, 'wb') as err:
             proc = subprocess.Popen(replay_command() + ['replay', str(path), *args], env=env,
@@ -115,6 +123,9 @@ def replay_and_receive(path, *args, timeout=60.0):
                     proc.wait()
                     pytest.fail(f'replay did not finish within {timeout} s')
                 executor.spin_once(timeout_sec=0.005)
+                if during is not None:
+                    during(proc, items)
+        end = time.monotonic()
         tail = time.monotonic() + 0.5
         while time.monotonic() < tail:
             executor.spin_once(timeout_sec=0.01)
@@ -122,7 +133,9 @@ def replay_and_receive(path, *args, timeout=60.0):
         executor.shutdown()
         node.destroy_node()
         context.try_shutdown()
-    return Received(items, (proc.returncode, err_path.read_text(errors='replace')))
+    got = Received(items, (proc.returncode, err_path.read_text(errors='replace')))
+    got.end = end
+    return got
 
 
 def recorded_blocks(path, topic=f'{NS}/modal_displacement'):
@@ -214,3 +227,173 @@ def test_bad_arguments_fail_before_ros(recording, tmp_path, capsys):
     missing = tmp_path / 'missing.mcap'
     assert cli.main(['replay', str(missing)]) != 0
     assert 'missing.mcap' in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ hardening (issue 10 item 5)
+
+FAR_FUTURE_NS = 2_145_916_800 * 1_000_000_000
+"""2038-01-01T00:00:00Z in ns: an input stamped in 2038 (issue 10 item 5)."""
+
+
+class SignalAfter:
+    """Send ``sig`` once ``count`` messages of ``topic`` have arrived (plus ``wait_s``)."""
+
+    def __init__(self, sig, count, topic=f'{NS}/modal_displacement', wait_s=0.0):
+        self.sig, self.count, self.topic, self.wait_s = sig, count, topic, wait_s
+        self.reached = None
+        self.sent = None
+        self.received_before = None
+
+    def __call__(self, proc, items):
+        if self.sent is not None:
+            return
+        if self.reached is None and sum(t == self.topic for _, t, _ in items) >= self.count:
+            self.reached = time.monotonic()
+        if self.reached is not None and time.monotonic() >= self.reached + self.wait_s:
+            self.received_before = len(items)
+            proc.send_signal(self.sig)
+            self.sent = time.monotonic()
+
+
+def ended_after_signal(got, signaller):
+    """Seconds from the signal to the end of the replay process (as this test saw it)."""
+    return got.end - signaller.sent
+
+
+@pytest.fixture(scope='module')
+def long_recording(tmp_path_factory):
+    """Record 2 s without a shock: 40 blocks per block topic, so replay takes 5 s in all."""
+    path = tmp_path_factory.mktemp('replay_long') / 'long.mcap'
+    config = build_config({'drive.amplitude': 0.0, 'drive.start_on': 'rest',
+                           'output.rate': 20000.0, 'output.block_duration': BLOCK_S})
+    run_offline(config, 2.0, output=str(path), progress=False)
+    return path
+
+
+@pytest.fixture(scope='module')
+def far_future_recording(recording, tmp_path_factory):
+    """Copy the 0.6 s recording and add one shock stamped (logged) in 2038, as a node would."""
+    path = tmp_path_factory.mktemp('replay_2038') / 'far.mcap'
+    with BagWriter(path) as bag:
+        topics = set()
+        for m in read_messages(recording):
+            if m.topic not in topics:
+                bag.add_topic(m.topic, m.type_name)
+                topics.add(m.topic)
+            bag.write(m.topic, m.data, m.log_time_ns)
+        shock = Vector3Stamped()
+        shock.header.stamp.sec = FAR_FUTURE_NS // 1_000_000_000
+        shock.vector.x = 9806.65
+        bag.write(f'{NS}/shock', shock, FAR_FUTURE_NS)
+    return path
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=lambda s: s.name)
+def test_a_signal_during_replay_ends_it_cleanly(long_recording, sig):
+    # After 5 of the 40 blocks: well inside the replay (the first block comes after the 3 s
+    # discovery wait, the last 2 s later).
+    signaller = SignalAfter(sig, 5)
+    got = replay_and_receive(long_recording, during=signaller)
+    assert signaller.sent is not None, got.stderr
+    assert 'Traceback' not in got.stderr and 'RCLError' not in got.stderr, got.stderr
+    assert got.returncode == 0, got.stderr
+    note = re.search(rf'stopped by {sig.name}: replayed (\d+) of (\d+) messages', got.stderr)
+    assert note, got.stderr
+    published, total = int(note.group(1)), int(note.group(2))
+    # 40 blocks on each of 3 topics and /diagnostics once per simulated second (at 1 and 2 s).
+    assert total == 122
+    assert signaller.received_before <= published < total
+    assert got.count(f'{NS}/modal_displacement') < 40
+    # One sleep slice (50 ms) plus the shutdown of rclpy, generously under load.
+    assert ended_after_signal(got, signaller) < 5.0
+
+
+def test_a_signal_during_the_discovery_wait_ends_at_once(recording):
+    state = {}
+
+    def during(proc, items):
+        state.setdefault('start', time.monotonic())
+        if 'sent' not in state and time.monotonic() - state['start'] > 1.0:
+            proc.send_signal(signal.SIGINT)
+            state['sent'] = time.monotonic()
+    start = time.monotonic()
+    got = replay_and_receive(recording, during=during)
+    assert got.returncode == 0, got.stderr
+    assert 'Traceback' not in got.stderr
+    assert 'stopped by SIGINT: replayed 0 of 38 messages' in got.stderr
+    assert not got.items
+    # The 3 s discovery wait is cut short (signal after 1 s plus start-up).
+    assert got.end - start < 1.0 + DISCOVERY_AND_START_S
+
+
+DISCOVERY_AND_START_S = 8.0
+"""Start-up of the replay process (imports) before its discovery wait, generously."""
+
+
+def test_a_2038_input_does_not_make_replay_wait_until_2038(far_future_recording):
+    # Before the fix this waited 12 years: the timeout ends it (30 s >> 3 s discovery +
+    # 0.6 s + 1 s shortened gap + 0.5 s tail).
+    got = replay_and_receive(far_future_recording, timeout=30.0)
+    assert got.returncode == 0, got.stderr
+    assert 'replayed 39 messages (1 gap(s) shortened' in got.stderr
+    assert re.search(r'warning: a gap of [0-9.e+]+ s in the log times before the message on '
+                     rf'{NS}/shock at 2\.14592e\+09 s: shortened to 1 s', got.stderr), got.stderr
+    shocks = got.topic(f'{NS}/shock')
+    assert len(shocks) == 2
+    assert shocks[-1][1].header.stamp.sec == FAR_FUTURE_NS // 1_000_000_000
+    last_block = got.topic(f'{NS}/modal_displacement')[-1][0]
+    # The gap after the last block (log time 0.55 s) is cut to MAX_GAP_S.
+    assert shocks[-1][0] - last_block == pytest.approx(MAX_GAP_S, abs=JITTER_S)
+
+
+def test_sigterm_ends_a_long_gap_kept_by_max_gap_inf(far_future_recording):
+    # --max-gap inf keeps the 12-year gap: the replay then waits, but a SIGTERM ends it.
+    signaller = SignalAfter(signal.SIGTERM, 12, wait_s=0.5)
+    got = replay_and_receive(far_future_recording, '--max-gap', 'inf', timeout=60.0,
+                             during=signaller)
+    assert signaller.sent is not None, got.stderr
+    assert got.returncode == 0, got.stderr
+    assert 'Traceback' not in got.stderr
+    assert 'stopped by SIGTERM: replayed 38 of 39 messages' in got.stderr
+    assert got.count(f'{NS}/shock') == 1
+    assert ended_after_signal(got, signaller) < 5.0
+
+
+def run_replay(*args, timeout=60.0):
+    """Run ``ring_gyro replay *args``; return (exit code, stderr, wall time)."""
+    env = dict(os.environ)
+    env['PYTHONPATH'] = os.pathsep.join(
+        [str(REPO_ROOT)] + [p for p in env.get('PYTHONPATH', '').split(os.pathsep) if p])
+    env['ROS_DOMAIN_ID'] = str(DOMAIN_ID)
+    start = time.monotonic()
+    proc = subprocess.run(replay_command() + ['replay', *map(str, args)], env=env,
+                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, timeout=timeout)
+    return proc.returncode, proc.stderr.decode(errors='replace'), time.monotonic() - start
+
+
+@pytest.mark.parametrize('kind, reason', [
+    ('empty', 'is empty (0 bytes)'),
+    ('short', 'is not an MCAP file (3 bytes'),
+    ('yaml', 'is not an MCAP file'),
+    ('truncated', 'is incomplete: it has no summary'),
+])
+def test_a_file_that_cannot_be_replayed_is_refused(recording, tmp_path, kind, reason):
+    path = tmp_path / f'{kind}.mcap'
+    content = {'empty': b'', 'short': b'abc',
+               'yaml': (REPO_ROOT / 'config' / 'demo.yaml').read_bytes(),
+               # half the file: every chunk before the cut is complete, the summary is gone
+               'truncated': recording.read_bytes()[:recording.stat().st_size // 2]}[kind]
+    path.write_bytes(content)
+    code, err, wall = run_replay(path)
+    assert code == 1, err
+    assert 'Traceback' not in err
+    assert 'ring_gyro replay: error: ' in err and str(path) in err and reason in err, err
+    assert 'replayed' not in err
+    # Refused before ROS starts: no discovery wait (3 s).
+    assert wall < DISCOVERY_AND_START_S
+
+
+def test_topics_not_in_the_recording_are_refused(recording):
+    code, err, _ = run_replay(recording, '--topics', '/nope')
+    assert code == 1, err
+    assert '--topics: /nope not in recording' in err and f'{NS}/radial_gap' in err

@@ -18,13 +18,40 @@ Plots of the analysis results: the only module of the package that imports matpl
 matplotlib is imported lazily, inside the functions, with the non-interactive Agg backend,
 so importing this module (or the analysis layer) costs nothing and needs no display.
 Results are drawn in micrometres and kilohertz; the data stay in SI units.
+
+matplotlib is optional (the ``plots`` extra). Without it every ``plot_*`` function draws
+nothing and returns False (True when it wrote the file), so that the CSVs and summaries of
+``ring_gyro backbone``, ``frf`` and ``report`` are still written; :func:`available` tells
+beforehand, and :data:`MISSING_MATPLOTLIB` says how to install it (the command line prints it
+once, at the start).
 """
+
+import functools
 
 import numpy as np
 
+MISSING_MATPLOTLIB = ('matplotlib is not installed: the plots will be skipped (the CSV and '
+                      'summary files are still written). Install it with '
+                      '`pip install matplotlib` (or the plots extra: `pip install '
+                      "'ring_gyro_sim[plots]'`; in a ROS workspace: rosdep key "
+                      'python3-matplotlib, `apt install python3-matplotlib`).')
+"""What to tell a user without matplotlib."""
+
+
+@functools.lru_cache(maxsize=None)
+def available() -> bool:
+    """Tell whether matplotlib can be imported (tried once; imports it)."""
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
 
 def _pyplot():
-    """Return ``matplotlib.pyplot`` on the Agg backend (imported on first use)."""
+    """Return ``matplotlib.pyplot`` on the Agg backend (imported on first use), or None."""
+    if not available():
+        return None
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -40,7 +67,7 @@ def _save(plt, fig, path) -> None:
         plt.close(fig)
 
 
-def plot_backbone(backbone, path, title=None) -> None:
+def plot_backbone(backbone, path, title=None) -> bool:
     """
     Save the backbone of a nonlinear mode (frequency against amplitude, as Fig. 4).
 
@@ -55,6 +82,8 @@ def plot_backbone(backbone, path, title=None) -> None:
 
     """
     plt = _pyplot()
+    if plt is None:
+        return False
     fig, ax = plt.subplots(figsize=(6.0, 4.5))
     try:
         label = f'N_T = {backbone.taylor_terms}' if backbone.taylor_terms else 'untruncated'
@@ -68,6 +97,7 @@ def plot_backbone(backbone, path, title=None) -> None:
         _save(plt, fig, path)
     finally:
         plt.close(fig)  # also when drawing failed (closing twice is harmless)
+    return True
 
 
 def _runs(mask: np.ndarray):
@@ -78,7 +108,7 @@ def _runs(mask: np.ndarray):
     return list(zip(starts, stops))
 
 
-def plot_forced_response(response, path, title=None, marker_hz=None) -> None:
+def plot_forced_response(response, path, title=None, marker_hz=None) -> bool:
     """
     Save the forced response (amplitude against drive frequency, as Fig. 9).
 
@@ -97,6 +127,8 @@ def plot_forced_response(response, path, title=None, marker_hz=None) -> None:
 
     """
     plt = _pyplot()
+    if plt is None:
+        return False
     fig, axes = plt.subplots(1, 2, figsize=(11.0, 4.5))
     try:
         f = response.frequency_hz * 1e-3
@@ -132,6 +164,37 @@ def plot_forced_response(response, path, title=None, marker_hz=None) -> None:
         _save(plt, fig, path)
     finally:
         plt.close(fig)  # also when drawing failed (closing twice is harmless)
+    return True
+
+
+def plot_backbones(backbones, path, title='Fig. 4: nonlinear mode q1 for several N_T') -> bool:
+    """
+    Save several backbones (one per N_T) on one axis (Fig. 4 of the report).
+
+    Parameters
+    ----------
+    backbones : sequence of ring_gyro_sim.analysis.hbm.Backbone
+        The results to draw.
+    path : str or path-like
+        PNG file.
+    title : str
+        Plot title.
+
+    """
+    plt = _pyplot()
+    if plt is None:
+        return False
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for b in backbones:
+        ax.plot(b.frequency_hz * 1e-3, b.amplitude_m * 1e6, lw=1.0,
+                label=f'N_T = {b.taylor_terms}')
+    ax.set_xlabel('frequency (kHz)')
+    ax.set_ylabel('max |q1| (um)')
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    _save(plt, fig, path)
+    return True
 
 
 # ---------------------------------------------------------------- time-domain cases
@@ -146,7 +209,7 @@ def _branch_lines(ax, branches) -> None:
             ax.axhline(value * 1e6, color='grey', ls=style, lw=0.8, label=label)
 
 
-def plot_case(result, path, title=None, log=True) -> None:
+def plot_case(result, path, title=None, log=True) -> bool:
     """
     Save the positive envelopes of the modal displacements of one case (Figs. 10-12, 14-15).
 
@@ -163,6 +226,8 @@ def plot_case(result, path, title=None, log=True) -> None:
 
     """
     plt = _pyplot()
+    if plt is None:
+        return False
     e = result.envelope
     fig, ax = plt.subplots(figsize=(8, 4.5))
     for name in e.names:
@@ -177,10 +242,11 @@ def plot_case(result, path, title=None, log=True) -> None:
     ax.grid(True, which='both', alpha=0.3)
     ax.legend(fontsize=8, loc='best')
     _save(plt, fig, path)
+    return True
 
 
 def plot_q2_sweep(results, path, title='Case 4: q2 envelope for Q_1 from 5 000 to 180 000'
-                  ) -> None:
+                  ) -> bool:
     """
     Save the q2 envelopes of a Q_1 sweep on one axis (Fig. 13).
 
@@ -195,6 +261,8 @@ def plot_q2_sweep(results, path, title='Case 4: q2 envelope for Q_1 from 5 000 t
 
     """
     plt = _pyplot()
+    if plt is None:
+        return False
     fig, ax = plt.subplots(figsize=(8, 4.5))
     for r in results:
         ax.plot(r.envelope.t, r.envelope.channel('q2') * 1e6, lw=0.9,
@@ -208,10 +276,11 @@ def plot_q2_sweep(results, path, title='Case 4: q2 envelope for Q_1 from 5 000 t
     ax.grid(True, which='both', alpha=0.3)
     ax.legend(fontsize=8, loc='best')
     _save(plt, fig, path)
+    return True
 
 
 def plot_ritz_orders(results, path, channel='w0',
-                     title='Fig. 5: radial displacement envelope for N_R = 1..5') -> None:
+                     title='Fig. 5: radial displacement envelope for N_R = 1..5') -> bool:
     """
     Save the envelope of the radial displacement for several Ritz orders (Fig. 5).
 
@@ -228,6 +297,8 @@ def plot_ritz_orders(results, path, channel='w0',
 
     """
     plt = _pyplot()
+    if plt is None:
+        return False
     fig, ax = plt.subplots(figsize=(8, 4.5))
     for r in results:
         ax.plot(r.envelope.t, r.envelope.channel(channel) * 1e6, lw=0.9,
@@ -238,10 +309,11 @@ def plot_ritz_orders(results, path, channel='w0',
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     _save(plt, fig, path)
+    return True
 
 
 def plot_spectrogram(spec, path, ridge_t=None, ridge_hz=None, f_max_hz=70e3,
-                     title='Fig. 7: spectrogram of q1 after a 10 000 g shock') -> None:
+                     title='Fig. 7: spectrogram of q1 after a 10 000 g shock') -> bool:
     """
     Save a spectrogram (Fig. 7) with an optional ridge of the 1theta line.
 
@@ -260,6 +332,8 @@ def plot_spectrogram(spec, path, ridge_t=None, ridge_hz=None, f_max_hz=70e3,
 
     """
     plt = _pyplot()
+    if plt is None:
+        return False
     ncols = 2 if ridge_t is not None else 1
     fig, axes = plt.subplots(1, ncols, figsize=(5.5 * ncols, 4.5), squeeze=False)
     ax = axes[0, 0]
@@ -279,3 +353,4 @@ def plot_spectrogram(spec, path, ridge_t=None, ridge_hz=None, f_max_hz=70e3,
         ax2.set_title('zoom: 1theta line (ridge)', fontsize=9)
         ax2.grid(True, alpha=0.3)
     _save(plt, fig, path)
+    return True

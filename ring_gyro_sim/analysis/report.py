@@ -561,21 +561,9 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
 
 
 def _plot_backbones(backbones, path) -> None:
-    """Fig. 4: the 1theta backbones for several N_T on one axis."""
-    from ring_gyro_sim.analysis.plotting import _pyplot
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for b in backbones:
-        ax.plot(b.frequency_hz * 1e-3, b.amplitude_m * 1e6, lw=1.0,
-                label=f'N_T = {b.taylor_terms}')
-    ax.set_xlabel('frequency (kHz)')
-    ax.set_ylabel('max |q1| (um)')
-    ax.set_title('Fig. 4: nonlinear mode q1 for several N_T', fontsize=10)
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    """Fig. 4: the 1theta backbones for several N_T on one axis (skipped without matplotlib)."""
+    from ring_gyro_sim.analysis import plotting
+    plotting.plot_backbones(backbones, path)
 
 
 def _clean(v):

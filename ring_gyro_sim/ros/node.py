@@ -34,9 +34,10 @@ Pacing
     inputs while the node lags). ``duration`` > 0 ends the run after that much simulated time;
     SIGINT or SIGTERM end it at the next block boundary. Either way: final diagnostics, a
     summary in the log (peak |q1|, smallest gap, q2 amplitude before the first shock and over
-    the last 10 ms), the recording finalised, exit code 0. A bad parameter file or value, an
-    unwritable ``record.path`` or a failed ``drive.start_on`` orbit: one FATAL line naming the
-    parameter, exit code 1.
+    the last 10 ms), the recording finalised, exit code 0. A signal before that, during
+    start-up, ends the process at once, exit code 0, without a traceback (see
+    ``ring_gyro_sim.ros``). A bad parameter file or value, an unwritable ``record.path`` or a
+    failed ``drive.start_on`` orbit: one FATAL line naming the parameter, exit code 1.
 
     The node is spun with ``SingleThreadedExecutor.spin_once`` in a loop, not
     ``spin_until_future_complete``: rclpy (Jazzy) adds a done-callback to the future on
@@ -99,7 +100,7 @@ from ring_gyro_sim import run as run_mod
 from ring_gyro_sim.analysis.nnm import drive_initial_state
 from ring_gyro_sim.core.errors import InputError, ParameterError, RingGyroError
 from ring_gyro_sim.paramfile import check_node_arguments
-from ring_gyro_sim.ros import conversions, parameters
+from ring_gyro_sim.ros import conversions, EARLY_SIGNALS, parameters
 from ring_gyro_sim.ros.recorder import RunRecorder
 from ring_gyro_sim.ros.sinks import Publishers, RosSink
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -490,6 +491,10 @@ def main(args=None) -> int:
     executor = None
     code = 0
     try:
+        if EARLY_SIGNALS:  # during the imports or rclpy.init: end before starting
+            name = signal.Signals(EARLY_SIGNALS[0]).name
+            print(f'[INFO] [ring_gyro_node]: stopped ({name}) during start-up', file=sys.stderr)
+            return 0
         node = RingGyroNode()
         stop.node = node
         executor = SingleThreadedExecutor()

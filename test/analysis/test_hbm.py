@@ -209,6 +209,7 @@ def is_png(path):
 
 
 def test_cli_backbone_writes_csv_and_png(tmp_path, capsys):
+    pytest.importorskip('matplotlib')  # an extra (setup.py 'plots')
     out = tmp_path / 'backbone.csv'
     assert cli.main(['backbone', '--mode', '1', '--taylor-terms', '4',
                      '--max-amplitude', '2e-6', '-o', str(out)]) == 0
@@ -220,6 +221,7 @@ def test_cli_backbone_writes_csv_and_png(tmp_path, capsys):
 
 
 def test_cli_frf_writes_csv_and_png(tmp_path):
+    pytest.importorskip('matplotlib')  # an extra (setup.py 'plots')
     out = tmp_path / 'frf.csv'
     assert cli.main(['frf', '--mode', '2', '--f-range', '15797', '15801',
                      '-o', str(out)]) == 0
