@@ -25,6 +25,7 @@ import sys
 from typing import List, Optional
 
 from ring_gyro_sim.core.errors import RingGyroError
+from ring_gyro_sim.run import format_number
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -112,16 +113,6 @@ def _load(path: Optional[str], node_name: str = 'ring_gyro'):
     return load_yaml(path, node_name) if path else build_config({})
 
 
-def _fixed(value: float, digits: int = 4) -> str:
-    """
-    Format ``value`` with ``digits`` decimals, or in exponent form when huge or not finite.
-
-    ``f'{1.7e308:.4f}'`` has 313 characters: a state blown up by a huge input must not print
-    like that.
-    """
-    return f'{value:.{digits}f}' if abs(value) < 1e9 else f'{value:.{digits}g}'
-
-
 def cmd_run(args) -> int:
     """``ring_gyro run``."""
     from ring_gyro_sim import offline
@@ -140,9 +131,9 @@ def cmd_run(args) -> int:
         print(f'simulated {summary.sim_time_s:.4f} s in {summary.wall_time_s:.2f} s '
               f'(x{summary.real_time_factor:.1f} real time), status {summary.status}')
         for name, peak in summary.peak_abs_m.items():
-            print(f'  {name}: peak {_fixed(peak * 1e6)} um, last 10 ms '
-                  f'{_fixed(summary.final_abs_m[name] * 1e6)} um')
-        print(f'  smallest outer gap {_fixed(summary.min_gap_m * 1e6)} um')
+            print(f'  {name}: peak {format_number(peak * 1e6)} um, last 10 ms '
+                  f'{format_number(summary.final_abs_m[name] * 1e6)} um')
+        print(f'  smallest outer gap {format_number(summary.min_gap_m * 1e6)} um')
         if summary.message:
             print(f'  {summary.message}')
         if summary.output:

@@ -234,7 +234,12 @@ class NullSink(Sink):
 
 
 def format_number(value: float, unit_scale: float = 1.0, digits: int = 4) -> str:
-    """Format ``value * unit_scale`` with ``digits`` decimals, or in exponent form when huge."""
+    """
+    Format ``value * unit_scale`` with ``digits`` decimals, or in exponent form when huge.
+
+    ``f'{1.7e308:.4f}'`` has 313 characters: a state blown up by a huge input must not print
+    like that in a summary or a log line.
+    """
     x = value * unit_scale
     if not math.isfinite(x) or abs(x) >= 1e9:
         return f'{x:.{digits}e}'
@@ -343,8 +348,18 @@ class RunSummary:
     extra: Dict[str, float] = field(default_factory=dict)
 
     def to_json(self) -> str:
-        """Return one JSON object."""
-        return json.dumps(asdict(self), sort_keys=True)
+        """Return one JSON object (a non-finite number, e.g. no gap seen yet, is null)."""
+        return json.dumps(_finite_or_none(asdict(self)), sort_keys=True, allow_nan=False)
+
+
+def _finite_or_none(value):
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite_or_none(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite_or_none(v) for v in value]
+    return value
 
 
 # ---------------------------------------------------------------------------------- the run

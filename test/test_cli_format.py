@@ -15,17 +15,30 @@
 """The printed summary of ``ring_gyro run`` stays readable for a state blown up to 1.7e308."""
 
 import argparse
+import json
 import math
+
 
 import pytest
 from ring_gyro_sim import cli, offline
+from ring_gyro_sim.run import format_number
 
 
 @pytest.mark.parametrize('value, text', [
-    (0.39412345, '0.3941'), (1.7e308, '1.7e+308'), (-3e12, '-3e+12'),
+    (0.39412345, '0.3941'), (1.7e308, '1.7000e+308'), (-3e12, '-3.0000e+12'),
     (math.inf, 'inf'), (math.nan, 'nan'), (999999.99994, '999999.9999')])
 def test_fixed_keeps_decimals_for_ordinary_values_and_exponents_for_huge(value, text):
-    assert cli._fixed(value) == text
+    assert format_number(value) == text
+
+
+def test_the_json_summary_is_valid_json_with_non_finite_numbers():
+    summary = offline.RunSummary(
+        sim_time_s=0.0, wall_time_s=0.0, real_time_factor=math.inf, peak_abs_m={'q1': 0.0},
+        final_abs_m={'q1': math.nan}, min_gap_m=math.inf, contact=False, status='running',
+        message='', samples=0, steps=0)
+    data = json.loads(summary.to_json())  # strict: Infinity / NaN would not be JSON
+    assert data['real_time_factor'] is None and data['min_gap_m'] is None
+    assert data['final_abs_m'] == {'q1': None}
 
 
 def test_run_prints_a_huge_held_state_in_a_few_characters(monkeypatch, capsys, tmp_path):
@@ -46,4 +59,4 @@ def test_run_prints_a_huge_held_state_in_a_few_characters(monkeypatch, capsys, t
     out = capsys.readouterr().out
     print(out)
     assert max(len(line) for line in out.splitlines()) < 100
-    assert 'q1: peak 1.7e+306 um' in out and 'q2: peak 0.1000 um' in out
+    assert 'q1: peak 1.7000e+306 um' in out and 'q2: peak 0.1000 um' in out

@@ -61,7 +61,7 @@ from ring_gyro_sim.analysis import nnm
 from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.params import build_config, SimConfig, STANDARD_GRAVITY
 from ring_gyro_sim.progress import Progress
-from ring_gyro_sim.run import Run, Shock
+from ring_gyro_sim.run import format_number, Run, Shock
 
 FINAL_WINDOW_S = 0.2
 """Final values: mean envelope over the last 0.2 s."""
@@ -517,7 +517,7 @@ def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
                 raw_t.append(s.t[sel])
                 raw_q.append(s.q[sel])
             amps = np.max(np.abs(s.q), axis=0)
-            bar.update(sim.time_s, 'um: ' + ' '.join(f'{a * 1e6:.3f}' for a in amps))
+            bar.update(sim.time_s, 'um: ' + ' '.join(format_number(a, 1e6, 3) for a in amps))
         if sim.status != 'running':
             min_gap = 0.0
             break
@@ -533,8 +533,9 @@ def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
     if progress:
         n = result.numbers
         sys.stderr.write(f'[{spec.name}] done: {sim.time_s:.2f} s simulated in {wall:.1f} s, '
-                         f'final q2 {n.get("final_q2_m", math.nan) * 1e6:.4f} um '
-                         f'({n.get("final_branch")}), min gap {min_gap * 1e6:.3f} um'
+                         f'final q2 {format_number(n.get("final_q2_m", math.nan), 1e6)} um '
+                         f'({n.get("final_branch")}), min gap '
+                         f'{format_number(min_gap, 1e6, 3)} um'
                          f'{", CONTACT" if result.contact else ""}\n')
     return result
 

@@ -45,6 +45,7 @@ import numpy as np
 from ring_gyro_sim.analysis import cases
 from ring_gyro_sim.analysis import envelope as env
 from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.run import format_number
 
 PAPER = {
     'backbone_f0_hz': 11.2e3,
@@ -390,7 +391,8 @@ def _markdown(summary: Dict[str, Any]) -> str:
         br = hb['frf_branches_at_drive']
         lines.append(f"| FRF branches at the drive, {summary['drive_frequency_hz']:.1f} Hz (um, "
                      's: stable) | 0.39 (top), 0.03 (bottom) at 15 798.3 Hz '
-                     '| ' + ', '.join(f'{a * 1e6:.4f} ({"s" if s else "u"})' for a, s in br)
+                     '| ' + ', '.join(f'{format_number(a, 1e6)} ({"s" if s else "u"})'
+                                      for a, s in br)
                      + ' |')
         lines.append(f'| FRF folds | bistable near 15.8 kHz | '
                      f"{', '.join(f'{f:.2f} Hz' for f in hb['frf_folds_hz'])} |")
