@@ -53,6 +53,10 @@ from ring_gyro_sim.core import forces, kernels
 from ring_gyro_sim.core.errors import InputError, SimulationError
 from ring_gyro_sim.core.params import build_config, EPSILON_0, SimConfig, to_flat
 
+__all__ = ['STEPS_PER_PERIOD', 'PULSE_SUBSTEPS_PER_DURATION', 'GAP_GRID_POINTS_PER_MODE',
+           'ELECTRODE_GAUSS_POINTS', 'GAP_FLOOR_RATIO', 'default_max_step', 'Samples',
+           'Simulator']
+
 STEPS_PER_PERIOD = 8
 """Default steps per period of the fastest mode (see :func:`default_max_step`)."""
 
@@ -82,6 +86,9 @@ def default_max_step(config: SimConfig) -> float:
 
 # Marks a pulse whose duration is that of the configuration in force when it starts.
 _DURATION_AT_START = -1.0
+
+# Pulses the cut scratch of a step holds before it is grown (2 cuts per pulse + 2).
+_CUTS_PULSES = 4
 
 
 @dataclass(frozen=True)
@@ -144,14 +151,11 @@ class Simulator:
         self._profile: List[Tuple[int, float, float]] = []
         self._events: List[Tuple[int, int, Callable[[], None]]] = []
         self._event_seq = 0
-        self._drive_amp = config.drive.amplitude
-        self._drive_omega = 2.0 * math.pi * config.drive.frequency
+        # The drive's amplitude and frequency are those of the configuration in force (the one
+        # source); the phase reference moves when they change, so the phase is continuous.
         self._drive_t_ref = 0.0
         self._drive_phase = 0.0
-        self._work = np.empty(forces.scratch_size(self.model))
-        self._fe = np.empty(n)
-        self._info = np.zeros(2, dtype=np.int64)
-        self._tinfo = np.zeros(1)
+        self._drive = self._drive_args()
         self.steps_taken = 0
         for t_s, peak in zip(config.run.shock_times, config.run.shock_peaks):
             self.shock(peak, 0.0, at_ns=int(round(t_s * 1e9)))
@@ -167,10 +171,16 @@ class Simulator:
         self.n_sub = max(1, int(math.ceil(self.period_s / h_max - 1e-9)))
         self.h = self.period_s / self.n_sub
         self._a, self._b = kernels.splitting_coefficients(config.integrator.method)
-        self._prop = kernels.linear_propagators(self.omega, self.zeta, self._a * self.h)
-        self._prop_sub = np.empty_like(self._prop)
-        self._rot = np.empty((self._b.size, 2))  # scratch of run_samples
-        self._rot_sub = np.empty((self._b.size, 2))
+        prop = kernels.linear_propagators(self.omega, self.zeta, self._a * self.h)
+        self._method = kernels.Method(period_s=self.period_s, n_sub=self.n_sub, h=self.h,
+                                      a=self._a, b=self._b, prop=prop, omega=self.omega,
+                                      zeta=self.zeta)
+        n = self.model.n_coordinates
+        self._scratch = kernels.Scratch(
+            work=np.empty(forces.scratch_size(self.model)), fe=np.empty(n),
+            info=np.zeros(2, dtype=np.int64), tinfo=np.zeros(1),
+            cuts=np.empty(2 * _CUTS_PULSES + 2), rot=np.empty((self._b.size, 2)),
+            rot_sub=np.empty((self._b.size, 2)), prop_sub=np.empty_like(prop))
         names = [f'q{n}' for n in range(1, config.modes.count + 1)]
         if config.modes.companions:
             names += [f'q{n}s' for n in range(1, config.modes.count + 1)]
@@ -256,13 +266,13 @@ class Simulator:
             raise InputError('output.rate cannot change at run time')
 
     def _apply_config(self, config: SimConfig) -> None:
-        old = self._config
+        old = self._config.drive
+        if (config.drive.amplitude != old.amplitude
+                or config.drive.frequency != old.frequency):
+            self._rephase_drive()
         self._config = config
         self._build(config)
-        self._work = np.empty(forces.scratch_size(self.model))
-        if (config.drive.amplitude != old.drive.amplitude
-                or config.drive.frequency != old.drive.frequency):
-            self._set_drive_now(config.drive.amplitude, config.drive.frequency)
+        self._drive = self._drive_args()
         if self.status == 'running':
             self._refresh_acceleration()
 
@@ -343,22 +353,30 @@ class Simulator:
         self._at_index(at_ns, 'drive')
 
         def apply() -> None:
-            amp = self._drive_amp if amplitude is None else amplitude
-            freq = (self._drive_omega / (2.0 * math.pi) if frequency_hz is None
-                    else frequency_hz)
-            self._set_drive_now(amp, freq)
+            drive = self._config.drive
+            amp = drive.amplitude if amplitude is None else float(amplitude)
+            freq = drive.frequency if frequency_hz is None else float(frequency_hz)
+            self._rephase_drive()
             self._config = replace(self._config,
-                                   drive=replace(self._config.drive, amplitude=amp,
-                                                 frequency=freq))
+                                   drive=replace(drive, amplitude=amp, frequency=freq))
+            self._drive = self._drive_args()
         self._schedule(at_ns, apply)
 
-    def _set_drive_now(self, amplitude: float, frequency_hz: float) -> None:
+    def _rephase_drive(self) -> None:
+        """Move the drive's phase reference to now, before its amplitude or frequency change."""
         t = self.time_s
-        phase = self._drive_omega * (t - self._drive_t_ref) + self._drive_phase
+        d = self._drive
+        phase = d.omega * (t - d.t_ref) + d.phase
         self._drive_phase = math.fmod(phase, 2.0 * math.pi)
         self._drive_t_ref = t
-        self._drive_amp = float(amplitude)
-        self._drive_omega = 2.0 * math.pi * float(frequency_hz)
+
+    def _drive_args(self) -> kernels.Drive:
+        """Return the kernels' drive: the configuration's, from the current phase reference."""
+        drive = self._config.drive
+        return kernels.Drive(amplitude=float(drive.amplitude),
+                             omega=2.0 * math.pi * float(drive.frequency),
+                             t_ref=float(self._drive_t_ref), phase=float(self._drive_phase),
+                             index=self._drive_index)
 
     def reset(self, at_ns: Optional[int] = None) -> None:
         """Put the ring back at rest (and clear a contact) at a sample time."""
@@ -454,22 +472,21 @@ class Simulator:
         pulse_max_sub = (float(np.min(pulse_arr[:, 1])) / PULSE_SUBSTEPS_PER_DURATION
                          if len(active) else self.h)
         prof_t, prof_x, prof_y = self._profile_arrays(t_start)
-        m = self.model
-        self._info[:] = 0
-        completed = kernels.run_samples(
-            self.q, self.v, self._acc, self.sample_index, count, self.period_s, self.n_sub,
-            self.h, self._a, self._b, self._prop, pulse_max_sub, self.omega, self.zeta,
-            self._prop_sub, m.kbasis, m.projection, m.signs, m.poly, m.taylor_terms, m.outer,
-            m.inner, m.fold, m.inner_contact,
-            m.gap, pulse_arr, prof_t, prof_x, prof_y, self._drive_amp, self._drive_omega,
-            self._drive_t_ref, self._drive_phase, self._drive_index, self._y_index, out_q,
-            out_v, self._work, self._fe, self._info, self._tinfo,
-            np.empty(2 * len(active) + 2), self._rot, self._rot_sub)
+        forcing = kernels.Forcing(pulses=pulse_arr, pulse_max_sub=pulse_max_sub,
+                                  profile_t=prof_t, profile_x=prof_x, profile_y=prof_y,
+                                  y_index=self._y_index)
+        scratch = self._scratch
+        if scratch.cuts.size < 2 * len(active) + 2:
+            scratch = self._scratch = scratch._replace(cuts=np.empty(2 * len(active) + 2))
+        scratch.info[:] = 0
+        completed = kernels.run_samples(self.q, self.v, self._acc, self.sample_index, count,
+                                        self._method, self.model.kernel, self._drive, forcing,
+                                        scratch, out_q, out_v)
         self.steps_taken += completed * self.n_sub
-        if self._info[0] != 0:
-            status = int(self._info[0])
-            theta = forces.contact_angle(m, self._info)
-            self._enter_contact(status, theta, float(self._tinfo[0]))
+        if scratch.info[0] != 0:
+            status = int(scratch.info[0])
+            theta = forces.contact_angle(self.model, scratch.info)
+            self._enter_contact(status, theta, float(scratch.tinfo[0]))
             out_q[completed:] = self.q
             out_v[completed:] = 0.0
         self.sample_index += count

@@ -285,17 +285,18 @@ def test_drive_phase_is_continuous_across_frequency_change():
     sim.set_drive(frequency_hz=15500.0)
     t = sim.time_s
     before = kernels.drive_phasor(t, 1.0, 2 * np.pi * 15000.0, 0.0, 0.0)
-    after = kernels.drive_phasor(t, sim._drive_amp, sim._drive_omega, sim._drive_t_ref,
-                                 sim._drive_phase)
+    drive = sim._drive
+    assert drive.omega == 2 * np.pi * sim.config.drive.frequency  # one source: the config
+    after = kernels.drive_phasor(t, drive.amplitude, drive.omega, drive.t_ref, drive.phase)
     assert after == pytest.approx(before, abs=1e-9)
     assert abs(before[0]) + abs(before[1]) > 0.5  # a phasor of amplitude 1, not zeros
     # The stages' drive values, by the angle-sum formula, equal the direct cosine.
     h = sim.h
     rot = np.empty((sim._b.size, 2))
-    kernels._stage_rotations(sim._a, h, sim._drive_omega, rot)
+    kernels._stage_rotations(sim._a, h, drive.omega, rot)
     c, s = after
     offsets = np.concatenate([[0.0], np.cumsum(sim._a)[:-1], [1.0]])
-    direct = np.cos(sim._drive_omega * (t + offsets * h - sim._drive_t_ref) + sim._drive_phase)
+    direct = np.cos(drive.omega * (t + offsets * h - drive.t_ref) + drive.phase)
     assert np.allclose(c * rot[:, 0] - s * rot[:, 1], direct, rtol=0, atol=1e-12)
 
 
