@@ -37,13 +37,16 @@ An input for a time already simulated raises :class:`InputError` and changes not
 Contact / pull-in
 -----------------
 When the outer (or an active inner) gap closes, or the Taylor series leaves its range
-(|w| >= d_g), the simulator stops integrating, sets :attr:`status` to ``'contact'`` with a
-message giving the time and the angle, and from then on holds the ring where it touched
-(velocities zero) while time still advances, as a pulled-in ring sticks. :meth:`reset`
-recovers. No output is ever NaN.
+(|w| >= d_g), the simulator stops integrating, sets :attr:`Simulator.status` to
+:attr:`Status.CONTACT` (:attr:`Status.FAILED` for a non-finite state) with a message giving
+the time and the angle, and from then on holds the ring where it touched (velocities zero)
+while time still advances, as a pulled-in ring sticks. :meth:`Simulator.reset` recovers. No
+output is ever NaN. :class:`Status` is a ``str`` enum: ``Status.RUNNING == 'running'`` and
+``str(Status.CONTACT) == 'contact'``, so recorded and printed statuses are the plain words.
 """
 
 from dataclasses import dataclass, replace
+import enum
 import math
 from typing import Any, Callable, List, Mapping, Optional, Tuple
 
@@ -54,7 +57,7 @@ from ring_gyro_sim.core.errors import InputError, SimulationError
 from ring_gyro_sim.core.params import build_config, EPSILON_0, SimConfig, to_flat
 
 __all__ = ['STEPS_PER_PERIOD', 'PULSE_SUBSTEPS_PER_DURATION', 'GAP_GRID_POINTS_PER_MODE',
-           'ELECTRODE_GAUSS_POINTS', 'GAP_FLOOR_RATIO', 'default_max_step', 'Samples',
+           'ELECTRODE_GAUSS_POINTS', 'GAP_FLOOR_RATIO', 'Status', 'default_max_step', 'Samples',
            'Simulator']
 
 STEPS_PER_PERIOD = 8
@@ -89,6 +92,31 @@ _DURATION_AT_START = -1.0
 
 # Pulses the cut scratch of a step holds before it is grown (2 cuts per pulse + 2).
 _CUTS_PULSES = 4
+
+
+class Status(str, enum.Enum):
+    """
+    State of a :class:`Simulator` (its :attr:`Simulator.status`).
+
+    A ``str`` enum: each member equals its value (``Status.RUNNING == 'running'``) and
+    ``str()`` / f-strings give the value, so diagnostics and summaries carry the plain word.
+    """
+
+    RUNNING = 'running'
+    """Integrating."""
+    CONTACT = 'contact'
+    """A gap closed or the Taylor series left its range: the ring is held where it touched."""
+    FAILED = 'failed'
+    """The state became non-finite (a numerical failure): the ring is held at rest."""
+
+    def __str__(self) -> str:
+        """Return the value (``'running'``), not ``'Status.RUNNING'``."""
+        return self.value
+
+
+def _kernel_status(status: int) -> Status:
+    """Translate a kernel's integer status (``kernels.STATUS_*``, not OK) to a :class:`Status`."""
+    return Status.FAILED if status == kernels.STATUS_NONFINITE else Status.CONTACT
 
 
 @dataclass(frozen=True)
@@ -131,6 +159,12 @@ class Simulator:
     config : SimConfig
         Validated configuration. ``scenario.shock_times`` / ``shock_peaks`` are scheduled.
 
+    Attributes
+    ----------
+    status : Status
+        ``Status.RUNNING`` until a contact (``CONTACT``) or a numerical failure (``FAILED``);
+        :attr:`message`, :attr:`contact_time_s` and :attr:`contact_theta_rad` say where.
+
     """
 
     def __init__(self, config: SimConfig) -> None:
@@ -143,7 +177,7 @@ class Simulator:
         self.v = np.zeros(n)
         self._acc = np.zeros(n)
         self.sample_index = 0
-        self.status = 'running'
+        self.status = Status.RUNNING
         self.message = ''
         self.contact_time_s = math.nan
         self.contact_theta_rad = math.nan
@@ -273,7 +307,7 @@ class Simulator:
         self._config = config
         self._build(config)
         self._drive = self._drive_args()
-        if self.status == 'running':
+        if self.status == Status.RUNNING:
             self._refresh_acceleration()
 
     # ------------------------------------------------------------------ inputs
@@ -387,7 +421,7 @@ class Simulator:
             now = self.time_s
             self._pulses = [p for p in self._pulses if p[0] >= now]
             self._profile = [p for p in self._profile if p[0] >= self.time_ns]
-            self.status = 'running'
+            self.status = Status.RUNNING
             self.message = ''
             self.contact_time_s = math.nan
             self.contact_theta_rad = math.nan
@@ -451,7 +485,7 @@ class Simulator:
         # Cut at events (advance_samples), so the configuration is constant over the call.
         if count <= 0:
             return
-        if self.status != 'running':
+        if self.status != Status.RUNNING:
             out_q[:] = self.q
             out_v[:] = 0.0
             self.sample_index += count
@@ -492,7 +526,7 @@ class Simulator:
         self.sample_index += count
 
     def _enter_contact(self, status: int, theta: float, t: float) -> None:
-        self.status = 'contact' if status != kernels.STATUS_NONFINITE else 'failed'
+        self.status = _kernel_status(status)
         self.contact_time_s = t
         self.contact_theta_rad = theta
         self.message = f'{kernels.describe_status(status, theta)}, t = {t:.9f} s'
