@@ -12,4 +12,13 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The rclpy layer: node, parameter declaration and message conversion."""
+"""
+The rclpy layer: node, parameter declaration and message conversion.
+
+Modules (import from them directly, nothing is re-exported here): ``node`` (the simulator
+node and its entry point), ``parameters`` (ROS parameter declaration from the parameter
+table), ``conversions`` (messages to and from the core's types), ``recorder`` (recording a
+run as a ROS 2 bag).
+"""
+
+__all__ = ['conversions', 'node', 'parameters', 'recorder']
