@@ -242,8 +242,7 @@ def output_ns_per_sample(sim: Simulator) -> float:
 
 
 @njit
-def _force_loop(x, kbasis, projection, signs, poly, taylor_terms, outer, inner, fold,
-                inner_contact, gap, work, out, info, count):
+def _force_loop(x, force, work, out, info, count):
     """
     Evaluate the force ``count`` times at slowly changing states (no Python in between).
 
@@ -253,11 +252,10 @@ def _force_loop(x, kbasis, projection, signs, poly, taylor_terms, outer, inner, 
     total = 0.0
     for k in range(count):
         x[0] += 1e-15 * (1 - 2 * (k & 1))
-        kernels._nl_accel_even(x, kbasis, projection, signs, poly, taylor_terms, work, out, info)
+        kernels._force(x, force, work, out, info)
         if info[0] != 0:
             info[0] = 0
-            kernels._nl_accel_general(x, kbasis, projection, signs, poly, taylor_terms, outer,
-                                      inner, fold, inner_contact, gap, work, out, info)
+            kernels._force_general(x, force, work, out, info)
         total += out[0]
     return total
 
@@ -270,8 +268,7 @@ def standalone_force_ns(config: SimConfig, state, count: int) -> float:
     work = np.empty(forces.scratch_size(model))
     out = np.empty(model.n_coordinates)
     info = np.zeros(2, dtype=np.int64)
-    args = (model.kbasis, model.projection, model.signs, model.poly, model.taylor_terms,
-            model.outer, model.inner, model.fold, model.inner_contact, model.gap, work, out, info)
+    args = (model.kernel, work, out, info)
     _force_loop(x, *args, 10)
     best = math.inf
     for _ in range(5):

@@ -12,6 +12,16 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""ring_gyro_sim: a ROS 2 emulator of a capacitive MEMS vibrating-ring gyroscope under shock."""
+"""
+ring_gyro_sim: a ROS 2 emulator of a capacitive MEMS vibrating-ring gyroscope under shock.
+
+Layers (import the modules directly; nothing is re-exported, so importing a layer loads only
+what it needs): ``core`` (parameters, model and Simulator: stdlib, numpy, scipy, numba only),
+``analysis`` (envelopes, nonlinear modes, harmonic balance, paper cases, report, plots),
+``recording`` (MCAP bags), ``ros`` (the rclpy node); the command line in ``cli``, offline runs
+in ``offline``, parameter files in ``paramfile``, bag replay in ``replay``.
+"""
+
+__all__ = ['__version__']
 
 __version__ = '0.1.0'

@@ -64,7 +64,7 @@ import numpy as np
 
 from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.params import SimConfig
-from ring_gyro_sim.core.simulator import channel_names, Samples, Simulator
+from ring_gyro_sim.core.simulator import channel_names, Samples, Simulator, Status
 
 __all__ = ['BaseAcceleration', 'Block', 'Diagnostics', 'DriveAmplitude', 'DriveFrequency',
            'Input', 'MAX_PENDING_BASE_ACCELERATION', 'MAX_PENDING_SHOCKS', 'NullSink',
@@ -436,7 +436,7 @@ class Run:
     @property
     def running(self) -> bool:
         """Tell whether the ring is free (not in contact, not failed)."""
-        return self.sim.status == 'running'
+        return self.sim.status == Status.RUNNING
 
     @property
     def pending_shocks(self) -> int:

@@ -12,4 +12,14 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Analysis on top of the core: envelopes, spectra, harmonic balance (plots in one module)."""
+"""
+Analysis on top of the core: envelopes, spectra, harmonic balance (plots in one module).
+
+Modules (import from them directly, nothing is re-exported here): ``envelope`` (envelopes and
+spectrograms), ``nnm`` (nonlinear normal modes, forced orbits, the drive's start state),
+``hbm`` (harmonic balance: backbones and frequency responses), ``cases`` (the paper's
+simulation cases), ``report`` (the paper reproduction report) and ``plotting`` (the only
+module that imports matplotlib, lazily).
+"""
+
+__all__ = ['cases', 'envelope', 'hbm', 'nnm', 'plotting', 'report']

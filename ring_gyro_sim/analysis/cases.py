@@ -60,6 +60,7 @@ from ring_gyro_sim.analysis import envelope as env
 from ring_gyro_sim.analysis import nnm
 from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.params import build_config, SimConfig, STANDARD_GRAVITY
+from ring_gyro_sim.core.simulator import Status
 from ring_gyro_sim.progress import Progress
 from ring_gyro_sim.run import format_number, Run, Shock
 
@@ -502,7 +503,7 @@ def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
         size = min(chunk, n_total - done)
         s = run.advance(size).samples
         done += size
-        if sim.status != 'running':
+        if sim.status != Status.RUNNING:
             keep = s.t < sim.contact_time_s if math.isfinite(sim.contact_time_s) else \
                 np.ones(len(s), bool)
             s = replace(s, t=s.t[keep], q=s.q[keep], v=s.v[keep], gap=s.gap[keep],
@@ -518,14 +519,14 @@ def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
                 raw_q.append(s.q[sel])
             amps = np.max(np.abs(s.q), axis=0)
             bar.update(sim.time_s, 'um: ' + ' '.join(format_number(a, 1e6, 3) for a in amps))
-        if sim.status != 'running':
+        if sim.status != Status.RUNNING:
             min_gap = 0.0
             break
     wall = time.perf_counter() - wall0
     bar.close()
     result = CaseResult(
         spec=spec, envelope=acc.result(), branches=branches, gap_m=gap, min_gap_m=min_gap,
-        contact=sim.status != 'running', status=sim.status, message=sim.message,
+        contact=sim.status != Status.RUNNING, status=sim.status, message=sim.message,
         contact_time_s=contact_time, sim_time_s=sim.time_s, wall_time_s=wall,
         sample_rate_hz=1.0 / sim.period_s,
         raw_t=np.concatenate(raw_t) if raw_t else None,

@@ -74,6 +74,7 @@ import math
 from typing import Callable, List, Optional, Sequence, Tuple
 
 import numpy as np
+from ring_gyro_sim.analysis import plotting
 from ring_gyro_sim.core import forces
 from ring_gyro_sim.core.errors import ParameterError, SimulationError
 from ring_gyro_sim.core.params import SimConfig
@@ -519,7 +520,6 @@ class Backbone:
 
     def plot(self, path, **kwargs) -> None:
         """Save a frequency-amplitude plot to ``path`` (see ``plotting.plot_backbone``)."""
-        from ring_gyro_sim.analysis import plotting
         plotting.plot_backbone(self, path, **kwargs)
 
 
@@ -752,7 +752,6 @@ class ForcedResponse:
 
     def plot(self, path, **kwargs) -> None:
         """Save the FRF plot to ``path`` (see ``plotting.plot_forced_response``)."""
-        from ring_gyro_sim.analysis import plotting
         plotting.plot_forced_response(self, path, **kwargs)
 
 

@@ -199,12 +199,6 @@ def calibrate_outer_voltage(config: SimConfig, target_hz: float = 10.6e3,
     return float(brentq(miss, bracket_v[0], bracket_v[1], xtol=1e-4))
 
 
-def describe(points: Sequence[NonlinearModePoint]) -> str:
-    """Format a small table of backbone points (amplitude um, frequency Hz)."""
-    return '\n'.join(f'{p.amplitude_m * 1e6:8.3f} um  {p.frequency_hz:10.2f} Hz'
-                     for p in points)
-
-
 @dataclass(frozen=True)
 class ForcedOrbit:
     """

@@ -16,4 +16,22 @@
 Model core: parameters, structure, electrostatic forces, kernels and the Simulator.
 
 This layer imports only the standard library, numpy, scipy and numba (a test enforces it).
+Modules (import from them directly, nothing is re-exported here, so that reading parameters
+does not load numba):
+
+- ``params``: the parameter table, :class:`~ring_gyro_sim.core.params.SimConfig` and
+  :func:`~ring_gyro_sim.core.params.build_config`;
+- ``simulator``: :class:`~ring_gyro_sim.core.simulator.Simulator`, its
+  :class:`~ring_gyro_sim.core.simulator.Samples` and
+  :class:`~ring_gyro_sim.core.simulator.Status`;
+- ``structure``: mass and stiffness matrices of the supported ring and its frequencies;
+- ``forces``: the electrostatic force (:func:`~ring_gyro_sim.core.forces.build_force_model`,
+  :func:`~ring_gyro_sim.core.forces.nonlinear_acceleration`, energies, Jacobian);
+- ``kernels``: the compiled force and time stepper and their argument tuples;
+- ``errors``: the exception hierarchy.
+
+Every module of the core uses one coordinate order, the simulator's: ``q1 .. qN`` (the
+cos(n theta) modes), then ``q1s .. qNs`` (their sine companions, when enabled).
 """
+
+__all__ = ['errors', 'forces', 'kernels', 'params', 'simulator', 'structure']

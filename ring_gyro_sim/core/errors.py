@@ -19,6 +19,8 @@ Every error raised on purpose by the package derives from :class:`RingGyroError`
 the closest builtin, so callers may catch either.
 """
 
+__all__ = ['RingGyroError', 'ParameterError', 'InputError', 'SimulationError']
+
 
 class RingGyroError(Exception):
     """Base class of every ring_gyro_sim error."""

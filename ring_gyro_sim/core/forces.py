@@ -42,17 +42,18 @@ coefficient). The untruncated integrand is analytic for ``|u| < 1``; its Fourier
 fall like ``rho^m`` with ``rho = (1 - sqrt(1 - a^2)) / a`` for ``a = max |u|`` per harmonic,
 so ``M = 128 * N_R`` gives round-off accuracy up to ``|u| ~ 0.95``.
 
-The M angles (M a multiple of 4) fall into orbits ``{theta, -theta, pi - theta, pi + theta}``
-of the ring's symmetries; the kernel stores one representative per orbit in [0, pi/2] and
-assembles ``w`` and the force at the four members with exact sign flips (``parity`` of each
-coordinate). Sums that vanish by symmetry then vanish exactly in floating point: symmetric
+The M angles (M a multiple of 4) fall into orbits
+``{theta, pi - theta, -theta, pi + theta}`` (members 0 to 3,
+:func:`ring_gyro_sim.core.kernels.orbit_angle`) of the ring's symmetries; the kernel stores
+one representative per orbit in [0, pi/2] and assembles ``w`` and the force at the four
+members with exact sign flips (``parity`` of each coordinate). Sums that vanish by symmetry
+then vanish exactly in floating point: symmetric
 electrodes keep q2 = 0 bit for bit after a q1 shock from rest (eq. 36), an x shock keeps the
 sine companions at 0. Without companions the two members +-theta are equal and P is
 evaluated at two angles per orbit, which is the cost of the plain half-circle rule.
 """
 
 from dataclasses import dataclass
-import math
 
 import numpy as np
 
@@ -60,6 +61,10 @@ from ring_gyro_sim.core import kernels
 from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.params import SimConfig
 
+__all__ = ['SYMMETRY_TOLERANCE', 'ForceModel', 'coordinate_harmonics', 'mode_shapes',
+           'quadrature_points', 'coordinate_parity', 'build_force_model',
+           'nonlinear_acceleration', 'scratch_size', 'contact_angle', 'full_grid', 'jacobian',
+           'electrostatic_energy', 'mechanical_energy']
 
 SYMMETRY_TOLERANCE = 1e-12
 """r_o V_o^2 and r_i V_i^2 closer than this (relative) are taken as equal: users write
@@ -84,10 +89,10 @@ class ForceModel:
         Trapezoidal weight per orbit member, rad (halved at 0 and pi/2, whose orbits have
         two distinct members counted twice).
     parity : ndarray of int, shape (n,)
-        Symmetry class of each coordinate: bit 0 = odd under theta -> -theta (sine),
-        bit 1 = odd under theta -> pi - theta.
+        Symmetry class of each coordinate: bit b set = odd under orbit member ``2**b``, i.e.
+        bit 0 = odd under theta -> pi - theta, bit 1 = odd under theta -> -theta (sine).
     signs : ndarray, shape (2, n)
-        The same as +-1.0: parity under theta -> -theta and under theta -> pi - theta.
+        The same as +-1.0: parity under theta -> pi - theta and under theta -> -theta.
     m_points : int
         M, the number of quadrature angles on the full circle.
     basis : ndarray, shape (R, n)
@@ -113,6 +118,8 @@ class ForceModel:
         An inner electrode is present (V_i != 0): ``u <= -1`` is contact there.
     masses : ndarray, shape (n,)
         Generalised masses, kg.
+    kernel : kernels.Force
+        The arrays and numbers above that the force kernels take, as one argument.
 
     """
 
@@ -135,6 +142,7 @@ class ForceModel:
     fold: bool
     inner_contact: bool
     masses: np.ndarray
+    kernel: kernels.Force
 
     @property
     def n_coordinates(self) -> int:
@@ -169,7 +177,7 @@ def quadrature_points(n_modes: int, taylor_terms: int) -> int:
 def coordinate_parity(harmonics: np.ndarray, sine: np.ndarray) -> np.ndarray:
     """Symmetry class of each coordinate (see :class:`ForceModel`)."""
     odd_reflection = np.where(sine, harmonics % 2 == 0, harmonics % 2 == 1)
-    return (sine.astype(np.int64) + 2 * odd_reflection.astype(np.int64)).astype(np.int64)
+    return (odd_reflection.astype(np.int64) + 2 * sine.astype(np.int64)).astype(np.int64)
 
 
 def build_force_model(config: SimConfig) -> ForceModel:
@@ -203,12 +211,16 @@ def build_force_model(config: SimConfig) -> ForceModel:
         c_k = outer + (-1) ** k * inner
         poly[k - 1] = k * c_k / e.gap
         energy_poly[k] = c_k
+    kbasis = kernels.member_basis(basis, signs, e.gap)
+    inner_contact = bool(e.inner_voltage != 0.0)
+    kernel = kernels.Force(kbasis=kbasis, projection=projection, signs=signs, poly=poly,
+                           taylor_terms=int(n_t), outer=float(outer), inner=float(inner),
+                           fold=bool(fold), inner_contact=inner_contact, gap=float(e.gap))
     return ForceModel(harmonics=harmonics, sine=sine, theta=theta, weights=weights,
                       parity=parity, signs=signs, m_points=m_points, basis=basis,
-                      kbasis=kernels.member_basis(basis, signs, e.gap),
-                      projection=projection, poly=poly, energy_poly=energy_poly,
+                      kbasis=kbasis, projection=projection, poly=poly, energy_poly=energy_poly,
                       outer=outer, inner=inner, gap=e.gap, taylor_terms=n_t, fold=fold,
-                      inner_contact=e.inner_voltage != 0.0, masses=masses)
+                      inner_contact=inner_contact, masses=masses, kernel=kernel)
 
 
 def _check_state(x: np.ndarray, model: ForceModel) -> np.ndarray:
@@ -247,9 +259,7 @@ def nonlinear_acceleration(x: np.ndarray, model: ForceModel) -> np.ndarray:
     out = np.zeros_like(x)
     work = np.empty(scratch_size(model))
     info = np.zeros(2, dtype=np.int64)
-    kernels.nl_accel(x, model.kbasis, model.projection, model.signs, model.poly,
-                     model.taylor_terms, model.outer, model.inner, model.fold,
-                     model.inner_contact, model.gap, work, out, info)
+    kernels.nl_accel(x, model.kernel, work, out, info)
     if info[0] != 0:
         raise SimulationError(kernels.describe_status(int(info[0]), contact_angle(model, info)))
     return out
@@ -261,8 +271,9 @@ def scratch_size(model: ForceModel) -> int:
 
 
 def contact_angle(model: ForceModel, info) -> float:
-    """Angle (rad) encoded in a kernel's ``info[1]`` (representative and orbit member)."""
-    return kernels.orbit_angle(float(model.theta[int(info[1]) // 4]), int(info[1]) % 4)
+    """Angle (rad) encoded in a kernel's ``info[1]`` (column ``k R + j`` of ``kbasis``)."""
+    member, rep = divmod(int(info[1]), model.theta.size)
+    return kernels.orbit_angle(float(model.theta[rep]), member)
 
 
 def full_grid(model: ForceModel):
@@ -321,10 +332,3 @@ def mechanical_energy(x: np.ndarray, v: np.ndarray, omega: np.ndarray,
     """
     m = model.masses
     return float(0.5 * np.sum(m * (v ** 2 + (omega * x) ** 2)) - electrostatic_energy(x, model))
-
-
-def check_finite(name: str, value: float) -> float:
-    """Return ``value`` or raise SimulationError if it is not finite."""
-    if not math.isfinite(value):
-        raise SimulationError(f'{name} is not finite')
-    return value

@@ -40,8 +40,12 @@ the peak q1 of a DOP853 reference at rtol 1e-10 over 20 ms after a 10 000 g shoc
 Steps that overlap a shock pulse are cut into sub-steps of at most ``T_s / 16`` so the
 half-sine (whose derivative jumps at both ends) is resolved.
 
-Everything is float64 and SI. Kernels take flat arrays and scalars, work buffers included;
-``core/simulator.py`` validates inputs, calls them, and checks the result. A state that leaves
+Everything is float64 and SI. Kernels take arrays and scalars grouped by what they are, in
+named tuples (:class:`Force`, :class:`Drive`, :class:`Forcing`, :class:`Method`,
+:class:`Scratch`), so that a call reads like its meaning and two arrays cannot be swapped
+silently (a tuple in the wrong place does not compile); ``core/simulator.py`` builds them
+(once per configuration where they do not change), validates inputs, calls the kernels, and
+checks the result. A state that leaves
 the model's range stops the kernel with a status code and the index of the angle (never NaN).
 The two entry points (``run_samples``, ``output_channels``) release the GIL, so that a
 recorder thread can serialise and compress while they run.
@@ -59,19 +63,30 @@ per stage of kick, drift and external force, and ~100 ns per step (drive phasor,
   decrements every array argument atomically on every call unless its pruning pass can prove
   the pairs redundant. ``run_samples`` is compiled with ``_nrt=False`` (it allocates
   nothing), which removed 29 % of the run time;
-* an inlined function (``inline='always'``) with a branch that stores, returns early or calls
-  out costs the same kind of overhead per call: the force's common case
-  (:func:`_nl_accel_even`) has no such branch, its fallback is called from the step loop;
-* the step is written out in :func:`run_samples`: called as a function it passed ~20 array
+* the force's common case (:func:`_force`) has no branch that stores, returns early or calls
+  out (such a branch doubled its cost, ~65 -> ~130 ns); its fallback
+  (:func:`_force_general`) is called from :func:`_step`;
+* the pieces of a step (:func:`_cut_step`, :func:`_step`, :func:`_kick`, :func:`_drift`,
+  :func:`_external`, :func:`_force`) are ``inline='always'``: inlined, they cost the same as
+  the loop written out (measured, best of N in one session); called, a step passed ~20 array
   structures every step (~25 % of a Strang run);
+* named tuples cost nothing inside the kernel, but numba's dispatcher types each one on
+  every call from Python (~1 us each, ~4 us per :func:`run_samples` call: 0.2 % of a 10 ms
+  chunk of the paper configuration, more for very short calls);
 * loops over the angles run innermost on coordinate-major arrays (``(n, angles)``) so that
   they vectorise; a loop that only zeroes a short array compiled to a ``memset`` call.
 """
 
 import math
+from typing import NamedTuple
 
 from numba import njit
 import numpy as np
+
+__all__ = ['STATUS_OK', 'STATUS_OUTER_CONTACT', 'STATUS_INNER_CONTACT', 'STATUS_SERIES_RANGE',
+           'STATUS_NONFINITE', 'NEEDS_GENERAL', 'Force', 'Drive', 'Forcing', 'Method', 'Scratch',
+           'orbit_angle', 'describe_status', 'splitting_coefficients', 'linear_propagators',
+           'member_basis', 'nl_accel', 'drive_phasor', 'run_samples', 'output_channels']
 
 STATUS_OK = 0
 STATUS_OUTER_CONTACT = 1
@@ -87,9 +102,171 @@ _STATUS_TEXT = {
 }
 
 
+class Force(NamedTuple):
+    """
+    The electrostatic force as the kernels take it (``forces.ForceModel.kernel``).
+
+    Built once per configuration by :func:`ring_gyro_sim.core.forces.build_force_model`.
+
+    Attributes
+    ----------
+    kbasis : ndarray, shape (n, 4 R)
+        Mode shapes at the four orbit members, signed, divided by d_g (:func:`member_basis`).
+    projection : ndarray, shape (n, R)
+        ``weight_j phi_i(theta_j) / m_i``, rad/kg.
+    signs : ndarray, shape (2, n)
+        Parity (+1.0 or -1.0) of each coordinate under orbit member 1 (theta -> pi - theta)
+        and member 2 (theta -> -theta).
+    poly : ndarray, shape (D + 1,)
+        Coefficients of P(u), N (truncated model).
+    taylor_terms : int
+        N_T (0 = untruncated).
+    outer, inner : float
+        ``A_eps r_o V_o^2`` and ``A_eps r_i V_i^2``, J/rad.
+    fold : bool
+        Linear (k <= 2) terms removed.
+    inner_contact : bool
+        An inner electrode is present: ``u <= -1`` is contact there.
+    gap : float
+        d_g, m.
+
+    """
+
+    kbasis: np.ndarray
+    projection: np.ndarray
+    signs: np.ndarray
+    poly: np.ndarray
+    taylor_terms: int
+    outer: float
+    inner: float
+    fold: bool
+    inner_contact: bool
+    gap: float
+
+
+class Drive(NamedTuple):
+    """
+    The 2theta drive ``A cos(omega (t - t_ref) + phase)`` on coordinate ``index``.
+
+    Attributes
+    ----------
+    amplitude : float
+        A, m/s^2 (0.0: off).
+    omega : float
+        Angular frequency, rad/s.
+    t_ref : float
+        Time of the last change, s.
+    phase : float
+        Phase at ``t_ref``, rad.
+    index : int
+        The driven coordinate (q2), -1 for none.
+
+    """
+
+    amplitude: float
+    omega: float
+    t_ref: float
+    phase: float
+    index: int
+
+
+class Forcing(NamedTuple):
+    """
+    Base acceleration over one call of :func:`run_samples`: shock pulses and a sampled profile.
+
+    Attributes
+    ----------
+    pulses : ndarray, shape (P, 4)
+        Half-sine pulses: start (s), duration (s), peak x and peak y (m/s^2).
+    pulse_max_sub : float
+        Longest sub-step inside a pulse, s.
+    profile_t, profile_x, profile_y : ndarray, shape (S,)
+        Sampled base acceleration: times (s, increasing) and x, y values (m/s^2); S may be 0.
+    y_index : int
+        The coordinate y acts on (q1s), -1 for none (x acts on coordinate 0).
+
+    """
+
+    pulses: np.ndarray
+    pulse_max_sub: float
+    profile_t: np.ndarray
+    profile_x: np.ndarray
+    profile_y: np.ndarray
+    y_index: int
+
+
+class Method(NamedTuple):
+    """
+    The integration method of a configuration: time grid, splitting, linear propagators.
+
+    Attributes
+    ----------
+    period_s : float
+        Output sample period, s.
+    n_sub : int
+        Steps per sample period.
+    h : float
+        Step, s (``period_s / n_sub``).
+    a, b : ndarray, shapes (s,), (s + 1,)
+        Drift and kick coefficients (:func:`splitting_coefficients`).
+    prop : ndarray, shape (s, n, 4)
+        Exact linear flows of the drifts ``a h`` (:func:`linear_propagators`).
+    omega, zeta : ndarray, shape (n,)
+        Natural angular frequencies (rad/s) and damping ratios, for the sub-steps' flows.
+
+    """
+
+    period_s: float
+    n_sub: int
+    h: float
+    a: np.ndarray
+    b: np.ndarray
+    prop: np.ndarray
+    omega: np.ndarray
+    zeta: np.ndarray
+
+
+class Scratch(NamedTuple):
+    """
+    Work buffers and status outputs of :func:`run_samples` (allocated once per configuration).
+
+    Attributes
+    ----------
+    work : ndarray, shape (>= 8 R,)
+        Scratch of the force.
+    fe : ndarray, shape (n,)
+        External acceleration of a stage.
+    info : ndarray of int64, shape (2,)
+        Kernel status and the column of ``kbasis`` where it happened (:func:`nl_accel`).
+    tinfo : ndarray, shape (1,)
+        Time of the stage that left the range, s.
+    cuts : ndarray, shape (>= 2 P + 2,)
+        Cut times of a step (:func:`_cut_step`).
+    rot, rot_sub : ndarray, shape (s + 1, 2)
+        Drive rotations of the stages of a step and of a sub-step (:func:`_stage_rotations`).
+    prop_sub : ndarray, shape (s, n, 4)
+        Propagators of a sub-step.
+
+    """
+
+    work: np.ndarray
+    fe: np.ndarray
+    info: np.ndarray
+    tinfo: np.ndarray
+    cuts: np.ndarray
+    rot: np.ndarray
+    rot_sub: np.ndarray
+    prop_sub: np.ndarray
+
+
 def orbit_angle(theta_rep: float, member: int) -> float:
-    """Angle (rad, in [0, 2 pi)) of orbit member k of a representative angle."""
-    angle = (theta_rep, -theta_rep, math.pi - theta_rep, math.pi + theta_rep)[member]
+    """
+    Angle (rad, in [0, 2 pi)) of orbit member k of a representative angle.
+
+    The members, in the one order the kernels use: ``theta, pi - theta, -theta, pi + theta``
+    (member 3 is the composition of members 1 and 2).
+    """
+    angle = (theta_rep, math.pi - theta_rep, -theta_rep, math.pi + theta_rep)[member]
     return angle % (2.0 * math.pi)
 
 
@@ -224,21 +401,18 @@ def member_basis(basis: np.ndarray, signs: np.ndarray, gap: float) -> np.ndarray
     """
     Lay out the mode shapes for the kernels: ``(n, 4 R)``, scaled by ``1 / d_g``.
 
-    Row i holds coordinate i at the four orbit members in the order
-    ``[theta, pi - theta, -theta, pi + theta]`` (:data:`MEMBER_ORDER`), each block of R
-    multiplied by the parity of the coordinate under that symmetry, so that
-    ``u = x @ kbasis`` gives ``w / d_g`` at all 4 R angles. The first two blocks are all a
-    state without sine content needs (then ``u(-theta) == u(theta)``), and they are a
-    contiguous prefix of each row.
+    Row i holds coordinate i at the four orbit members in their order (:func:`orbit_angle`:
+    ``[theta, pi - theta, -theta, pi + theta]``), block k of R multiplied by the parity of the
+    coordinate under member k (``signs[0]`` for k = 1, ``signs[1]`` for k = 2, both for
+    k = 3), so that ``u = x @ kbasis`` gives ``w / d_g`` at all 4 R angles: column
+    ``k R + j`` is member k of representative j. The first two blocks are all a state
+    without sine content needs (then ``u(-theta) == u(theta)``), and they are a contiguous
+    prefix of each row.
     """
-    sa = signs[0][:, None]
-    sb = signs[1][:, None]
+    s1 = signs[0][:, None]
+    s2 = signs[1][:, None]
     b = basis.T / gap
-    return np.ascontiguousarray(np.concatenate([b, sb * b, sa * b, sa * sb * b], axis=1))
-
-
-MEMBER_ORDER = (0, 2, 1, 3)
-"""Orbit member (as :func:`orbit_angle` numbers them) of each block of :func:`member_basis`."""
+    return np.ascontiguousarray(np.concatenate([b, s1 * b, s2 * b, s2 * s1 * b], axis=1))
 
 
 @njit(cache=True, inline='always')
@@ -259,64 +433,70 @@ def _angle_values(x, kbasis, m, u):
 
 
 @njit(cache=True, _nrt=False)
-def _nl_accel_general(x, kbasis, projection, signs, poly, taylor_terms, outer, inner, fold,
-                      inner_contact, gap, work, out, info):
+def _force_general(x, force, work, out, info):
     """
     :func:`nl_accel` at all four orbit members: states with sine content, and N_T = 0.
 
-    Kept out of line: the common case (:func:`nl_accel`'s own path) stays small.
+    Kept out of line: the common case (:func:`_force`) stays small.
     """
+    kbasis = force.kbasis
+    projection = force.projection
+    signs = force.signs
     n = x.size
     r = kbasis.shape[1] // 4
     m = 4 * r
     u = work[:m]
     p = work[m:2 * m]
     _angle_values(x, kbasis, m, u)
-    k = _first_out_of_range(u, m, inner_contact, taylor_terms, info)
+    k = _first_out_of_range(u, m, force.inner_contact, force.taylor_terms, info)
     if k >= 0:
-        info[1] = 4 * (k % r) + MEMBER_ORDER[k // r]
+        info[1] = k
         return
     for k in range(m):
-        p[k] = _p_of_u(u[k], poly, taylor_terms, outer, inner, fold, gap)
+        p[k] = _p_of_u(u[k], force.poly, force.taylor_terms, force.outer, force.inner,
+                       force.fold, force.gap)
     for i in range(n):
-        sa = signs[0, i]
-        sb = signs[1, i]
+        s1 = signs[0, i]
+        s2 = signs[1, i]
         acc = 0.0
         for j in range(r):
-            acc += projection[i, j] * ((p[j] + sb * p[r + j])
-                                       + sa * (p[2 * r + j] + sb * p[3 * r + j]))
+            acc += projection[i, j] * ((p[j] + s1 * p[r + j])
+                                       + s2 * (p[2 * r + j] + s1 * p[3 * r + j]))
         out[i] = acc
 
 
 NEEDS_GENERAL = -1
-"""``info[0]`` of :func:`_nl_accel_even` when the state needs :func:`_nl_accel_general`."""
+"""``info[0]`` of :func:`_force` when the state needs :func:`_force_general`."""
 
 
 @njit(cache=True, inline='always')
-def _nl_accel_even(x, kbasis, projection, signs, poly, taylor_terms, work, out, info):
+def _force(x, force, work, out, info):
     """
     Take the common case of :func:`nl_accel`, inline: the Taylor series, no sine content.
 
     Then ``u(-theta) == u(theta)`` bit for bit and only the members theta and pi - theta are
     evaluated (2 R angles, the half-circle rule), with the same arithmetic per value as
-    :func:`_nl_accel_general`. Every loop runs over the angles innermost, on separate
+    :func:`_force_general`. Every loop runs over the angles innermost, on separate
     stretches of ``work``. A state this path does not cover (sine content, N_T = 0, out of
     range) leaves ``out`` unchanged and sets ``info[0] = NEEDS_GENERAL``; otherwise
     ``info[0] = 0``.
 
     Written without branches around the work: measured in the step loop, a conditional store
     or call in here (the fallback, an early return) doubles its cost (~65 -> ~130 ns on the
-    paper configuration), so the fallback is the caller's (:func:`nl_accel`,
-    :func:`run_samples`).
+    paper configuration), so the fallback is the caller's (:func:`nl_accel`, :func:`_step`).
     """
+    kbasis = force.kbasis
+    projection = force.projection
+    signs = force.signs
+    poly = force.poly
     n = x.size
     r = kbasis.shape[1] // 4
     m = 2 * r
     u = work[:m]
     p = work[4 * r:4 * r + m]
-    even = taylor_terms > 0
+    even = force.taylor_terms > 0
     for i in range(n):
-        if signs[0, i] < 0.0 and x[i] != 0.0:
+        if signs[1, i] < 0.0 and x[i] != 0.0:
             even = False
     _angle_values(x, kbasis, m, u)
     lo = 0.0
@@ -335,43 +515,42 @@ def _nl_accel_even(x, kbasis, projection, signs, poly, taylor_terms, work, out, 
         for k in range(m):
             p[k] = p[k] * u[k] + c
     for i in range(n):
-        sa = signs[0, i]
-        sb = signs[1, i]
+        s1 = signs[0, i]
+        s2 = signs[1, i]
         acc = 0.0
-        if sa > 0.0:  # odd under theta -> -theta (the sine companions): exactly 0
+        if s2 > 0.0:  # odd under theta -> -theta (the sine companions): exactly 0
             for j in range(r):
-                half = p[j] + sb * p[r + j]
+                half = p[j] + s1 * p[r + j]
                 acc += projection[i, j] * (half + half)
         out[i] = acc if ok else out[i]
     info[0] = 0 if ok else NEEDS_GENERAL
 
 
 @njit(cache=True)
-def nl_accel(x, kbasis, projection, signs, poly, taylor_terms, outer, inner, fold,
-             inner_contact, gap, work, out, info):
+def nl_accel(x, force, work, out, info):
     """
     Electrostatic generalised force / modal mass at ``x`` (see ``core/forces.py``).
 
-    The quadrature angles come in orbits ``{theta, -theta, pi - theta, pi + theta}``; only a
-    representative ``theta_j`` in [0, pi/2] is stored (R of them). ``signs[0, i]``
-    (``signs[1, i]``) is the parity, +1 or -1, of coordinate i under theta -> -theta
-    (theta -> pi - theta); ``kbasis`` (:func:`member_basis`) holds the mode shapes at the four
-    members with those signs applied. The force on a coordinate combines the four values of
-    P as ``(P1 + b P3) + a (P2 + b P4)``, so a sum that is zero by symmetry (symmetric
+    The quadrature angles come in orbits ``{theta, pi - theta, -theta, pi + theta}``
+    (members 0 to 3, :func:`orbit_angle`); only a representative ``theta_j`` in [0, pi/2] is
+    stored (R of them). ``force.signs[0, i]`` (``force.signs[1, i]``) is the parity, +1 or
+    -1, of coordinate i under theta -> pi - theta (theta -> -theta); ``force.kbasis``
+    (:func:`member_basis`) holds the mode shapes at the four members with those signs
+    applied. The force on a coordinate combines the four values of P as
+    ``(P0 + s1 P1) + s2 (P2 + s1 P3)``, so a sum that is zero by symmetry (symmetric
     electrodes, a state without sine or without even coordinates) is exactly 0.0, not
     round-off.
 
-    :func:`_nl_accel_even` takes the common case, :func:`_nl_accel_general` the rest
-    (:func:`run_samples` makes the same two calls itself). ``work`` is scratch of at least ``8 R``
-    floats; ``out`` (n,) receives the accelerations (m/s^2). On a state out of range
-    ``info[0]`` gets the status, ``info[1]`` the index ``4 * j + k`` (representative j,
-    member k as :func:`orbit_angle` numbers them), and ``out`` is left unchanged.
+    :func:`_force` takes the common case, :func:`_force_general` the rest (:func:`_step`
+    makes the same two calls itself). ``work`` is scratch of at least ``8 R`` floats; ``out``
+    (n,) receives the accelerations (m/s^2). On a state out of range ``info[0]`` gets the
+    status, ``info[1]`` the column ``k R + j`` of ``kbasis`` (member k of representative j),
+    and ``out`` is left unchanged.
     """
-    _nl_accel_even(x, kbasis, projection, signs, poly, taylor_terms, work, out, info)
+    _force(x, force, work, out, info)
     if info[0] != 0:
         info[0] = 0
-        _nl_accel_general(x, kbasis, projection, signs, poly, taylor_terms, outer, inner, fold,
-                          inner_contact, gap, work, out, info)
+        _force_general(x, force, work, out, info)
 
 
 @njit(cache=True, _nrt=False)
@@ -389,28 +568,29 @@ def _profile_accel(t, profile_t, profile_x, profile_y):
 
 
 @njit(cache=True, inline='always')
-def _external(t, t_mid, pulses, base_x, base_y, drive_index, y_index, drive_c, drive_s,
-              rot_c, rot_s, fe):
+def _external(t, t_mid, forcing, base_x, base_y, drive_index, drive_c, drive_s, rot_c, rot_s,
+              fe):
     """
     External acceleration at time ``t`` (s) into ``fe`` (m/s^2).
 
-    Only ``fe[0]``, ``fe[y_index]`` and ``fe[drive_index]`` (distinct) are written; the other
-    entries stay at the zero :func:`run_samples` puts there (zeroing all of ``fe`` every stage
-    compiled to a call of memset).
+    Only ``fe[0]``, ``fe[forcing.y_index]`` and ``fe[drive_index]`` (distinct) are written;
+    the other entries stay at the zero :func:`run_samples` puts there (zeroing all of ``fe``
+    every stage compiled to a call of memset).
 
     Base acceleration ``a_b`` enters as ``-a_b`` on q_1 (x) and q_1^s (y) (eq. 27). Whether a
     pulse acts is decided at the middle ``t_mid`` of the current (sub)step, which never
     straddles a pulse's start or end; inside it the half-sine formula is used at every stage,
     so stages that some splittings place outside the step (negative drifts) see the smooth
     continuation, not a kink. ``base_x, base_y`` is the sampled profile at ``t``
-    (:func:`_profile_accel`, called by :func:`run_samples`: a call in here, even one not taken,
+    (:func:`_profile_accel`, called by :func:`_step`: a call in here, even one not taken,
     costs every stage ~30 ns).
 
     The drive ``A cos(omega (t - t_ref) + phase)`` on q_2 is ``drive_c rot_c - drive_s rot_s``:
     ``drive_c, drive_s = A cos, A sin`` of the phase at the start of the step (one cos and one
-    sin per step, :func:`run_samples`) and ``rot_c, rot_s`` the cos and sin of ``omega`` times the
+    sin per step, :func:`_step`) and ``rot_c, rot_s`` the cos and sin of ``omega`` times the
     stage's offset in the step (:func:`_stage_rotations`), by the angle-sum formula.
     """
+    pulses = forcing.pulses
     ax = base_x
     ay = base_y
     for p in range(pulses.shape[0]):
@@ -421,8 +601,8 @@ def _external(t, t_mid, pulses, base_x, base_y, drive_index, y_index, drive_c, d
             ax += pulses[p, 2] * s
             ay += pulses[p, 3] * s
     fe[0] = -ax
-    if y_index >= 0:
-        fe[y_index] = -ay
+    if forcing.y_index >= 0:
+        fe[forcing.y_index] = -ay
     if drive_index >= 0:
         fe[drive_index] = drive_c * rot_c - drive_s * rot_s
 
@@ -469,127 +649,185 @@ def _fill_propagators(omega, zeta, a, tau, prop):
             prop[i, c, 3] = e * (co - r * si)
 
 
+@njit(cache=True, inline='always')
+def _kick(v, acc, fe, kick):
+    """Kick (B): ``v += kick (a_nl + a_ext)``, ``kick`` = a stage's coefficient times the step."""
+    for c in range(v.size):
+        v[c] += kick * (acc[c] + fe[c])
+
+
+@njit(cache=True, inline='always')
+def _drift(q, v, prop, i):
+    """Drift (A): apply the exact linear flow ``prop[i]`` of drift ``i`` of the splitting."""
+    for c in range(q.size):
+        x0 = q[c]
+        v0 = v[c]
+        q[c] = prop[i, c, 0] * x0 + prop[i, c, 1] * v0
+        v[c] = prop[i, c, 2] * x0 + prop[i, c, 3] * v0
+
+
+@njit(cache=True, inline='always')
+def _step(q, v, acc, ts, hs, prop, rot, method, force, drive, forcing, scratch):
+    """
+    One BAB splitting step of length ``hs`` from ``ts`` (module docstring), in place.
+
+    ``prop`` and ``rot`` are the step's propagators and drive rotations (those of ``h`` or of
+    a sub-step). ``acc`` holds the force at the start (FSAL) and gets the force at the end.
+    Returns False when a stage leaves the model's range: then ``scratch.info`` holds the
+    status and the angle, ``scratch.tinfo[0]`` the stage's time, and ``q, v`` that stage's
+    (finite) values.
+    """
+    a = method.a
+    b = method.b
+    n_stages = a.size
+    fe = scratch.fe
+    info = scratch.info
+    t_mid = ts + 0.5 * hs
+    drive_c, drive_s = drive_phasor(ts, drive.amplitude, drive.omega, drive.t_ref, drive.phase)
+    tt = ts
+    base_x = 0.0
+    base_y = 0.0
+    for i in range(n_stages):
+        if forcing.profile_t.size > 0:
+            base_x, base_y = _profile_accel(tt, forcing.profile_t, forcing.profile_x,
+                                            forcing.profile_y)
+        _external(tt, t_mid, forcing, base_x, base_y, drive.index, drive_c, drive_s,
+                  rot[i, 0], rot[i, 1], fe)
+        _kick(v, acc, fe, b[i] * hs)
+        _drift(q, v, prop, i)
+        tt += hs * a[i]
+        # nl_accel written out: its fallback is called from here, not from an inlined
+        # function (see _force).
+        _force(q, force, scratch.work, acc, info)
+        if info[0] != 0:
+            info[0] = 0
+            _force_general(q, force, scratch.work, acc, info)
+            if info[0] != 0:
+                scratch.tinfo[0] = tt
+                return False
+    if forcing.profile_t.size > 0:
+        base_x, base_y = _profile_accel(ts + hs, forcing.profile_t, forcing.profile_x,
+                                        forcing.profile_y)
+    _external(ts + hs, t_mid, forcing, base_x, base_y, drive.index, drive_c, drive_s,
+              rot[n_stages, 0], rot[n_stages, 1], fe)
+    _kick(v, acc, fe, b[n_stages] * hs)
+    return True
+
+
+@njit(cache=True, inline='always')
+def _cut_step(t, t1, pulses, cuts):
+    """
+    Cut the step ``[t, t1]`` at the starts and ends of the pulses that fall inside it.
+
+    ``cuts[:n_cuts]`` gets the cut times in increasing order, ``t`` and ``t1`` included.
+    Returns ``(n_cuts, active)``: ``active`` when a pulse overlaps the step (otherwise the
+    cuts are just ``t, t1``).
+    """
+    n_cuts = 0
+    cuts[n_cuts] = t
+    n_cuts += 1
+    active = False
+    for p in range(pulses.shape[0]):
+        ps = pulses[p, 0]
+        pe = ps + pulses[p, 1]
+        if ps < t1 and pe > t:
+            active = True
+            if ps > t:
+                cuts[n_cuts] = ps
+                n_cuts += 1
+            if pe < t1:
+                cuts[n_cuts] = pe
+                n_cuts += 1
+    cuts[n_cuts] = t1
+    n_cuts += 1
+    if active:
+        for g in range(1, n_cuts):  # insertion sort (a few entries)
+            value = cuts[g]
+            e = g - 1
+            while e >= 0 and cuts[e] > value:
+                cuts[e + 1] = cuts[e]
+                e -= 1
+            cuts[e + 1] = value
+    return n_cuts, active
+
+
 @njit(cache=True, nogil=True, _nrt=False)
-def run_samples(q, v, acc, k0, n_samples, period_s, n_sub, h, a, b, prop, pulse_max_sub,
-                omega, zeta, prop_sub, kbasis, projection, signs, poly, taylor_terms, outer, inner,
-                fold, inner_contact, gap, pulses, profile_t, profile_x, profile_y, drive_amp,
-                drive_omega, drive_t_ref, drive_phase, drive_index, y_index, out_q, out_v,
-                work, fe, info, tinfo, cuts, rot, rot_sub):
+def run_samples(q, v, acc, k0, n_samples, method, force, drive, forcing, scratch, out_q, out_v):
     """
     Advance ``n_samples`` output periods from sample index ``k0``.
 
-    Each step is one BAB splitting step (module docstring) of length ``h``, the force of its
-    last kick reused as the first of the next (FSAL, in ``acc``). Step times are computed from
-    integer indices (``k period + j h``), so the result does not depend on how a run is cut
-    into calls. A step that overlaps a shock pulse is cut at the pulse's start and end (where
-    the half-sine's derivative jumps) and each piece into equal sub-steps of at most
-    ``pulse_max_sub`` seconds, so the method keeps its order. Returns the number of samples
-    completed; on a state out of range it stops early with ``info`` / ``tinfo`` set and
-    ``q, v`` at the last stage (finite).
+    Each step is one BAB splitting step (:func:`_step`) of length ``method.h``, the force of
+    its last kick reused as the first of the next (FSAL, in ``acc``). Step times are computed
+    from integer indices (``k period + j h``), so the result does not depend on how a run is
+    cut into calls. A step that overlaps a shock pulse is cut at the pulse's start and end
+    (:func:`_cut_step`; the half-sine's derivative jumps there) and each piece into equal
+    sub-steps of at most ``forcing.pulse_max_sub`` seconds, so the method keeps its order.
+    Returns the number of samples completed; on a state out of range it stops early with
+    ``scratch.info`` / ``scratch.tinfo`` set and ``q, v`` at the last stage (finite).
 
-    ``cuts`` (at least ``2 P + 2`` floats for P pulses), ``rot`` and ``rot_sub`` (``(len(b),
-    2)``) are scratch. The step is written out here, not called: a call passed ~20 array
-    structures every step (~25 % of a Strang run), and numba's inliner does not take a
-    function of this many arguments. The kernel is compiled without numba's reference
-    counting (``_nrt=False``; it allocates nothing): with it, every step paid an atomic
-    increment and decrement of each array argument (measured 29 % of the run time).
+    Parameters
+    ----------
+    q, v, acc : ndarray, shape (n,)
+        Coordinates (m), velocities (m/s) and the force at ``q`` (m/s^2), advanced in place.
+    k0, n_samples : int
+        Sample index of the state and number of samples to advance.
+    method : Method
+        Time grid, splitting coefficients and propagators of the configuration.
+    force : Force
+        The electrostatic force (``forces.ForceModel.kernel``).
+    drive : Drive
+        The 2theta drive in force over the call.
+    forcing : Forcing
+        Shock pulses and the sampled base acceleration over the call.
+    scratch : Scratch
+        Work buffers and status; ``scratch.cuts`` holds at least ``2 P + 2`` floats for the
+        P pulses of ``forcing``.
+    out_q, out_v : ndarray, shape (n_samples, n)
+        The state at the end of each sample period.
+
+    Notes
+    -----
+    The pieces (:func:`_cut_step`, :func:`_step`, :func:`_force`, ...) are inlined
+    (``inline='always'``): called, a step passed ~20 array structures every step (~25 % of a
+    Strang run). The kernel is compiled without numba's reference counting (``_nrt=False``;
+    it allocates nothing): with it, every step paid an atomic increment and decrement of each
+    array argument (measured 29 % of the run time).
+
     """
-    n = q.size
-    n_stages = a.size
-    for c in range(n):
+    fe = scratch.fe
+    for c in range(q.size):
         fe[c] = 0.0
-    _stage_rotations(a, h, drive_omega, rot)
+    h = method.h
+    cuts = scratch.cuts
+    _stage_rotations(method.a, h, drive.omega, scratch.rot)
     for s in range(n_samples):
         k = k0 + s
-        for j in range(n_sub):
-            t = k * period_s + j * h
-            t1 = t + h
-            n_cuts = 0
-            cuts[n_cuts] = t
-            n_cuts += 1
-            active = False
-            for p in range(pulses.shape[0]):
-                ps = pulses[p, 0]
-                pe = ps + pulses[p, 1]
-                if ps < t1 and pe > t:
-                    active = True
-                    if ps > t:
-                        cuts[n_cuts] = ps
-                        n_cuts += 1
-                    if pe < t1:
-                        cuts[n_cuts] = pe
-                        n_cuts += 1
-            cuts[n_cuts] = t1
-            n_cuts += 1
-            if active:
-                for g in range(1, n_cuts):  # insertion sort (a few entries)
-                    value = cuts[g]
-                    e = g - 1
-                    while e >= 0 and cuts[e] > value:
-                        cuts[e + 1] = cuts[e]
-                        e -= 1
-                    cuts[e + 1] = value
+        for j in range(method.n_sub):
+            t = k * method.period_s + j * h
+            n_cuts, active = _cut_step(t, t + h, forcing.pulses, cuts)
             for g in range(n_cuts - 1):
                 # The plain step (no pulse): one piece of exactly h with the step's own
                 # propagators; a piece of a pulse step: m sub-steps with their own.
                 m = 1
                 hs = h
-                step_prop = prop
-                step_rot = rot
+                prop = method.prop
+                rot = scratch.rot
                 if active:
                     length = cuts[g + 1] - cuts[g]
                     if length <= 0.0:
                         continue
-                    m = max(1, int(math.ceil(length / pulse_max_sub - 1e-9)))
+                    m = max(1, int(math.ceil(length / forcing.pulse_max_sub - 1e-9)))
                     hs = length / m
-                    _fill_propagators(omega, zeta, a, hs, prop_sub)
-                    _stage_rotations(a, hs, drive_omega, rot_sub)
-                    step_prop = prop_sub
-                    step_rot = rot_sub
+                    _fill_propagators(method.omega, method.zeta, method.a, hs,
+                                      scratch.prop_sub)
+                    _stage_rotations(method.a, hs, drive.omega, scratch.rot_sub)
+                    prop = scratch.prop_sub
+                    rot = scratch.rot_sub
                 for r in range(m):
-                    # ---- one BAB step of length hs from ts
-                    ts = cuts[g] + r * hs
-                    t_mid = ts + 0.5 * hs
-                    drive_c, drive_s = drive_phasor(ts, drive_amp, drive_omega, drive_t_ref,
-                                                    drive_phase)
-                    tt = ts
-                    base_x = 0.0
-                    base_y = 0.0
-                    for i in range(n_stages):
-                        if profile_t.size > 0:
-                            base_x, base_y = _profile_accel(tt, profile_t, profile_x, profile_y)
-                        _external(tt, t_mid, pulses, base_x, base_y, drive_index, y_index,
-                                  drive_c, drive_s, step_rot[i, 0], step_rot[i, 1], fe)
-                        kick = b[i] * hs
-                        for c in range(n):
-                            v[c] += kick * (acc[c] + fe[c])
-                        for c in range(n):
-                            x0 = q[c]
-                            v0 = v[c]
-                            q[c] = step_prop[i, c, 0] * x0 + step_prop[i, c, 1] * v0
-                            v[c] = step_prop[i, c, 2] * x0 + step_prop[i, c, 3] * v0
-                        tt += hs * a[i]
-                        # nl_accel written out: its fallback is called from here, not from an
-                        # inlined function (see _nl_accel_even).
-                        _nl_accel_even(q, kbasis, projection, signs, poly, taylor_terms, work,
-                                       acc, info)
-                        if info[0] != 0:
-                            info[0] = 0
-                            _nl_accel_general(q, kbasis, projection, signs, poly, taylor_terms,
-                                              outer, inner, fold, inner_contact, gap, work, acc,
-                                              info)
-                            if info[0] != 0:
-                                tinfo[0] = tt
-                                return s
-                    if profile_t.size > 0:
-                        base_x, base_y = _profile_accel(ts + hs, profile_t, profile_x, profile_y)
-                    _external(ts + hs, t_mid, pulses, base_x, base_y, drive_index, y_index,
-                              drive_c, drive_s, step_rot[n_stages, 0], step_rot[n_stages, 1],
-                              fe)
-                    kick = b[n_stages] * hs
-                    for c in range(n):
-                        v[c] += kick * (acc[c] + fe[c])
-        for c in range(n):
+                    if not _step(q, v, acc, cuts[g] + r * hs, hs, prop, rot, method, force,
+                                 drive, forcing, scratch):
+                        return s
+        for c in range(q.size):
             out_q[s, c] = q[c]
             out_v[s, c] = v[c]
     return n_samples

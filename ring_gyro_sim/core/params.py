@@ -62,6 +62,7 @@ from dataclasses import dataclass, field, fields
 import math
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
+from ring_gyro_sim.core import structure
 from ring_gyro_sim.core.errors import ParameterError
 
 EPSILON_0 = 8.8541878128e-12
@@ -815,12 +816,11 @@ def _frequencies_from_structure(ring: RingParams, legs: LegParams,
     if legs.radial_stiffness <= 0.0:
         raise _fail('legs.radial_stiffness',
                     'must be > 0 when modes.frequencies is empty (frequencies from the legs)')
-    from ring_gyro_sim.core import structure
     f = structure.natural_frequencies_hz(
         count, ring.mass, ring.youngs_modulus,
         structure.second_moment_of_area(ring.thickness, ring.length), ring.radius,
         legs.count, legs.angle, legs.radial_stiffness, legs.tangential_stiffness, legs.mass)
-    return tuple(float(x) for x in f[0::2])
+    return tuple(float(x) for x in f[:count])  # the cosine slots (core's coordinate order)
 
 
 def to_flat(config: SimConfig) -> Dict[str, Any]:

@@ -37,14 +37,17 @@ An input for a time already simulated raises :class:`InputError` and changes not
 Contact / pull-in
 -----------------
 When the outer (or an active inner) gap closes, or the Taylor series leaves its range
-(|w| >= d_g), the simulator stops integrating, sets :attr:`status` to ``'contact'`` with a
-message giving the time and the angle, and from then on holds the ring where it touched
-(velocities zero) while time still advances, as a pulled-in ring sticks. :meth:`reset`
-recovers. No output is ever NaN.
+(|w| >= d_g), the simulator stops integrating, sets :attr:`Simulator.status` to
+:attr:`Status.CONTACT` (:attr:`Status.FAILED` for a non-finite state) with a message giving
+the time and the angle, and from then on holds the ring where it touched (velocities zero)
+while time still advances, as a pulled-in ring sticks. :meth:`Simulator.reset` recovers. No
+output is ever NaN. :class:`Status` is a ``str`` enum: ``Status.RUNNING == 'running'`` and
+``str(Status.CONTACT) == 'contact'``, so recorded and printed statuses are the plain words.
 """
 
 import bisect
 from dataclasses import dataclass, replace
+import enum
 import math
 from typing import Any, Callable, List, Mapping, Optional, Tuple
 
@@ -53,6 +56,10 @@ import numpy as np
 from ring_gyro_sim.core import forces, kernels
 from ring_gyro_sim.core.errors import InputError, SimulationError
 from ring_gyro_sim.core.params import build_config, EPSILON_0, SimConfig, to_flat
+
+__all__ = ['STEPS_PER_PERIOD', 'PULSE_SUBSTEPS_PER_DURATION', 'GAP_GRID_POINTS_PER_MODE',
+           'ELECTRODE_GAUSS_POINTS', 'GAP_FLOOR_RATIO', 'Status', 'default_max_step', 'Samples',
+           'Simulator']
 
 STEPS_PER_PERIOD = 8
 """Default steps per period of the fastest mode (see :func:`default_max_step`)."""
@@ -100,6 +107,34 @@ def channel_names(config: SimConfig):
 # Marks a pulse whose duration is that of the configuration in force when it starts.
 _DURATION_AT_START = -1.0
 
+# Pulses the cut scratch of a step holds before it is grown (2 cuts per pulse + 2).
+_CUTS_PULSES = 4
+
+
+class Status(str, enum.Enum):
+    """
+    State of a :class:`Simulator` (its :attr:`Simulator.status`).
+
+    A ``str`` enum: each member equals its value (``Status.RUNNING == 'running'``) and
+    ``str()`` / f-strings give the value, so diagnostics and summaries carry the plain word.
+    """
+
+    RUNNING = 'running'
+    """Integrating."""
+    CONTACT = 'contact'
+    """A gap closed or the Taylor series left its range: the ring is held where it touched."""
+    FAILED = 'failed'
+    """The state became non-finite (a numerical failure): the ring is held at rest."""
+
+    def __str__(self) -> str:
+        """Return the value (``'running'``), not ``'Status.RUNNING'``."""
+        return self.value
+
+
+def _kernel_status(status: int) -> Status:
+    """Translate a kernel's integer status (``kernels.STATUS_*``, not OK) to a :class:`Status`."""
+    return Status.FAILED if status == kernels.STATUS_NONFINITE else Status.CONTACT
+
 
 @dataclass(frozen=True)
 class Samples:
@@ -141,6 +176,12 @@ class Simulator:
     config : SimConfig
         Validated configuration. ``scenario.shock_times`` / ``shock_peaks`` are scheduled.
 
+    Attributes
+    ----------
+    status : Status
+        ``Status.RUNNING`` until a contact (``CONTACT``) or a numerical failure (``FAILED``);
+        :attr:`message`, :attr:`contact_time_s` and :attr:`contact_theta_rad` say where.
+
     """
 
     def __init__(self, config: SimConfig) -> None:
@@ -153,7 +194,7 @@ class Simulator:
         self.v = np.zeros(n)
         self._acc = np.zeros(n)
         self.sample_index = 0
-        self.status = 'running'
+        self.status = Status.RUNNING
         self.message = ''
         self.contact_time_s = math.nan
         self.contact_theta_rad = math.nan
@@ -166,14 +207,11 @@ class Simulator:
         self._profile_head = 0
         self._events: List[Tuple[int, int, Callable[[], None]]] = []
         self._event_seq = 0
-        self._drive_amp = config.drive.amplitude
-        self._drive_omega = 2.0 * math.pi * config.drive.frequency
+        # The drive's amplitude and frequency are those of the configuration in force (the one
+        # source); the phase reference moves when they change, so the phase is continuous.
         self._drive_t_ref = 0.0
         self._drive_phase = 0.0
-        self._work = np.empty(forces.scratch_size(self.model))
-        self._fe = np.empty(n)
-        self._info = np.zeros(2, dtype=np.int64)
-        self._tinfo = np.zeros(1)
+        self._drive = self._drive_args()
         self.steps_taken = 0
         for at_ns, peak_x, peak_y in config.run.scheduled_shocks():
             self.shock(peak_x, peak_y, at_ns=at_ns)
@@ -189,10 +227,16 @@ class Simulator:
         self.n_sub = max(1, int(math.ceil(self.period_s / h_max - 1e-9)))
         self.h = self.period_s / self.n_sub
         self._a, self._b = kernels.splitting_coefficients(config.integrator.method)
-        self._prop = kernels.linear_propagators(self.omega, self.zeta, self._a * self.h)
-        self._prop_sub = np.empty_like(self._prop)
-        self._rot = np.empty((self._b.size, 2))  # scratch of run_samples
-        self._rot_sub = np.empty((self._b.size, 2))
+        prop = kernels.linear_propagators(self.omega, self.zeta, self._a * self.h)
+        self._method = kernels.Method(period_s=self.period_s, n_sub=self.n_sub, h=self.h,
+                                      a=self._a, b=self._b, prop=prop, omega=self.omega,
+                                      zeta=self.zeta)
+        n = self.model.n_coordinates
+        self._scratch = kernels.Scratch(
+            work=np.empty(forces.scratch_size(self.model)), fe=np.empty(n),
+            info=np.zeros(2, dtype=np.int64), tinfo=np.zeros(1),
+            cuts=np.empty(2 * _CUTS_PULSES + 2), rot=np.empty((self._b.size, 2)),
+            rot_sub=np.empty((self._b.size, 2)), prop_sub=np.empty_like(prop))
         self.coordinates = coordinate_names(config)
         self._y_index = config.modes.count if config.modes.companions else -1
         self._drive_index = 1 if config.modes.count >= 2 else -1
@@ -271,14 +315,14 @@ class Simulator:
             raise InputError('output.rate cannot change at run time')
 
     def _apply_config(self, config: SimConfig) -> None:
-        old = self._config
+        old = self._config.drive
+        if (config.drive.amplitude != old.amplitude
+                or config.drive.frequency != old.frequency):
+            self._rephase_drive()
         self._config = config
         self._build(config)
-        self._work = np.empty(forces.scratch_size(self.model))
-        if (config.drive.amplitude != old.drive.amplitude
-                or config.drive.frequency != old.drive.frequency):
-            self._set_drive_now(config.drive.amplitude, config.drive.frequency)
-        if self.status == 'running':
+        self._drive = self._drive_args()
+        if self.status == Status.RUNNING:
             self._refresh_acceleration()
 
     # ------------------------------------------------------------------ inputs
@@ -360,22 +404,30 @@ class Simulator:
         self._at_index(at_ns, 'drive')
 
         def apply() -> None:
-            amp = self._drive_amp if amplitude is None else amplitude
-            freq = (self._drive_omega / (2.0 * math.pi) if frequency_hz is None
-                    else frequency_hz)
-            self._set_drive_now(amp, freq)
+            drive = self._config.drive
+            amp = drive.amplitude if amplitude is None else float(amplitude)
+            freq = drive.frequency if frequency_hz is None else float(frequency_hz)
+            self._rephase_drive()
             self._config = replace(self._config,
-                                   drive=replace(self._config.drive, amplitude=amp,
-                                                 frequency=freq))
+                                   drive=replace(drive, amplitude=amp, frequency=freq))
+            self._drive = self._drive_args()
         self._schedule(at_ns, apply)
 
-    def _set_drive_now(self, amplitude: float, frequency_hz: float) -> None:
+    def _rephase_drive(self) -> None:
+        """Move the drive's phase reference to now, before its amplitude or frequency change."""
         t = self.time_s
-        phase = self._drive_omega * (t - self._drive_t_ref) + self._drive_phase
+        d = self._drive
+        phase = d.omega * (t - d.t_ref) + d.phase
         self._drive_phase = math.fmod(phase, 2.0 * math.pi)
         self._drive_t_ref = t
-        self._drive_amp = float(amplitude)
-        self._drive_omega = 2.0 * math.pi * float(frequency_hz)
+
+    def _drive_args(self) -> kernels.Drive:
+        """Return the kernels' drive: the configuration's, from the current phase reference."""
+        drive = self._config.drive
+        return kernels.Drive(amplitude=float(drive.amplitude),
+                             omega=2.0 * math.pi * float(drive.frequency),
+                             t_ref=float(self._drive_t_ref), phase=float(self._drive_phase),
+                             index=self._drive_index)
 
     def reset(self, at_ns: Optional[int] = None) -> None:
         """
@@ -393,7 +445,7 @@ class Simulator:
             self._profile_t, self._profile_x, self._profile_y = [], [], []
             self._profile_head = 0
             self._events = []
-            self.status = 'running'
+            self.status = Status.RUNNING
             self.message = ''
             self.contact_time_s = math.nan
             self.contact_theta_rad = math.nan
@@ -457,7 +509,7 @@ class Simulator:
         # Cut at events (advance_samples), so the configuration is constant over the call.
         if count <= 0:
             return
-        if self.status != 'running':
+        if self.status != Status.RUNNING:
             out_q[:] = self.q
             out_v[:] = 0.0
             self.sample_index += count
@@ -478,28 +530,27 @@ class Simulator:
         pulse_max_sub = (float(np.min(pulse_arr[:, 1])) / PULSE_SUBSTEPS_PER_DURATION
                          if len(active) else self.h)
         prof_t, prof_x, prof_y = self._profile_arrays(t_start, t_end)
-        m = self.model
-        self._info[:] = 0
-        completed = kernels.run_samples(
-            self.q, self.v, self._acc, self.sample_index, count, self.period_s, self.n_sub,
-            self.h, self._a, self._b, self._prop, pulse_max_sub, self.omega, self.zeta,
-            self._prop_sub, m.kbasis, m.projection, m.signs, m.poly, m.taylor_terms, m.outer,
-            m.inner, m.fold, m.inner_contact,
-            m.gap, pulse_arr, prof_t, prof_x, prof_y, self._drive_amp, self._drive_omega,
-            self._drive_t_ref, self._drive_phase, self._drive_index, self._y_index, out_q,
-            out_v, self._work, self._fe, self._info, self._tinfo,
-            np.empty(2 * len(active) + 2), self._rot, self._rot_sub)
+        forcing = kernels.Forcing(pulses=pulse_arr, pulse_max_sub=pulse_max_sub,
+                                  profile_t=prof_t, profile_x=prof_x, profile_y=prof_y,
+                                  y_index=self._y_index)
+        scratch = self._scratch
+        if scratch.cuts.size < 2 * len(active) + 2:
+            scratch = self._scratch = scratch._replace(cuts=np.empty(2 * len(active) + 2))
+        scratch.info[:] = 0
+        completed = kernels.run_samples(self.q, self.v, self._acc, self.sample_index, count,
+                                        self._method, self.model.kernel, self._drive, forcing,
+                                        scratch, out_q, out_v)
         self.steps_taken += completed * self.n_sub
-        if self._info[0] != 0:
-            status = int(self._info[0])
-            theta = forces.contact_angle(m, self._info)
-            self._enter_contact(status, theta, float(self._tinfo[0]))
+        if scratch.info[0] != 0:
+            status = int(scratch.info[0])
+            theta = forces.contact_angle(self.model, scratch.info)
+            self._enter_contact(status, theta, float(scratch.tinfo[0]))
             out_q[completed:] = self.q
             out_v[completed:] = 0.0
         self.sample_index += count
 
     def _enter_contact(self, status: int, theta: float, t: float) -> None:
-        self.status = 'contact' if status != kernels.STATUS_NONFINITE else 'failed'
+        self.status = _kernel_status(status)
         self.contact_time_s = t
         self.contact_theta_rad = theta
         self.message = f'{kernels.describe_status(status, theta)}, t = {t:.9f} s'

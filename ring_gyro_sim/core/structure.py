@@ -21,17 +21,19 @@ Ritz expansion of eqs. (2)-(4) with N_R pairs of generalised coordinates.
 Conventions
 -----------
 Coordinate ordering
-    Every matrix of this module is ``(2 N_R, 2 N_R)`` and acts on the paper's interleaved vector
-    (eq. 4)::
+    Every matrix of this module is ``(2 N_R, 2 N_R)`` and acts on the coordinates in the order
+    of the whole core (the simulator's ``q1 .. qN, q1s .. qNs``): the cosine coordinates, then
+    their sine companions::
 
-        Lambda = [q_1^(1), q_1^(2), q_2^(1), q_2^(2), ..., q_N^(1), q_N^(2)]
+        Lambda = [q_1^(1), q_2^(1), ..., q_N^(1), q_1^(2), q_2^(2), ..., q_N^(2)]
 
-    so mode ``n`` (1-based) owns the zero-based rows and columns ``2 n - 2`` (the cosine
-    coordinate q_n^(1)) and ``2 n - 1`` (the sine companion q_n^(2)).
+    (the paper's eq. 4 interleaves them; the matrices are the same up to this permutation), so
+    mode ``n`` (1-based) owns the zero-based rows and columns ``n - 1`` (the cosine coordinate
+    q_n^(1)) and ``N_R + n - 1`` (the sine companion q_n^(2)); :func:`mode_indices` gives them.
 Shape functions
     ``Psi^T(theta)`` of eq. (3) is ``(2, 2 N_R)``: the radial row holds
-    ``[cos n theta, sin n theta]`` and the tangential row
-    ``[-(1/n) sin n theta, (1/n) cos n theta]`` for each ``n``, so that
+    ``[cos n theta]`` then ``[sin n theta]`` and the tangential row
+    ``[-(1/n) sin n theta]`` then ``[(1/n) cos n theta]``, so that
     ``[w, u]^T = Psi^T(theta) Lambda``.
 Support legs
     ``N_l`` identical legs sit at ``theta_j = 2 j pi / N_l + alpha``, ``j = 1 .. N_l``; each is a
@@ -50,6 +52,11 @@ import math
 import numpy as np
 from ring_gyro_sim.core.errors import ParameterError
 import scipy.linalg
+
+__all__ = ['ring_mass', 'second_moment_of_area', 'modal_mass_factor', 'mode_indices',
+           'ring_mass_matrix', 'ring_stiffness_matrix', 'leg_stiffness_matrix',
+           'leg_stiffness_matrix_closed_form', 'leg_mass_matrix', 'couples_different_modes',
+           'coupling_pattern', 'natural_frequencies_hz']
 
 # Entries smaller than this fraction of the largest |entry| count as zero (round-off of sums).
 _RELATIVE_ZERO = 1e-12
@@ -177,6 +184,40 @@ def modal_mass_factor(n):
     return (n * n + 1) / (2.0 * n * n)
 
 
+def mode_indices(n_modes, n):
+    """
+    Rows (and columns) of mode ``n`` in the matrices of this module: ``[n - 1, N_R + n - 1]``.
+
+    Parameters
+    ----------
+    n_modes : int
+        Ritz order N_R, >= 1.
+    n : int
+        Mode number, 1 <= n <= N_R.
+
+    Returns
+    -------
+    list of int
+        The cosine coordinate's index, then its sine companion's.
+
+    Raises
+    ------
+    ParameterError
+        If an argument is not an integer in range.
+
+    """
+    n_modes = _check_positive_int(n_modes, 'n_modes')
+    n = _check_positive_int(n, 'n')
+    if n > n_modes:
+        raise ParameterError(f'n must be <= n_modes = {n_modes}, got {n}')
+    return [n - 1, n_modes + n - 1]
+
+
+def _mode_numbers(n_modes):
+    """Mode number n of every coordinate, as floats: ``[1 .. N_R, 1 .. N_R]``."""
+    return np.tile(np.arange(1, n_modes + 1, dtype=float), 2)
+
+
 def ring_mass_matrix(n_modes, ring_mass_kg):
     """
     Ring mass matrix M_r of eqs. (7)-(8), without the ring-centre coupling M_br.
@@ -191,7 +232,7 @@ def ring_mass_matrix(n_modes, ring_mass_kg):
     Returns
     -------
     numpy.ndarray
-        ``(2 N_R, 2 N_R)`` diagonal matrix (kg); entries ``2n-2`` and ``2n-1`` equal
+        ``(2 N_R, 2 N_R)`` diagonal matrix (kg); entries ``n-1`` and ``N_R+n-1`` equal
         ``m_r (n^2 + 1) / (2 n^2)``.
 
     Raises
@@ -202,7 +243,7 @@ def ring_mass_matrix(n_modes, ring_mass_kg):
     """
     n_modes = _check_positive_int(n_modes, 'n_modes')
     mass = _check_float(ring_mass_kg, 'ring_mass_kg', positive=True)
-    n = np.repeat(np.arange(1, n_modes + 1, dtype=float), 2)
+    n = _mode_numbers(n_modes)
     return np.diag(mass * (n * n + 1.0) / (2.0 * n * n))
 
 
@@ -224,7 +265,7 @@ def ring_stiffness_matrix(n_modes, youngs_modulus_pa, second_moment_m4, radius_m
     Returns
     -------
     numpy.ndarray
-        ``(2 N_R, 2 N_R)`` diagonal matrix (N/m); entries ``2n-2`` and ``2n-1`` equal
+        ``(2 N_R, 2 N_R)`` diagonal matrix (N/m); entries ``n-1`` and ``N_R+n-1`` equal
         ``E I pi (n^2 - 1)^2 / r^3``, zero for the rigid-body mode n = 1.
 
     Raises
@@ -237,7 +278,7 @@ def ring_stiffness_matrix(n_modes, youngs_modulus_pa, second_moment_m4, radius_m
     modulus = _check_float(youngs_modulus_pa, 'youngs_modulus_pa', positive=True)
     second_moment = _check_float(second_moment_m4, 'second_moment_m4', positive=True)
     radius = _check_float(radius_m, 'radius_m', positive=True)
-    n = np.repeat(np.arange(1, n_modes + 1, dtype=float), 2)
+    n = _mode_numbers(n_modes)
     return np.diag(modulus * second_moment * math.pi * (n * n - 1.0) ** 2 / radius**3)
 
 
@@ -250,10 +291,10 @@ def _psi_transpose(theta_rad, n_modes):
     cos_n = np.cos(n * theta_rad)
     sin_n = np.sin(n * theta_rad)
     psi_t = np.empty((2, 2 * n_modes))
-    psi_t[0, 0::2] = cos_n
-    psi_t[0, 1::2] = sin_n
-    psi_t[1, 0::2] = -sin_n / n
-    psi_t[1, 1::2] = cos_n / n
+    psi_t[0, :n_modes] = cos_n
+    psi_t[0, n_modes:] = sin_n
+    psi_t[1, :n_modes] = -sin_n / n
+    psi_t[1, n_modes:] = cos_n / n
     return psi_t
 
 
@@ -349,13 +390,13 @@ def _closed_form(n_modes, n_legs, angle, radial, tangential):
             # tangential row of Psi^T, so they carry k_t: the direct sum of eq. (13) shows it, and
             # the text of eq. (16), replacing 'k_r and k_t' by m_l, presumes k_t is there.
             tan = tangential / (n * p)
-            rows = slice(2 * n - 2, 2 * n)
-            cols = slice(2 * p - 2, 2 * p)
-            total[rows, cols] = [
+            rows = np.ix_(mode_indices(n_modes, n), mode_indices(n_modes, p))
+            cols = np.ix_(mode_indices(n_modes, p), mode_indices(n_modes, n))
+            total[rows] = [
                 [radial * s_cc + tan * s_ss, radial * s_cs - tan * s_sc],
                 [radial * s_sc - tan * s_cs, radial * s_ss + tan * s_cc],
             ]
-            total[cols, rows] = total[rows, cols].T
+            total[cols] = total[rows].T
     return total
 
 
@@ -365,7 +406,7 @@ def leg_stiffness_matrix_closed_form(
     """
     Total support-leg stiffness matrix K_l from the Appendix closed form (eqs. 37-45).
 
-    Block ``(n, p)`` (rows ``2n-2 .. 2n-1``, columns ``2p-2 .. 2p-1``) is eq. (38) summed over
+    Block ``(n, p)`` (rows and columns :func:`mode_indices` of n and p) is eq. (38) summed over
     the legs, with the sums of a_cc, a_ss, a_cs and a_sc taken from the Appendix table: non-zero
     only on the 'positive diagonals' ``(n - p) / N_l`` integer, the 'negative diagonals'
     ``(n + p) / N_l`` integer, and their intersections. Equals :func:`leg_stiffness_matrix`
@@ -543,13 +584,15 @@ def natural_frequencies_hz(
 
     - If the legs couple no two different modes (``couples_different_modes(n_modes, n_legs)``
       is False, which for ``N_l >= 3`` means ``N_R <= N_l / 2``), each 2 x 2 block is solved
-      alone and the result is ordered as the coordinates: entry ``2n-2`` for the cosine
-      coordinate of mode n, entry ``2n-1`` for its sine companion. When a pair splits
+      alone and the result is ordered as the coordinates: entry ``n-1`` for the cosine
+      coordinate of mode n, entry ``N_R+n-1`` for its sine companion. When a pair splits
       (2n / N_l integer) and alpha rotates the mode shapes, each frequency goes to the
       coordinate its mode shape is closer to (at alpha = 0 the assignment is exact: the cosine
       slot is the mode aligned with the legs).
-    - Otherwise (``couples_different_modes`` True) the coordinates are mixed and the result is
-      simply all eigenfrequencies sorted ascending.
+    - Otherwise (``couples_different_modes`` True) the coordinates are mixed and no frequency
+      belongs to one of them: the eigenfrequencies sorted ascending are taken in consecutive
+      pairs (the ring's modes come in pairs), the lower of pair k in slot ``k`` and the upper
+      in slot ``N_R + k``; ``numpy.sort`` of the result is the spectrum.
 
     Parameters
     ----------
@@ -577,8 +620,8 @@ def natural_frequencies_hz(
     Returns
     -------
     numpy.ndarray
-        ``(2 N_R,)`` natural frequencies (Hz), ordered as described above. A free ring has a
-        zero frequency for the rigid-body mode n = 1.
+        ``(2 N_R,)`` natural frequencies (Hz), cosine slots then companion slots as described
+        above. A free ring has a zero frequency for the rigid-body mode n = 1.
 
     Raises
     ------
@@ -594,12 +637,14 @@ def natural_frequencies_hz(
         n_modes, n_legs, angle_rad, leg_mass_kg
     )
     if couples_different_modes(n_modes, n_legs):
-        omega_sq = scipy.linalg.eigh(stiffness, mass, eigvals_only=True)
+        spectrum = scipy.linalg.eigh(stiffness, mass, eigvals_only=True)
+        omega_sq = np.concatenate([spectrum[0::2], spectrum[1::2]])
     else:
         omega_sq = np.empty(2 * n_modes)
         for n in range(1, n_modes + 1):
-            block = slice(2 * n - 2, 2 * n)
-            values, vectors = scipy.linalg.eigh(stiffness[block, block], mass[block, block])
+            block = mode_indices(n_modes, n)
+            values, vectors = scipy.linalg.eigh(stiffness[np.ix_(block, block)],
+                                                mass[np.ix_(block, block)])
             # The lower mode takes the slot of the coordinate it is mostly made of.
             lower_is_cosine = abs(vectors[0, 0]) >= abs(vectors[1, 0])
             omega_sq[block] = values if lower_is_cosine else values[::-1]

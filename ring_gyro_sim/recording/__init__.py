@@ -25,3 +25,5 @@ Modules (import from them directly, nothing is re-exported here):
 - ``schemas``: full ``ros2msg`` message definitions and type description hashes;
 - ``errors``: :class:`~ring_gyro_sim.recording.errors.RecordingError`.
 """
+
+__all__ = ['errors', 'reader', 'schemas', 'writer']

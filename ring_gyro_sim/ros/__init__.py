@@ -20,11 +20,18 @@ ring_gyro_sim.ros.node``) this package, imported first, notes SIGINT and SIGTERM
 :data:`EARLY_SIGNALS` until ``node.main()`` takes them over: Ctrl-C during the slow imports
 (rclpy, numpy, numba: ~0.5 s) then ends the node at once, exit code 0, without a
 KeyboardInterrupt traceback. In any other process importing it changes nothing.
+
+Modules (import from them directly, nothing else is re-exported here): ``node`` (the
+simulator node and its entry point), ``parameters`` (ROS parameter declaration from the
+parameter table), ``conversions`` (messages to and from the core's types), ``sinks`` (publish
+and record a run), ``recorder`` (recording a run as a ROS 2 bag).
 """
 
 import os
 import signal
 import sys
+
+__all__ = ['EARLY_SIGNALS', 'conversions', 'node', 'parameters', 'recorder', 'sinks']
 
 EARLY_SIGNALS = []
 """Signals received in the node's process before ``node.main()`` installed its handlers."""

@@ -15,6 +15,7 @@
 """Tests of core/simulator.py and core/kernels.py: accuracy, conservation, determinism, inputs."""
 
 from dataclasses import replace
+import json
 import math
 
 import numpy as np
@@ -22,7 +23,7 @@ import pytest
 from ring_gyro_sim.core import forces, kernels
 from ring_gyro_sim.core.errors import InputError
 from ring_gyro_sim.core.params import build_config, STANDARD_GRAVITY
-from ring_gyro_sim.core.simulator import Simulator
+from ring_gyro_sim.core.simulator import _kernel_status, Simulator, Status
 from scipy.integrate import solve_ivp
 
 SHOCK = 10_000 * STANDARD_GRAVITY
@@ -219,11 +220,29 @@ def test_y_shock_is_the_x_shock_turned_by_90_degrees():
     assert np.all(x_run.q[:, 3:] == 0.0)
 
 
+def test_status_is_a_str_enum_that_reads_as_its_word():
+    """Recorded and printed statuses stay the plain words (diagnostics, JSON summaries)."""
+    assert Simulator(paper_shock()).status is Status.RUNNING
+    assert [s.value for s in Status] == ['running', 'contact', 'failed']
+    for status in Status:
+        assert status == status.value and isinstance(status, str)
+        assert str(status) == f'{status}' == status.value
+        assert json.dumps({'status': status}) == f'{{"status": "{status.value}"}}'
+    assert Status('contact') is Status.CONTACT
+
+
+@pytest.mark.parametrize(('code', 'status'), [
+    (kernels.STATUS_OUTER_CONTACT, Status.CONTACT), (kernels.STATUS_INNER_CONTACT, Status.CONTACT),
+    (kernels.STATUS_SERIES_RANGE, Status.CONTACT), (kernels.STATUS_NONFINITE, Status.FAILED)])
+def test_kernel_statuses_translate_to_the_simulator_status(code, status):
+    assert _kernel_status(code) is status
+
+
 def test_contact_is_flagged_finite_and_reset_recovers():
     config = paper_shock(**{'scenario.shock_peaks': [20_000 * STANDARD_GRAVITY]})
     sim = Simulator(config)
     out = sim.advance(0.01)
-    assert sim.status == 'contact'
+    assert sim.status is Status.CONTACT
     assert 'contact' in sim.message and 'theta' in sim.message and 't =' in sim.message
     assert 0.0 < sim.contact_time_s < 0.01
     for arr in (out.q, out.v, out.gap, out.min_gap, out.capacitance):
@@ -234,7 +253,7 @@ def test_contact_is_flagged_finite_and_reset_recovers():
     assert len(held) == 400 and np.all(held.q == held.q[0])  # held in contact, time runs
     assert sim.time_s == pytest.approx(t_before + 0.002)
     sim.reset()
-    assert sim.status == 'running'
+    assert sim.status is Status.RUNNING
     rest = sim.advance(0.001)
     assert np.all(rest.q == 0.0)
 
@@ -285,17 +304,18 @@ def test_drive_phase_is_continuous_across_frequency_change():
     sim.set_drive(frequency_hz=15500.0)
     t = sim.time_s
     before = kernels.drive_phasor(t, 1.0, 2 * np.pi * 15000.0, 0.0, 0.0)
-    after = kernels.drive_phasor(t, sim._drive_amp, sim._drive_omega, sim._drive_t_ref,
-                                 sim._drive_phase)
+    drive = sim._drive
+    assert drive.omega == 2 * np.pi * sim.config.drive.frequency  # one source: the config
+    after = kernels.drive_phasor(t, drive.amplitude, drive.omega, drive.t_ref, drive.phase)
     assert after == pytest.approx(before, abs=1e-9)
     assert abs(before[0]) + abs(before[1]) > 0.5  # a phasor of amplitude 1, not zeros
     # The stages' drive values, by the angle-sum formula, equal the direct cosine.
     h = sim.h
     rot = np.empty((sim._b.size, 2))
-    kernels._stage_rotations(sim._a, h, sim._drive_omega, rot)
+    kernels._stage_rotations(sim._a, h, drive.omega, rot)
     c, s = after
     offsets = np.concatenate([[0.0], np.cumsum(sim._a)[:-1], [1.0]])
-    direct = np.cos(sim._drive_omega * (t + offsets * h - sim._drive_t_ref) + sim._drive_phase)
+    direct = np.cos(drive.omega * (t + offsets * h - drive.t_ref) + drive.phase)
     assert np.allclose(c * rot[:, 0] - s * rot[:, 1], direct, rtol=0, atol=1e-12)
 
 

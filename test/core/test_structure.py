@@ -36,9 +36,21 @@ K_T = 317.0
 LEG_MASS_KG = 2.1e-9
 
 
+def indices(n_modes, n):
+    """Cosine and sine coordinate of mode n (1-based): core's order, cos modes then companions."""
+    return [n - 1, n_modes + n - 1]
+
+
 def block(matrix, n, p):
-    """Return the 2 x 2 block of modes n (rows) and p (columns), both 1-based."""
-    return matrix[2 * n - 2:2 * n, 2 * p - 2:2 * p]
+    """Return (a copy of) the 2 x 2 block of modes n (rows) and p (columns), both 1-based."""
+    n_modes = matrix.shape[0] // 2
+    return matrix[np.ix_(indices(n_modes, n), indices(n_modes, p))]
+
+
+def set_block(matrix, n, p, value):
+    """Set the 2 x 2 block of modes n (rows) and p (columns) of ``matrix`` to ``value``."""
+    n_modes = matrix.shape[0] // 2
+    matrix[np.ix_(indices(n_modes, n), indices(n_modes, p))] = value
 
 
 def legs_couple(n, p, n_legs):
@@ -57,13 +69,12 @@ def printed_eq15(n_legs, angle_rad, k_r):
     n_modes = n_legs // 2
     matrix = np.zeros((2 * n_modes, 2 * n_modes))
     for n in range(1, n_modes):
-        matrix[2 * n - 2, 2 * n - 2] = matrix[2 * n - 1, 2 * n - 1] = (
-            n_legs / 2 * (k_r + k_r / n**2))
+        set_block(matrix, n, n, np.eye(2) * n_legs / 2 * (k_r + k_r / n**2))
     c, s = math.cos(n_legs * angle_rad / 2), math.sin(n_legs * angle_rad / 2)
-    block(matrix, n_modes, n_modes)[:] = [
+    set_block(matrix, n_modes, n_modes, [
         [n_legs * k_r * c**2 + 4 * k_r / n_legs * s**2, (n_legs * k_r - 4 * k_r / n_legs) * c * s],
         [(n_legs * k_r - 4 * k_r / n_legs) * c * s, n_legs * k_r * s**2 + 4 * k_r / n_legs * c**2],
-    ]
+    ])
     return matrix
 
 
@@ -81,7 +92,8 @@ def test_modal_mass_factor_and_ring_mass_matrix():
     assert structure.modal_mass_factor(2) == 5 / 8
     assert structure.modal_mass_factor(10) == pytest.approx(101 / 200)
     mass = structure.ring_mass_matrix(4, 2.0)
-    expected = 2.0 * np.array([1, 1, 5 / 8, 5 / 8, 10 / 18, 10 / 18, 17 / 32, 17 / 32])
+    # Cosine coordinates of n = 1..4, then their companions (the same masses).
+    expected = 2.0 * np.array([1, 5 / 8, 10 / 18, 17 / 32, 1, 5 / 8, 10 / 18, 17 / 32])
     np.testing.assert_allclose(mass, np.diag(expected), rtol=1e-15, atol=0)
 
 
@@ -89,23 +101,56 @@ def test_ring_stiffness_is_zero_for_rigid_body_mode():
     stiffness = structure.ring_stiffness_matrix(3, YOUNGS_PA, SECOND_MOMENT_M4, RADIUS_M)
     assert stiffness.shape == (6, 6)
     assert np.count_nonzero(stiffness - np.diag(np.diag(stiffness))) == 0
-    assert stiffness[0, 0] == 0.0 and stiffness[1, 1] == 0.0
+    assert stiffness[0, 0] == 0.0 and stiffness[3, 3] == 0.0  # n = 1: q1 and q1s
     unit = YOUNGS_PA * SECOND_MOMENT_M4 * math.pi / RADIUS_M**3
-    np.testing.assert_allclose(np.diag(stiffness)[2:], unit * np.array([9, 9, 64, 64]), rtol=1e-14)
+    np.testing.assert_allclose(np.diag(stiffness)[[1, 2, 4, 5]], unit * np.array([9, 64, 9, 64]),
+                               rtol=1e-14)
 
 
 def test_free_ring_frequencies_match_the_classical_formula():
     # f_n = sqrt(E I / (rho A r^4)) n (n^2 - 1) / sqrt(n^2 + 1) / (2 pi) for a free thin ring.
     scale = math.sqrt(YOUNGS_PA * SECOND_MOMENT_M4
                       / (DENSITY * THICKNESS_M * LENGTH_M * RADIUS_M**4)) / (2 * math.pi)
-    n = np.repeat(np.arange(1, 7), 2)
+    n = np.tile(np.arange(1, 7), 2)
     expected = scale * n * (n**2 - 1) / np.sqrt(n**2 + 1)
-    # N_R = 6 < N_l = 16 / 2: coordinate order; N_l = 3: coupled path, ascending order (the free
-    # ring frequencies increase with n, so both orders agree).
+    # N_R = 6 < N_l = 16 / 2: coordinate order; N_l = 3: coupled path, consecutive pairs of the
+    # sorted spectrum (the free ring's pairs are degenerate and increase with n: both agree).
     for n_legs in (16, 3):
         freq = frequencies(6, n_legs, 0.4, k_r=0.0, k_t=0.0, leg_mass_kg=0.0)
         np.testing.assert_allclose(freq, expected, rtol=1e-12, atol=1e-9)
-    assert expected[2] == pytest.approx(7.9e3, rel=0.01)  # bare 2theta: the legs add the rest
+    assert expected[1] == pytest.approx(7.9e3, rel=0.01)  # bare 2theta: the legs add the rest
+
+
+def paper_interleaved_leg_stiffness(n_modes, n_legs, angle, k_r, k_t):
+    """Eq. (13) summed directly on the paper's interleaved vector (eq. 4), written out here."""
+    total = np.zeros((2 * n_modes, 2 * n_modes))
+    for j in range(1, n_legs + 1):
+        theta = 2 * j * math.pi / n_legs + angle
+        psi_t = np.zeros((2, 2 * n_modes))
+        for n in range(1, n_modes + 1):
+            c, s = math.cos(n * theta), math.sin(n * theta)
+            psi_t[:, 2 * n - 2] = [c, -s / n]  # q_n^(1), eq. (3)
+            psi_t[:, 2 * n - 1] = [s, c / n]  # q_n^(2)
+        total += psi_t.T @ np.diag([k_r, k_t]) @ psi_t
+    return total
+
+
+@pytest.mark.parametrize(('n_modes', 'n_legs', 'angle'), [(4, 8, 0.3), (11, 9, 0.3), (5, 3, -1.1)])
+def test_matrices_are_the_papers_in_the_core_coordinate_order(n_modes, n_legs, angle):
+    """The paper interleaves q_n^(1), q_n^(2) (eq. 4); core orders cos modes, then companions."""
+    order = [2 * n for n in range(n_modes)] + [2 * n + 1 for n in range(n_modes)]
+    paper = paper_interleaved_leg_stiffness(n_modes, n_legs, angle, K_R, K_T)
+    expected = paper[np.ix_(order, order)]
+    for matrix in (structure.leg_stiffness_matrix(n_modes, n_legs, angle, K_R, K_T),
+                   structure.leg_stiffness_matrix_closed_form(n_modes, n_legs, angle, K_R, K_T)):
+        np.testing.assert_allclose(matrix, expected, rtol=0, atol=1e-12 * np.abs(paper).max())
+    assert [structure.mode_indices(n_modes, n) for n in (1, n_modes)] == [
+        [0, n_modes], [n_modes - 1, 2 * n_modes - 1]]
+
+
+def test_mode_indices_refuses_a_mode_beyond_the_ritz_order():
+    with pytest.raises(ParameterError, match='^n must be <= n_modes'):
+        structure.mode_indices(3, 4)
 
 
 # --------------------------------------------------------------------------- closed form
@@ -166,13 +211,13 @@ def test_printed_eq15_has_k_r_where_k_t_belongs():
     # With the tangential terms given k_t the printed form is right.
     corrected = printed_eq15(n_legs, angle, 1000.0)
     for n in range(1, n_legs // 2):
-        block(corrected, n, n)[:] = np.eye(2) * n_legs / 2 * (1000.0 + 300.0 / n**2)
+        set_block(corrected, n, n, np.eye(2) * n_legs / 2 * (1000.0 + 300.0 / n**2))
     c, s = math.cos(n_legs * angle / 2), math.sin(n_legs * angle / 2)
     k_r, k_t = 1000.0, 300.0
-    block(corrected, 4, 4)[:] = [
+    set_block(corrected, 4, 4, [
         [n_legs * k_r * c**2 + 4 * k_t / n_legs * s**2, (n_legs * k_r - 4 * k_t / n_legs) * c * s],
         [(n_legs * k_r - 4 * k_t / n_legs) * c * s, n_legs * k_r * s**2 + 4 * k_t / n_legs * c**2],
-    ]
+    ])
     np.testing.assert_allclose(corrected, direct, rtol=0, atol=1e-9)
 
 
@@ -190,7 +235,7 @@ def test_uncoupled_diagonal_entries(n_legs, angle):
     n_modes = (n_legs - 1) // 2  # every n < N_l / 2
     stiffness = structure.leg_stiffness_matrix(n_modes, n_legs, angle, K_R, K_T)
     mass = structure.leg_mass_matrix(n_modes, n_legs, angle, LEG_MASS_KG)
-    n = np.repeat(np.arange(1, n_modes + 1), 2)
+    n = np.tile(np.arange(1, n_modes + 1), 2)
     np.testing.assert_allclose(
         stiffness, np.diag(n_legs / 2 * (K_R + K_T / n**2)), rtol=0, atol=1e-12 * K_R * n_legs)
     np.testing.assert_allclose(
@@ -205,9 +250,9 @@ def expected_pattern(n_modes, n_legs):
     pattern = np.zeros((2 * n_modes, 2 * n_modes), dtype=bool)
     for n, p in itertools.product(range(1, n_modes + 1), repeat=2):
         if n == p and (2 * n) % n_legs != 0:
-            block(pattern, n, p)[:] = np.eye(2, dtype=bool)  # equal pair, no off-diagonal
+            set_block(pattern, n, p, np.eye(2, dtype=bool))  # equal pair, no off-diagonal
         elif legs_couple(n, p, n_legs):
-            block(pattern, n, p)[:] = True
+            set_block(pattern, n, p, True)
     return pattern
 
 
@@ -261,7 +306,7 @@ def test_couples_different_modes_agrees_with_the_pattern(n_legs):
         pattern = structure.coupling_pattern(n_modes, n_legs, 0.3)
         off_block = pattern.copy()
         for n in range(1, n_modes + 1):
-            block(off_block, n, n)[:] = False
+            set_block(off_block, n, n, False)
         assert structure.couples_different_modes(n_modes, n_legs) == off_block.any()
 
 
@@ -270,14 +315,14 @@ def test_couples_different_modes_agrees_with_the_pattern(n_legs):
 
 def test_eight_legs_split_the_4theta_pair_not_the_2theta_pair():
     freq = frequencies(4, 8, 0.0)
-    assert freq[2] == pytest.approx(freq[3], rel=1e-13)  # 2theta: degenerate
-    assert abs(freq[6] - freq[7]) > 0.05 * freq[6]  # 4theta: split
+    assert freq[1] == pytest.approx(freq[5], rel=1e-13)  # 2theta (q2, q2s): degenerate
+    assert abs(freq[3] - freq[7]) > 0.05 * freq[3]  # 4theta (q4, q4s): split
     # At alpha = 0 the cosine 4theta shape has its antinodes on the legs: radial springs.
     k_ring = YOUNGS_PA * SECOND_MOMENT_M4 * math.pi * 15**2 / RADIUS_M**3
     m_ring = RING_MASS_KG * 17 / 32
     aligned = math.sqrt((k_ring + 8 * K_R) / (m_ring + 8 * LEG_MASS_KG)) / (2 * math.pi)
     across = math.sqrt((k_ring + 4 * K_T / 8) / (m_ring + 4 * LEG_MASS_KG / 8)) / (2 * math.pi)
-    assert freq[6] == pytest.approx(aligned, rel=1e-12)
+    assert freq[3] == pytest.approx(aligned, rel=1e-12)
     assert freq[7] == pytest.approx(across, rel=1e-12)
 
 
@@ -285,9 +330,11 @@ def test_split_pair_slots_follow_the_mode_shapes():
     base = frequencies(4, 8, 0.0)
     # Rotating the legs by pi / 8 puts them on the nodes of cos 4 theta: the slots swap.
     rotated = frequencies(4, 8, math.pi / 8)
-    np.testing.assert_allclose(rotated[6:], base[6:][::-1], rtol=1e-12)
-    np.testing.assert_allclose(frequencies(4, 8, 0.05)[6:], base[6:], rtol=1e-12)
-    np.testing.assert_allclose(rotated[:6], base[:6], rtol=1e-12)
+    pair = [3, 7]  # q4, q4s
+    others = [0, 1, 2, 4, 5, 6]
+    np.testing.assert_allclose(rotated[pair], base[pair][::-1], rtol=1e-12)
+    np.testing.assert_allclose(frequencies(4, 8, 0.05)[pair], base[pair], rtol=1e-12)
+    np.testing.assert_allclose(rotated[others], base[others], rtol=1e-12)
 
 
 @pytest.mark.parametrize('n_legs', range(1, 13))
@@ -297,7 +344,8 @@ def test_pair_splits_iff_2n_over_n_legs_is_integer(n_legs, angle):
     assert not structure.couples_different_modes(n_modes, n_legs)
     freq = frequencies(n_modes, n_legs, angle)
     for n in range(1, n_modes + 1):
-        relative_gap = abs(freq[2 * n - 2] - freq[2 * n - 1]) / freq[2 * n - 2]
+        cos, sin = freq[indices(n_modes, n)]
+        relative_gap = abs(cos - sin) / cos
         if (2 * n) % n_legs == 0:
             assert relative_gap > 1e-4, n
         else:
@@ -307,8 +355,10 @@ def test_pair_splits_iff_2n_over_n_legs_is_integer(n_legs, angle):
 @pytest.mark.parametrize(('n_modes', 'n_legs'), [(9, 4), (7, 3), (12, 8), (11, 9), (6, 2)])
 def test_coupled_spectrum_splitting_and_rotation_invariance(n_modes, n_legs):
     assert structure.couples_different_modes(n_modes, n_legs)
-    freq = frequencies(n_modes, n_legs, 0.37)
-    assert np.all(np.diff(freq) >= 0)  # ascending when modes couple
+    slots = frequencies(n_modes, n_legs, 0.37)
+    freq = np.sort(slots)
+    # Coupled: consecutive pairs of the sorted spectrum, the lower in the cosine slots.
+    np.testing.assert_array_equal(slots, np.concatenate([freq[0::2], freq[1::2]]))
     # Groups of equal frequencies: pairs for the 2-dimensional classes, singles for the modes
     # with 2n / N_l integer (one single per coordinate).
     sizes = [1]
@@ -321,7 +371,7 @@ def test_coupled_spectrum_splitting_and_rotation_invariance(n_modes, n_legs):
     assert sizes.count(1) == expected_singles
     assert sizes.count(2) == (2 * n_modes - expected_singles) // 2
     # Rotating the legs rotates the modes, not the spectrum.
-    np.testing.assert_allclose(frequencies(n_modes, n_legs, -1.2), freq, rtol=1e-11)
+    np.testing.assert_allclose(np.sort(frequencies(n_modes, n_legs, -1.2)), freq, rtol=1e-11)
 
 
 # --------------------------------------------------------------------------- validation
