@@ -510,6 +510,31 @@ class Simulator:
                                 self._cap_scale, GAP_FLOOR_RATIO * d, gap, min_gap, cap)
         return Samples(t=t, q=q, v=v, gap=gap, min_gap=min_gap, capacitance=cap)
 
+    def outputs_for(self, q: np.ndarray) -> Samples:
+        """
+        Output channels of given coordinates, without advancing or changing the state.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,) or (S, n)
+            Coordinates, m, columns as :attr:`coordinates`.
+
+        Returns
+        -------
+        Samples
+            ``t`` = the current time on every row; ``v`` = 0 (velocities do not enter the
+            channels); ``gap``, ``min_gap`` and ``capacitance`` exactly as the published blocks
+            compute them for these coordinates.
+
+        """
+        q = np.array(q, dtype=np.float64, ndmin=2)
+        n = self.model.n_coordinates
+        if q.ndim != 2 or q.shape[1] != n or not np.all(np.isfinite(q)):
+            raise InputError(f'q: expected {n} finite values per row '
+                             f'({", ".join(self.coordinates)}), got shape {q.shape}')
+        q = np.ascontiguousarray(q)
+        return self._samples(np.full(len(q), self.time_s), q, np.zeros_like(q))
+
     def energy(self) -> float:
         """Conserved energy of the undamped, unforced system at the current state, J."""
         return forces.mechanical_energy(self.q, self.v, self.omega, self.model)
