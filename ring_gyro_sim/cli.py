@@ -49,6 +49,9 @@ def _parser() -> argparse.ArgumentParser:
     rep.add_argument('--rate', type=float, default=1.0, help='playback speed factor')
     rep.add_argument('--clock', action='store_true', help='publish /clock from the log times')
     rep.add_argument('--topics', nargs='+', help='only these topics')
+    rep.add_argument('--wait-for-subscribers', type=float, default=0.0, metavar='S',
+                     help='start once every topic has a subscriber (at most S s) '
+                          'instead of after a fixed discovery wait')
 
     cal = sub.add_parser('calibrate', help='outer voltage that puts the 1theta backbone '
                                            'through a target point (Fig. 4)')
@@ -140,7 +143,8 @@ def cmd_run(args) -> int:
 def cmd_replay(args) -> int:
     """``ring_gyro replay``."""
     from ring_gyro_sim.replay import replay
-    count = replay(args.recording, rate=args.rate, clock=args.clock, topics=args.topics)
+    count = replay(args.recording, rate=args.rate, clock=args.clock, topics=args.topics,
+                   wait_for_subscribers_s=args.wait_for_subscribers)
     print(f'replayed {count} messages', file=sys.stderr)
     return 0
 

@@ -20,8 +20,16 @@ Messages are published in log-time order, already serialized (no decode / re-enc
 KeepLast(100): what the node offers, so estimators with default subscriptions connect.
 With ``--clock`` the log time is also published on ``/clock`` before each message (for
 subscribers that run on ``use_sim_time``).
+
+Discovery: volatile publishers deliver only to subscribers they have matched, so the first
+message waits ``DISCOVERY_WAIT_S``; on a loaded machine discovery can take longer and the
+first messages then reach nobody. ``--wait-for-subscribers S`` waits instead until every
+publisher has at least one subscriber (at most S seconds, then starts anyway and says so):
+subscribers started before the replay then receive every message.
 """
 
+import math
+import sys
 import time
 from typing import Iterable, Optional
 
@@ -29,11 +37,17 @@ from ring_gyro_sim.core.errors import InputError
 
 DISCOVERY_WAIT_S = 3.0
 """Time given to subscribers to discover the new publishers before the first message."""
+MATCH_SETTLE_S = 1.0
+"""
+After every publisher has matched a subscriber: time for the subscribers to match the
+publishers in turn (not visible from here; until then a reliable publisher's messages reach
+them only later, in a burst: seen 0.3 s after the publisher's side on a loaded machine).
+"""
 
 
 def replay(path: str, rate: float = 1.0, clock: bool = False,
            topics: Optional[Iterable[str]] = None, discovery_wait_s: float = DISCOVERY_WAIT_S,
-           node_name: str = 'ring_gyro_replay') -> int:
+           node_name: str = 'ring_gyro_replay', wait_for_subscribers_s: float = 0.0) -> int:
     """
     Publish the messages of ``path``; returns how many were published.
 
@@ -51,10 +65,16 @@ def replay(path: str, rate: float = 1.0, clock: bool = False,
         Wall time to wait after creating the publishers, so that subscribers discover them, s.
     node_name : str
         Name of the publishing node.
+    wait_for_subscribers_s : float
+        If > 0: instead of ``discovery_wait_s``, wait until every publisher has a subscriber,
+        at most this long, s.
 
     """
     if not rate > 0.0:
         raise InputError(f'rate: must be > 0, got {rate!r}')
+    if not (math.isfinite(wait_for_subscribers_s) and wait_for_subscribers_s >= 0.0):
+        raise InputError(f'wait_for_subscribers: must be finite and >= 0, got '
+                         f'{wait_for_subscribers_s!r}')
     import rclpy
     from rclpy.executors import ExternalShutdownException
     from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -83,7 +103,18 @@ def replay(path: str, rate: float = 1.0, clock: bool = False,
                 publishers[m.topic] = node.create_publisher(message_class(m.type_name),
                                                             m.topic, qos)
             if first is None:
-                _wait(node, discovery_wait_s)
+                if wait_for_subscribers_s > 0.0:
+                    every = list(publishers.values()) + [p for p in (clock_pub,) if p]
+                    _wait(node, wait_for_subscribers_s,
+                          lambda: all(p.get_subscription_count() > 0 for p in every))
+                    alone = sorted(p.topic_name for p in every if not p.get_subscription_count())
+                    if alone:
+                        print(f'replay: no subscriber after {wait_for_subscribers_s:g} s on '
+                              f'{", ".join(alone)}; starting anyway', file=sys.stderr)
+                    else:
+                        _wait(node, MATCH_SETTLE_S)
+                else:
+                    _wait(node, discovery_wait_s)
                 first = m.log_time_ns
                 start = time.monotonic()
             due = start + (m.log_time_ns - first) * 1e-9 / rate
@@ -103,8 +134,8 @@ def replay(path: str, rate: float = 1.0, clock: bool = False,
     return count
 
 
-def _wait(node, seconds: float) -> None:
+def _wait(node, seconds: float, done=lambda: False) -> None:
     import rclpy
     end = time.monotonic() + seconds
-    while time.monotonic() < end:
+    while time.monotonic() < end and not done():
         rclpy.spin_once(node, timeout_sec=0.05)
