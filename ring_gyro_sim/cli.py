@@ -53,6 +53,9 @@ def _parser() -> argparse.ArgumentParser:
     rep.add_argument('--max-gap', type=float, default=None, metavar='SECONDS',
                      help='shorten longer gaps between log times to this, with a warning '
                           '(default 1 s; inf keeps them)')
+    rep.add_argument('--wait-for-subscribers', type=float, default=0.0, metavar='S',
+                     help='start once every topic has a subscriber (at most S s) '
+                          'instead of after a fixed discovery wait')
 
     cal = sub.add_parser('calibrate', help='outer voltage that puts the 1theta backbone '
                                            'through a target point (Fig. 4)')
@@ -145,7 +148,8 @@ def cmd_replay(args) -> int:
     """``ring_gyro replay``."""
     from ring_gyro_sim.replay import MAX_GAP_S, replay
     result = replay(args.recording, rate=args.rate, clock=args.clock, topics=args.topics,
-                    max_gap_s=MAX_GAP_S if args.max_gap is None else args.max_gap)
+                    max_gap_s=MAX_GAP_S if args.max_gap is None else args.max_gap,
+                    wait_for_subscribers_s=args.wait_for_subscribers)
     print(f'ring_gyro replay: {result.describe()}', file=sys.stderr)
     return 0  # also when SIGINT / SIGTERM stopped it (the note says so)
 

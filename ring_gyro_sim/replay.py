@@ -21,6 +21,14 @@ KeepLast(100): what the node offers, so estimators with default subscriptions co
 With ``--clock`` the log time is also published on ``/clock`` before each message (for
 subscribers that run on ``use_sim_time``).
 
+Discovery
+    Volatile publishers deliver only to subscribers they have matched, so the first message
+    waits ``DISCOVERY_WAIT_S``; on a loaded machine discovery can take longer and the first
+    messages then reach nobody. ``--wait-for-subscribers S`` waits instead until every
+    publisher has at least one subscriber (at most S seconds, then starts anyway and says so),
+    then :data:`MATCH_SETTLE_S` for the subscribers' side of the match: subscribers started
+    before the replay then receive every message.
+
 Gaps
     A gap between two consecutive log times longer than ``max_gap_s`` (``--max-gap``,
     default :data:`MAX_GAP_S`; ``inf`` keeps every gap) is shortened to ``max_gap_s``, with a
@@ -52,11 +60,17 @@ from typing import Callable, Iterable, List, Optional
 from ring_gyro_sim.core.errors import InputError
 from ring_gyro_sim.recording.errors import RecordingError
 
-__all__: List[str] = ['DISCOVERY_WAIT_S', 'MAX_GAP_S', 'ReplayResult', 'check_recording',
-                      'replay']
+__all__: List[str] = ['DISCOVERY_WAIT_S', 'MATCH_SETTLE_S', 'MAX_GAP_S', 'ReplayResult',
+                      'check_recording', 'replay']
 
 DISCOVERY_WAIT_S = 3.0
 """Time given to subscribers to discover the new publishers before the first message."""
+MATCH_SETTLE_S = 1.0
+"""
+After every publisher has matched a subscriber: time for the subscribers to match the
+publishers in turn (not visible from here; until then a reliable publisher's messages reach
+them only later, in a burst: seen 0.3 s after the publisher's side on a loaded machine).
+"""
 MAX_GAP_S = 1.0
 """Longest gap between consecutive log times that replay keeps, s (of log time). Gaps in a
 recording of the node or of ``ring_gyro run`` are one block (10 ms by default); a scheduled
@@ -184,7 +198,8 @@ class _Stop:
 def replay(path: str, rate: float = 1.0, clock: bool = False,
            topics: Optional[Iterable[str]] = None, discovery_wait_s: float = DISCOVERY_WAIT_S,
            node_name: str = 'ring_gyro_replay', max_gap_s: float = MAX_GAP_S,
-           warn: Optional[Callable[[str], None]] = None) -> ReplayResult:
+           warn: Optional[Callable[[str], None]] = None,
+           wait_for_subscribers_s: float = 0.0) -> ReplayResult:
     """
     Publish the messages of ``path``; see the module docstring.
 
@@ -206,6 +221,9 @@ def replay(path: str, rate: float = 1.0, clock: bool = False,
         Longest gap between consecutive log times kept, s (``inf``: all), > 0.
     warn : callable, optional
         Called with each warning line (default: printed on stderr).
+    wait_for_subscribers_s : float
+        If > 0: instead of ``discovery_wait_s``, wait until every publisher has a subscriber,
+        at most this long, s.
 
     Returns
     -------
@@ -224,6 +242,9 @@ def replay(path: str, rate: float = 1.0, clock: bool = False,
         raise InputError(f'rate: must be a finite number > 0, got {rate!r}')
     if not max_gap_s > 0.0:
         raise InputError(f'max_gap: must be > 0 s (inf keeps every gap), got {max_gap_s!r}')
+    if not (math.isfinite(wait_for_subscribers_s) and wait_for_subscribers_s >= 0.0):
+        raise InputError(f'wait_for_subscribers: must be finite and >= 0, got '
+                         f'{wait_for_subscribers_s!r}')
     topics = list(topics) if topics else None
     if warn is None:
         def warn(line):
@@ -235,14 +256,14 @@ def replay(path: str, rate: float = 1.0, clock: bool = False,
         previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         return _publish(path, rate, clock, topics, discovery_wait_s, node_name, max_gap_s,
-                        warn, total, stop)
+                        warn, total, stop, wait_for_subscribers_s)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
 
 
 def _publish(path, rate, clock, topics, discovery_wait_s, node_name, max_gap_s, warn, total,
-             stop) -> ReplayResult:
+             stop, wait_for_subscribers_s) -> ReplayResult:
     result = ReplayResult(published=0, total=total)
     try:
         import rclpy
@@ -284,7 +305,8 @@ def _publish(path, rate, clock, topics, discovery_wait_s, node_name, max_gap_s, 
                 publishers[m.topic] = node.create_publisher(message_class(m.type_name),
                                                             m.topic, qos)
             if first is None:
-                if not _spin_for(node, discovery_wait_s, stop):
+                if not _discover(node, list(publishers.values()) + [p for p in (clock_pub,) if p],
+                                 discovery_wait_s, wait_for_subscribers_s, stop, warn):
                     break
                 first = previous = m.log_time_ns
                 start = time.monotonic()
@@ -345,11 +367,27 @@ def _sleep_until(due: float, stop) -> bool:
     return False
 
 
-def _spin_for(node, seconds: float, stop) -> bool:
-    """Serve the node's events for ``seconds``; False if a signal came first."""
+def _discover(node, publishers, discovery_wait_s: float, wait_for_subscribers_s: float,
+              stop, warn) -> bool:
+    """Wait for the subscribers (see the module docstring); False if a signal came first."""
+    if wait_for_subscribers_s <= 0.0:
+        return _spin_for(node, discovery_wait_s, stop)
+    if not _spin_for(node, wait_for_subscribers_s, stop,
+                     lambda: all(p.get_subscription_count() > 0 for p in publishers)):
+        return False
+    alone = sorted(p.topic_name for p in publishers if not p.get_subscription_count())
+    if alone:
+        warn(f'no subscriber after {wait_for_subscribers_s:g} s on {", ".join(alone)}; '
+             'starting anyway')
+        return True
+    return _spin_for(node, MATCH_SETTLE_S, stop)
+
+
+def _spin_for(node, seconds: float, stop, done=lambda: False) -> bool:
+    """Serve the node's events for ``seconds`` or until ``done()``; False on a signal."""
     import rclpy
     end = time.monotonic() + seconds
-    while time.monotonic() < end:
+    while time.monotonic() < end and not done():
         if stop.signal:
             return False
         rclpy.spin_once(node, timeout_sec=min(SIGNAL_LATENCY_S, max(end - time.monotonic(),

@@ -39,7 +39,8 @@ from rclpy.executors import SingleThreadedExecutor
 from ring_gyro_sim import cli
 from ring_gyro_sim.core.params import build_config
 from ring_gyro_sim.offline import run_offline
-from ring_gyro_sim.recording.reader import decode, read_messages
+from ring_gyro_sim.recording.reader import decode, read_messages, read_topics
+from ring_gyro_sim.recording.schemas import message_class
 from ring_gyro_sim.recording.writer import BagWriter
 from ring_gyro_sim.replay import MAX_GAP_S
 from rosgraph_msgs.msg import Clock
@@ -100,7 +101,11 @@ def replay_and_receive(path, *args, timeout=60.0, during=None):
     rclpy.init(context=context, domain_id=DOMAIN_ID)
     node = rclpy.create_node(f'replay_probe_{os.getpid()}', context=context)
     items = []
-    for name, msg_type in TOPIC_TYPES.items():
+    # Every topic of the recording (channels without messages too: the replay waits until
+    # each of its publishers has a subscriber), and /clock.
+    types = {**{t: message_class(name) for t, name in read_topics(path).items()},
+             **TOPIC_TYPES} if pathlib.Path(path).stat().st_size else dict(TOPIC_TYPES)
+    for name, msg_type in types.items():
         node.create_subscription(
             msg_type, name,
             lambda msg, name=name: items.append((time.monotonic(), name, msg)), 200)
@@ -114,8 +119,11 @@ def replay_and_receive(path, *args, timeout=60.0, during=None):
     err_path = pathlib.Path(path).with_suffix(f'.{len(args)}.{time.monotonic_ns()}.stderr')
     try:
         with open(err_path, 'wb') as err:
-            proc = subprocess.Popen(replay_command() + ['replay', str(path), *args], env=env,
-                                    stdout=subprocess.DEVNULL, stderr=err)
+            # Start once our subscriptions are matched (a fixed discovery wait lost the
+            # first 4 to 7 of 12 blocks on a loaded machine).
+            proc = subprocess.Popen(replay_command() + ['replay', str(path), *args,
+                                                        '--wait-for-subscribers', '60'],
+                                    env=env, stdout=subprocess.DEVNULL, stderr=err)
             end = time.monotonic() + timeout
             while proc.poll() is None:
                 if time.monotonic() > end:
@@ -224,6 +232,8 @@ def test_clock_and_topic_filter(recording):
 def test_bad_arguments_fail_before_ros(recording, tmp_path, capsys):
     assert cli.main(['replay', str(recording), '--rate', '0']) != 0
     assert 'rate' in capsys.readouterr().err
+    assert cli.main(['replay', str(recording), '--wait-for-subscribers', '-1']) != 0
+    assert 'wait_for_subscribers' in capsys.readouterr().err
     missing = tmp_path / 'missing.mcap'
     assert cli.main(['replay', str(missing)]) != 0
     assert 'missing.mcap' in capsys.readouterr().err

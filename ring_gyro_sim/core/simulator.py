@@ -66,8 +66,16 @@ STEPS_PER_PERIOD = 8
 
 PULSE_SUBSTEPS_PER_DURATION = 16
 GAP_GRID_POINTS_PER_MODE = 32
-"""Angles per mode for the smallest gap (refined by a parabola: error ~1e-4 of q_n)."""
+"""
+Angles per mode for the smallest gap, refined by a parabola: the error is below
+``sum n^3 |q_n| delta^3 / (9 sqrt 3)`` for the grid spacing delta, ~1e-4 of q_n.
+"""
 ELECTRODE_GAUSS_POINTS = 8
+"""Gauss-Legendre angles per panel of an electrode (see :meth:`Simulator._build_outputs`)."""
+ELECTRODE_FINE_PANELS = 16
+"""Finest level (a power of 2): panels per panel, for an electrode the ring comes close to."""
+ELECTRODE_RTOL = 1e-7
+"""Relative accuracy the electrode panels are chosen for (down to gaps of 0.01 d_g)."""
 GAP_FLOOR_RATIO = 1e-3
 """In contact the capacitance integrand uses max(gap, 1e-3 d_g): finite, never inf."""
 
@@ -252,10 +260,37 @@ class Simulator:
         g = GAP_GRID_POINTS_PER_MODE * config.modes.count
         self._ring_shapes = np.ascontiguousarray(
             forces.mode_shapes(h, s, 2.0 * math.pi * np.arange(g) / g).T)
+        # Capacitance: composite Gauss-Legendre over each electrode (kernels.output_channels).
+        # Panels: each covers at most half a period of the highest harmonic, where the rule's
+        # remainder f^(2P) L^(2P+1) (P!)^4 / ((2P+1) ((2P)!)^3) for cos(n theta) is ~1e-15
+        # of the integral (P = 8, n L = pi). Near contact 1/(d_g - w) has a pole at about
+        # y = sqrt(2 g / |w''|) off the real axis (g the gap, |w''| <= sum n^2 |q_n|); the
+        # rule's error falls like rho^(-2P) for the Bernstein ellipse of the panel that
+        # avoids it, of semi-minor axis a (rho - 1/rho) / 2 for a panel half-length a.
+        # rho^(-2P) = ELECTRODE_RTOL / 100 sets rho (the factor: the error's constant,
+        # measured up to ~10 in test/core/test_outputs.py and the demo run); an electrode
+        # is summed on fine panels when y < a (rho - 1/rho) / 2, i.e. when
+        # g < refine_coeff * sum n^2 |q_n|.
+        panels = max(1, math.ceil(config.modes.count * span / math.pi - 1e-9))  # 1e-9: round-off
         x, wts = np.polynomial.legendre.leggauss(ELECTRODE_GAUSS_POINTS)
-        angles = (centres[:, None] + 0.5 * span * x[None, :]).ravel()
-        self._electrode_shapes = np.ascontiguousarray(forces.mode_shapes(h, s, angles).T)
-        self._electrode_weights = 0.5 * span * wts
+
+        def composite(counts):
+            local, weights = [], []
+            for count in counts:
+                a = 0.5 * span / count
+                offsets = (2.0 * np.arange(count) + 1.0 - count) * a  # exactly 0 for one
+                local.append((offsets[:, None] + a * x[None, :]).ravel())
+                weights.append(np.tile(a * wts, count))
+            angles = (centres[:, None] + np.concatenate(local)[None, :]).ravel()
+            return (np.ascontiguousarray(forces.mode_shapes(h, s, angles).T),
+                    np.concatenate(weights))
+        self._electrode_shapes, self._electrode_weights = composite([panels])
+        levels = 2 ** np.arange(1, int(math.log2(ELECTRODE_FINE_PANELS)) + 1)  # 2, 4, .. 16
+        self._fine_shapes, self._fine_weights = composite([panels * r for r in levels])
+        rho = (0.01 * ELECTRODE_RTOL) ** (-1.0 / (2 * ELECTRODE_GAUSS_POINTS))
+        reach = 0.5 * span / panels * 0.5 * (rho - 1.0 / rho)
+        self._refine_coeff = 0.5 * reach * reach
+        self._curvature = np.asarray(h, dtype=np.float64) ** 2
         self._cap_scale = (e.relative_permittivity * EPSILON_0 * config.ring.length
                            * config.outer_radius)
         self._n_electrodes = k
@@ -596,8 +631,35 @@ class Simulator:
         d = self.model.gap
         kernels.output_channels(q, d, self._centre_shapes, self._ring_shapes,
                                 self._electrode_shapes, self._electrode_weights,
-                                self._cap_scale, GAP_FLOOR_RATIO * d, gap, min_gap, cap)
+                                self._fine_shapes, self._fine_weights, self._curvature,
+                                self._refine_coeff, self._cap_scale, GAP_FLOOR_RATIO * d, gap,
+                                min_gap, cap)
         return Samples(t=t, q=q, v=v, gap=gap, min_gap=min_gap, capacitance=cap)
+
+    def outputs_for(self, q: np.ndarray) -> Samples:
+        """
+        Output channels of given coordinates, without advancing or changing the state.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,) or (S, n)
+            Coordinates, m, columns as :attr:`coordinates`.
+
+        Returns
+        -------
+        Samples
+            ``t`` = the current time on every row; ``v`` = 0 (velocities do not enter the
+            channels); ``gap``, ``min_gap`` and ``capacitance`` exactly as the published blocks
+            compute them for these coordinates.
+
+        """
+        q = np.array(q, dtype=np.float64, ndmin=2)
+        n = self.model.n_coordinates
+        if q.ndim != 2 or q.shape[1] != n or not np.all(np.isfinite(q)):
+            raise InputError(f'q: expected {n} finite values per row '
+                             f'({", ".join(self.coordinates)}), got shape {q.shape}')
+        q = np.ascontiguousarray(q)
+        return self._samples(np.full(len(q), self.time_s), q, np.zeros_like(q))
 
     def energy(self) -> float:
         """Conserved energy of the undamped, unforced system at the current state, J."""
