@@ -50,6 +50,12 @@ def _parser() -> argparse.ArgumentParser:
     rep.add_argument('--clock', action='store_true', help='publish /clock from the log times')
     rep.add_argument('--topics', nargs='+', help='only these topics')
 
+    rec = sub.add_parser('recover', help='write a complete copy of a killed recording that '
+                                         'every MCAP reader opens')
+    rec.add_argument('recording', help='MCAP file (e.g. of a killed run: no summary)')
+    rec.add_argument('-o', '--output', help='the copy (default FILE.recovered.mcap; an '
+                                            'existing file is refused)')
+
     cal = sub.add_parser('calibrate', help='outer voltage that puts the 1theta backbone '
                                            'through a target point (Fig. 4)')
     cal.add_argument('params', nargs='?', help='params YAML (default: the embedded default)')
@@ -112,13 +118,16 @@ def _load(path: Optional[str], node_name: str = 'ring_gyro'):
 def cmd_run(args) -> int:
     """``ring_gyro run``."""
     from ring_gyro_sim import offline
+    from ring_gyro_sim.ros.recorder import check_output_path
     if args.source:
+        check_output_path(args.output, [args.source])
         summary = offline.resimulate(args.source, args.output, progress=not args.no_progress)
     else:
         if not args.scenario:
             raise RingGyroError('run: give a scenario file (or --from FILE.mcap)')
         config = _load(args.scenario, args.node_name)
         output = args.output or config.run.record_path or None
+        check_output_path(output, [args.scenario])
         summary = offline.run_offline(config, args.duration, output=output,
                                       progress=not args.no_progress)
     if args.json:
@@ -142,6 +151,13 @@ def cmd_replay(args) -> int:
     from ring_gyro_sim.replay import replay
     count = replay(args.recording, rate=args.rate, clock=args.clock, topics=args.topics)
     print(f'replayed {count} messages', file=sys.stderr)
+    return 0
+
+
+def cmd_recover(args) -> int:
+    """``ring_gyro recover``."""
+    from ring_gyro_sim.recording.recover import recover
+    print(recover(args.recording, args.output).describe())
     return 0
 
 
@@ -218,7 +234,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     if not args.verb:
         parser.print_help()
         return 2
-    handler = {'run': cmd_run, 'replay': cmd_replay, 'calibrate': cmd_calibrate,
+    handler = {'run': cmd_run, 'replay': cmd_replay, 'recover': cmd_recover,
+               'calibrate': cmd_calibrate,
                'backbone': cmd_backbone, 'frf': cmd_frf,
                'report': cmd_report}[args.verb]
     try:

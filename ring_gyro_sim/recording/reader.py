@@ -44,11 +44,11 @@ from mcap.reader import SeekingReader
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from rclpy.serialization import deserialize_message
-import yaml
 
 from ring_gyro_sim.recording._filelock import is_being_written
 from ring_gyro_sim.recording.errors import RecordingError
 from ring_gyro_sim.recording.schemas import message_class
+import yaml
 
 try:
     from zstandard import ZstdError
@@ -76,6 +76,11 @@ def _reason(exc):
         return 'the file ends inside a record'
     text = str(exc)
     return f'{type(exc).__name__}: {text}' if text else type(exc).__name__
+
+
+def _size(stream):
+    """Return the size of the file open as ``stream``."""
+    return os.fstat(stream.fileno()).st_size
 
 
 def _corrupt(path, exc):
@@ -171,16 +176,15 @@ def _linear_records(stream, stop=None):
     ``stop`` is a list, (byte offset of the first unreadable record, reason) is appended to it
     when reading stops before the end of the file.
     """
-    start = stream.tell()
     records = StreamReader(stream, validate_crcs=True).records
-    good = start
+    good = stream.tell()
     while True:
         try:
             record = next(records)
         except StopIteration:
             return
         except _TRUNCATION_ERRORS as exc:
-            if stop is not None:
+            if stop is not None and good < _size(stream):
                 stop.append((good, _reason(exc)))
             return
         good = stream.tell()

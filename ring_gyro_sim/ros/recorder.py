@@ -374,7 +374,7 @@ class RunRecorder:
             self._put(self._topics[name], build(*args), at_ns)
 
     def _advance(self, t_ns: int) -> None:
-        """The run's outputs reached ``t_ns``: write the inputs up to it (recorded or not)."""
+        """Move the run's time to ``t_ns``: write the inputs held back up to it."""
         self._start()
         self._release(t_ns)
         self._now_ns = max(self._now_ns, t_ns)
