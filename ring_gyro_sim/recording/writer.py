@@ -114,6 +114,9 @@ def _open_output(path, overwrite):
     parent = path.parent
     try:
         parent.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise RecordingError(f'cannot create recording {name}: {str(parent)!r} exists and is '
+                             f'not a directory') from None
     except OSError as exc:
         raise RecordingError(f'cannot create recording {name}: cannot create its directory '
                              f'{str(parent)!r}: {exc.strerror or exc}') from exc
@@ -317,22 +320,22 @@ class BagWriter:
 
     @property
     def path(self) -> pathlib.Path:
-        """The MCAP file being written."""
+        """Return the MCAP file being written."""
         return self._path
 
     @property
     def closed(self) -> bool:
-        """True once :meth:`finish` has run."""
+        """Tell whether :meth:`finish` has run."""
         return self._closed
 
     @property
     def message_count(self) -> int:
-        """Number of messages written so far."""
+        """Return the number of messages written so far."""
         return self._message_count
 
     @property
     def compression(self) -> str:
-        """Chunk compression: 'zstd', 'lz4' or 'none'."""
+        """Return the chunk compression: 'zstd', 'lz4' or 'none'."""
         return self._compression
 
     def __enter__(self):

@@ -64,6 +64,11 @@ The parent directories of the path are created; a path that cannot be written, a
 file or a file another recorder is writing right now (each recorder holds a ``flock`` on its
 file) is refused at construction with the reason, before anything is simulated.
 
+A write error (a full disk) is raised once, by the next call or by ``close()``, as a
+``RecordingError`` naming the file and the reason; the recorder then stops writing
+(:attr:`RunRecorder.failed`), later calls do nothing and ``close()`` only releases the file,
+which reads like a killed recording.
+
 QoS: each topic is recorded with the profile the node uses live (:mod:`ring_gyro_sim.ros.qos`),
 which is what ``ros2 bag play`` offers again.
 """
@@ -274,7 +279,8 @@ class RunRecorder:
         # Serialising and zstd-compressing 25 MB per simulated second (200 kHz) costs about a
         # quarter of the simulation itself; a writer thread does it while the (GIL-free)
         # kernel runs, on the second core. The bounded queue keeps memory bounded.
-        self._failure: Optional[BaseException] = None
+        self._failure: Optional[BaseException] = None  # a write error not reported yet
+        self._failed = False  # a write failed: nothing more is written
         self._queue: 'queue.Queue' = queue.Queue(maxsize=WRITE_QUEUE_DEPTH)
         self._thread: Optional[threading.Thread] = None
         if threaded:
@@ -288,7 +294,7 @@ class RunRecorder:
 
     @property
     def path(self) -> pathlib.Path:
-        """The recording."""
+        """Return the path of the recording."""
         return self.writer.path
 
     def set_initial_state(self, q, v) -> None:
@@ -344,7 +350,7 @@ class RunRecorder:
         after that, close() only releases the file.
         """
         try:
-            if not self.writer.closed and self._failure is None:
+            if not self.writer.closed and not self._failed:
                 self._start()
                 self._release(None)
         finally:
@@ -359,11 +365,22 @@ class RunRecorder:
                 if failure is not None:
                     raise failure
 
+    @property
+    def failed(self) -> bool:
+        """Tell whether a write failed (raised once; nothing is written after it)."""
+        return self._failed
+
     def _put(self, topic: str, msg, t_ns: int) -> None:
         """Hand one message to the writer (thread), in the order of the calls."""
         self._raise_failure()
+        if self._failed:
+            return
         if self._thread is None:
-            self.writer.write(topic, msg, t_ns)
+            try:
+                self.writer.write(topic, msg, t_ns)
+            except BaseException:
+                self._failed = True
+                raise
             return
         self._queue.put((topic, msg, t_ns))
 
@@ -400,12 +417,13 @@ class RunRecorder:
             item = self._queue.get()
             if item is None:
                 return
-            if self._failure is not None:
+            if self._failed:
                 continue  # keep draining so that producers never block forever
             try:
                 self.writer.write(*item)
-            except BaseException as exc:  # reported to the caller's thread
+            except BaseException as exc:  # reported to the caller's thread, once
                 self._failure = exc
+                self._failed = True
 
     def _raise_failure(self) -> None:
         if self._failure is not None:
