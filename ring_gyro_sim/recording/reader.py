@@ -208,7 +208,7 @@ def _iter_messages(path, topics):
             _hint_incomplete(path, None)
             return
         stream.seek(0, io.SEEK_SET)
-        reader = SeekingReader(stream)
+        reader = SeekingReader(stream, validate_crcs=True)
         summary = _summary(reader)
         if summary is not None and summary.chunk_indexes:
             try:
@@ -312,7 +312,7 @@ def read_metadata(path, name):
     with open(path, 'rb') as stream:
         if len(stream.read(len(_MAGIC))) == len(_MAGIC):
             stream.seek(0, io.SEEK_SET)
-            reader = SeekingReader(stream)
+            reader = SeekingReader(stream, validate_crcs=True)
             summary = _summary(reader)
             indexed = summary is not None and (
                 summary.statistics is None

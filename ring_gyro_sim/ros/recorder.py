@@ -367,7 +367,7 @@ class RunRecorder:
 
     @property
     def failed(self) -> bool:
-        """Tell whether a write failed (raised once; nothing is written after it)."""
+        """Tell whether writing stopped on an error (raised once; nothing is written after)."""
         return self._failed
 
     def _put(self, topic: str, msg, t_ns: int) -> None:

@@ -464,14 +464,14 @@ def test_initial_state_can_be_given_after_construction(tmp_path):
     assert state == {'q': [1e-7] * n, 'v': [0.25] * n}
 
 
-HOLDER = textwrap.dedent('''
+HOLDER = textwrap.dedent("""
     import sys
     from ring_gyro_sim.recording.writer import BagWriter
     bag = BagWriter(sys.argv[1], overwrite=True)
     print('recording', flush=True)
     sys.stdin.read()
     bag.finish()
-''')
+""")
 
 
 def test_a_second_recorder_on_the_same_file_is_refused(tmp_path):
@@ -499,7 +499,7 @@ def test_a_second_recorder_on_the_same_file_is_refused(tmp_path):
 
 @pytest.fixture
 def tiny_disk(tmp_path):
-    """A 200 kB tmpfs, mounted for the test and removed after it (needs root)."""
+    """Mount a 200 kB tmpfs for the test and remove it after (needs root)."""
     mount = tmp_path / 'tiny'
     mount.mkdir()
     result = subprocess.run(['mount', '-t', 'tmpfs', '-o', 'size=200k', 'tmpfs', str(mount)],
