@@ -28,6 +28,3 @@ class OutputExistsError(RecordingError):
 class OutputBusyError(RecordingError):
     """Another process is writing the file right now (it holds the recorder's lock)."""
 
-
-class IncompleteRecordingError(RecordingError):
-    """A recording has no summary (its writer was killed); ``ring_gyro recover`` completes it."""
