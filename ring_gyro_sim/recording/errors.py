@@ -27,4 +27,3 @@ class OutputExistsError(RecordingError):
 
 class OutputBusyError(RecordingError):
     """Another process is writing the file right now (it holds the recorder's lock)."""
-
