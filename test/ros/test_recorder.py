@@ -549,3 +549,24 @@ def test_ring_gyro_run_on_a_full_disk_prints_one_error_line(tiny_disk, tmp_path)
     assert lines[0].startswith('ring_gyro run: error: ')
     assert 'No space left on device' in lines[0] and 'Traceback' not in result.stderr
     assert time.monotonic() - start < 600
+
+
+def test_a_decimated_recording_resimulates_with_its_original_block_sizes(tmp_path):
+    """What offline.load_recording needs: block sizes from block_sample_counts, not layouts."""
+    from ring_gyro_sim import offline
+    config = build_config({**FAST, 'record.decimation': 10, 'duration': 0.0035,
+                           'scenario.shock_times': [0.001], 'scenario.shock_peaks': [1e4]})
+    first = tmp_path / 'first.mcap'
+    offline.run_offline(config, output=str(first), progress=False)
+    loaded, start, inputs, layout_sizes, namespace = offline.load_recording(str(first))
+    counts = block_sample_counts(first)
+    assert counts == [100, 100, 100, 50]  # 3.5 ms in blocks of 1 ms
+    assert layout_sizes == [10, 10, 10, 5]  # the decimated rows: not the original cut
+    again = tmp_path / 'again.mcap'
+    offline.run_offline(loaded, sum(counts) * PERIOD_NS * 1e-9, output=str(again),
+                        progress=False, namespace=namespace, start_state=start,
+                        inputs=inputs, block_sizes=counts)
+    for name in conversions.OUTPUT_TOPICS:
+        a, b = decoded_blocks(first, f'{NS}/{name}'), decoded_blocks(again, f'{NS}/{name}')
+        assert [t for t, _ in a] == [t for t, _ in b]
+        assert all(np.array_equal(x, y) for (_, x), (_, y) in zip(a, b)), name
