@@ -40,6 +40,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument('--from', dest='source', metavar='FILE.mcap',
                      help='re-simulate a recording from its parameters and inputs')
     run.add_argument('--duration', type=float, help='simulated time, s (overrides duration)')
+    run.add_argument('--overwrite', action='store_true',
+                     help='replace an existing recording (record.overwrite: true; never the '
+                          'scenario or the source recording itself)')
     run.add_argument('--json', action='store_true', help='print one JSON summary on stdout')
     run.add_argument('--no-progress', action='store_true', help='no progress bar')
     run.add_argument('--node-name', default='ring_gyro',
@@ -56,6 +59,12 @@ def _parser() -> argparse.ArgumentParser:
     rep.add_argument('--wait-for-subscribers', type=float, default=0.0, metavar='S',
                      help='start once every topic has a subscriber (at most S s) '
                           'instead of after a fixed discovery wait')
+
+    rec = sub.add_parser('recover', help='write a complete copy of a killed recording that '
+                                         'every MCAP reader opens')
+    rec.add_argument('recording', help='MCAP file (e.g. of a killed run: no summary)')
+    rec.add_argument('-o', '--output', help='the copy (default FILE.recovered.mcap; an '
+                                            'existing file is refused)')
 
     cal = sub.add_parser('calibrate', help='outer voltage that puts the 1theta backbone '
                                            'through a target point (Fig. 4)')
@@ -119,15 +128,20 @@ def _load(path: Optional[str], node_name: str = 'ring_gyro'):
 def cmd_run(args) -> int:
     """``ring_gyro run``."""
     from ring_gyro_sim import offline
+    from ring_gyro_sim.ros.recorder import check_output_path
     if args.source:
-        summary = offline.resimulate(args.source, args.output, progress=not args.no_progress)
+        check_output_path(args.output, [args.source])
+        summary = offline.resimulate(args.source, args.output, progress=not args.no_progress,
+                                     overwrite=args.overwrite or None)
     else:
         if not args.scenario:
             raise RingGyroError('run: give a scenario file (or --from FILE.mcap)')
         config = _load(args.scenario, args.node_name)
         output = args.output or config.run.record_path or None
+        check_output_path(output, [args.scenario])
         summary = offline.run_offline(config, args.duration, output=output,
-                                      progress=not args.no_progress)
+                                      progress=not args.no_progress,
+                                      overwrite=args.overwrite or None)
     if args.json:
         print(summary.to_json())
     else:
@@ -152,6 +166,13 @@ def cmd_replay(args) -> int:
                     wait_for_subscribers_s=args.wait_for_subscribers)
     print(f'ring_gyro replay: {result.describe()}', file=sys.stderr)
     return 0  # also when SIGINT / SIGTERM stopped it (the note says so)
+
+
+def cmd_recover(args) -> int:
+    """``ring_gyro recover``."""
+    from ring_gyro_sim.recording.recover import recover
+    print(recover(args.recording, args.output).describe())
+    return 0
 
 
 def cmd_calibrate(args) -> int:
@@ -245,7 +266,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     if not args.verb:
         parser.print_help()
         return 2
-    handler = {'run': cmd_run, 'replay': cmd_replay, 'calibrate': cmd_calibrate,
+    handler = {'run': cmd_run, 'replay': cmd_replay, 'recover': cmd_recover,
+               'calibrate': cmd_calibrate,
                'backbone': cmd_backbone, 'frf': cmd_frf,
                'report': cmd_report}[args.verb]
     try:

@@ -23,6 +23,7 @@ diagnostics keys about once per simulated second). :func:`resimulate` re-runs a 
 from its metadata and recorded inputs and reproduces its output blocks bit for bit.
 """
 
+from dataclasses import replace
 import json
 import math
 from typing import List, Optional, Sequence
@@ -35,7 +36,8 @@ from ring_gyro_sim.core.params import build_config, SimConfig
 from ring_gyro_sim.core.simulator import channel_names
 from ring_gyro_sim.paramfile import load_text
 from ring_gyro_sim.progress import Progress
-from ring_gyro_sim.recording.reader import decode, read_messages, read_metadata
+from ring_gyro_sim.recording.reader import (block_sample_counts, decode, read_messages,
+                                            read_metadata)
 from ring_gyro_sim.ros import conversions
 from ring_gyro_sim.ros.recorder import INPUT_TOPICS, METADATA_NAME, RunRecorder
 from ring_gyro_sim.ros.sinks import RosSink
@@ -53,8 +55,8 @@ DIAGNOSTICS_PERIOD_NS = 1_000_000_000
 def run_offline(config: SimConfig, duration_s: Optional[float] = None,
                 output: Optional[str] = None, progress: bool = True,
                 namespace: str = '/ring_gyro', start_state=None,
-                inputs: Sequence[Input] = (), block_sizes: Optional[List[int]] = None
-                ) -> RunSummary:
+                inputs: Sequence[Input] = (), block_sizes: Optional[List[int]] = None,
+                overwrite: Optional[bool] = None) -> RunSummary:
     """
     Run a scenario as fast as possible.
 
@@ -77,11 +79,15 @@ def run_offline(config: SimConfig, duration_s: Optional[float] = None,
         is applied before the block that holds its time, as the node applied it.
     block_sizes : list of int, optional
         Samples per block (re-simulation: the same cuts as the original).
+    overwrite : bool, optional
+        Replace an existing ``output`` (default: ``record.overwrite`` of the configuration).
 
     """
     duration = config.run.duration if duration_s is None else duration_s
     if not (math.isfinite(duration) and duration > 0.0):
         raise ParameterError('duration: must be > 0 for an offline run (or pass --duration)')
+    if overwrite is not None:
+        config = replace(config, run=replace(config.run, record_overwrite=bool(overwrite)))
     period_s = config.run.output_period_ns * 1e-9
     n_total = int(round(duration / period_s))
     if block_sizes is None:
@@ -139,14 +145,10 @@ def load_recording(path: str):
     namespace = meta.get('namespace', '/ring_gyro')
     start = (np.array(state['q'], dtype=np.float64), np.array(state['v'], dtype=np.float64))
     inputs: List[Input] = []
-    sizes: List[int] = []
-    block_topic = f'{namespace}/modal_displacement'
+    sizes = block_sample_counts(path)
     wanted = {f'{namespace}/{name}': name for name in INPUT_TOPICS}
     scheduled = set(config.run.scheduled_shocks())
-    for m in read_messages(path, topics=list(wanted) + [block_topic]):
-        if m.topic == block_topic:
-            sizes.append(decode(m).layout.dim[0].size)
-            continue
+    for m in read_messages(path, topics=list(wanted)):
         kind = wanted[m.topic]
         msg = decode(m)
         t_ns = m.log_time_ns
@@ -170,10 +172,11 @@ def load_recording(path: str):
     return config, start, inputs, sizes, namespace
 
 
-def resimulate(path: str, output: Optional[str] = None, progress: bool = True) -> RunSummary:
+def resimulate(path: str, output: Optional[str] = None, progress: bool = True,
+               overwrite: Optional[bool] = None) -> RunSummary:
     """Re-run a recording from its parameters and inputs (outputs identical bit for bit)."""
     config, start, inputs, sizes, namespace = load_recording(path)
     duration = sum(sizes) * config.run.output_period_ns * 1e-9
     return run_offline(config, duration, output=output, progress=progress,
                        namespace=namespace, start_state=start, inputs=inputs,
-                       block_sizes=sizes)
+                       block_sizes=sizes, overwrite=overwrite)

@@ -213,11 +213,13 @@ def test_zero_duration_is_refused(tmp_path, capsys):
     assert 'duration' in capsys.readouterr().err
 
 
-@pytest.mark.parametrize('where', ['missing_dir', 'directory'])
+@pytest.mark.parametrize('where', ['under_a_file', 'directory'])
 def test_unwritable_output_fails_at_start(tmp_path, capsys, where):
-    # 100 s of simulation if it started: the failure must come before the run.
+    # 100 s of simulation if it started: the failure must come before the run. (Missing
+    # parent directories are created, issue 9; a path through a regular file cannot be.)
     path = scenario(tmp_path / 's.yaml', duration=100.0)
-    target = tmp_path / 'no' / 'such' / 'dir' / 'x.mcap' if where == 'missing_dir' else tmp_path
+    (tmp_path / 'no').write_text('a file, not a directory')
+    target = tmp_path / 'no' / 'such' / 'dir' / 'x.mcap' if where == 'under_a_file' else tmp_path
     start = time.perf_counter()
     rc = cli.main(['run', str(path), '-o', str(target), '--no-progress'])
     elapsed = time.perf_counter() - start
@@ -225,7 +227,7 @@ def test_unwritable_output_fails_at_start(tmp_path, capsys, where):
     assert rc != 0
     assert elapsed < 10.0
     assert str(target) in err and 'error' in err
-    assert not (tmp_path / 'no').exists()
+    assert (tmp_path / 'no').read_text() == 'a file, not a directory'
 
 
 def test_help_lists_the_verbs(capsys):

@@ -21,9 +21,14 @@ Modules (import from them directly, nothing is re-exported here):
   the same MCAP layout as rosbag2 (Jazzy, ``rosbag2_storage_mcap``);
 - ``reader``: :func:`~ring_gyro_sim.recording.reader.read_messages`,
   :func:`~ring_gyro_sim.recording.reader.read_metadata` and
-  :func:`~ring_gyro_sim.recording.reader.decode`, which also recover what a killed run left;
+  :func:`~ring_gyro_sim.recording.reader.decode`, which also read what a killed run left, and
+  :func:`~ring_gyro_sim.recording.reader.block_end_times_ns` (where the blocks of a recorded
+  run ended, for re-simulation);
+- ``recover``: :func:`~ring_gyro_sim.recording.recover.recover` (``ring_gyro recover``), a
+  complete copy of a killed recording that every MCAP reader opens;
 - ``schemas``: full ``ros2msg`` message definitions and type description hashes;
-- ``errors``: :class:`~ring_gyro_sim.recording.errors.RecordingError`.
+- ``errors``: :class:`~ring_gyro_sim.recording.errors.RecordingError` and its subclasses
+  ``OutputExistsError``, ``OutputBusyError``.
 """
 
 __all__ = ['errors', 'reader', 'schemas', 'writer']

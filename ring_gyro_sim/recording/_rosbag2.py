@@ -58,8 +58,8 @@ def bag_metadata(*, file_name, topics, message_count, start_ns, end_ns, custom_d
     """
     Return the BagMetadata mapping of a single-file bag in rosbag2's key order.
 
-    ``topics`` holds (name, type, qos_profile, type_hash, message_count) tuples; times are
-    integer ns (0 for an empty bag).
+    ``topics`` holds (name, type, qos_profile, type_hash, message_count) tuples, qos_profile
+    one profile or a list of them; times are integer ns (0 for an empty bag).
     """
     duration = {'nanoseconds': end_ns - start_ns}
     starting_time = {'nanoseconds_since_epoch': start_ns}
@@ -75,7 +75,7 @@ def bag_metadata(*, file_name, topics, message_count, start_ns, end_ns, custom_d
                     'name': name,
                     'type': type_name,
                     'serialization_format': 'cdr',
-                    'offered_qos_profiles': [profile],
+                    'offered_qos_profiles': profile if isinstance(profile, list) else [profile],
                     'type_description_hash': type_hash,
                 },
                 'message_count': count,

@@ -12,10 +12,18 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Errors raised by the recording layer."""
+"""Errors raised by the recording layer (all of them :class:`RecordingError`)."""
 
 from ring_gyro_sim.core.errors import RingGyroError
 
 
 class RecordingError(RingGyroError, RuntimeError):
     """A recording cannot be written or read; the message names the file and the reason."""
+
+
+class OutputExistsError(RecordingError):
+    """The output file exists and replacing it was not asked for (or is never allowed)."""
+
+
+class OutputBusyError(RecordingError):
+    """Another process is writing the file right now (it holds the recorder's lock)."""

@@ -18,11 +18,24 @@ Read ROS 2 bags (MCAP), including what a killed recorder left behind.
 A finished file is read through its summary and indexes (seeking, in log-time order). A file
 without a valid summary, such as one truncated by ``kill -9``, is read linearly from the start:
 everything up to the first incomplete or corrupt record (in practice: every completed chunk and
-every metadata record before it) is returned, and the rest is silently ignored.
+every metadata record before it) is returned and the rest is ignored; one warning line (logger
+``ring_gyro_sim.recording.reader``, once per file and process) says where the reading stopped
+and that ``ring_gyro recover FILE`` writes a complete copy that every MCAP reader opens.
+
+A corrupt record found through the index of a finished file (a file written by two recorders
+at once, a damaged disk) raises a :class:`~ring_gyro_sim.recording.errors.RecordingError`
+naming the file and the reason; nothing else escapes the reader.
+
+:func:`block_end_times_ns` returns where the blocks of a run recorded by
+:class:`ring_gyro_sim.ros.recorder.RunRecorder` ended, which a re-simulation needs to cut the
+run the same way (the block messages of a decimated recording hold fewer samples).
 """
 
 import dataclasses
 import io
+import json
+import logging
+import os
 import pathlib
 import struct
 
@@ -32,8 +45,10 @@ from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from rclpy.serialization import deserialize_message
 
+from ring_gyro_sim.recording._filelock import is_being_written
 from ring_gyro_sim.recording.errors import RecordingError
 from ring_gyro_sim.recording.schemas import message_class
+import yaml
 
 try:
     from zstandard import ZstdError
@@ -42,8 +57,53 @@ except ImportError:  # pragma: no cover - mcap needs zstandard to read our chunk
 
 _MAGIC = b'\x89MCAP0\r\n'
 
-# What reading a cut-off or partly written file can raise (CRCValidationError is a ValueError).
-_TRUNCATION_ERRORS = (McapError, ValueError, struct.error, EOFError, ZstdError)
+# What reading a cut-off, partly written or corrupt file can raise: CRCValidationError and
+# UnicodeDecodeError are ValueErrors; lz4 raises RuntimeError; a damaged index points to a
+# channel that does not exist (KeyError) or to a length beyond the data.
+_TRUNCATION_ERRORS = (McapError, ValueError, struct.error, EOFError, ZstdError, KeyError,
+                      IndexError, RuntimeError, OverflowError, MemoryError)
+
+#: Name of the metadata record of a run (written by ``ring_gyro_sim.ros.recorder``).
+RUN_METADATA_NAME = 'ring_gyro_sim'
+
+_log = logging.getLogger(__name__)
+_hinted = set()
+
+
+def _reason(exc):
+    """Return why a record could not be read, in a few words."""
+    if isinstance(exc, (EOFError, struct.error)) or type(exc).__name__ == 'EndOfFile':
+        return 'the file ends inside a record'
+    text = str(exc)
+    return f'{type(exc).__name__}: {text}' if text else type(exc).__name__
+
+
+def _size(stream):
+    """Return the size of the file open as ``stream``."""
+    return os.fstat(stream.fileno()).st_size
+
+
+def _corrupt(path, exc):
+    return RecordingError(
+        f'recording {str(path)!r} is corrupt ({_reason(exc)}); was it written by two '
+        f'recorders at once? `ring_gyro recover {path}` saves the records before the damage')
+
+
+def _hint_incomplete(path, stop):
+    """Say once per file (and size) that a file without a summary can be completed."""
+    try:
+        info = os.stat(path)
+        key = (os.path.realpath(path), info.st_size, info.st_mtime_ns)
+    except OSError:
+        return
+    if key in _hinted:
+        return
+    _hinted.add(key)
+    where = f'; read up to byte {stop[0]} of {info.st_size} ({stop[1]})' if stop else ''
+    busy = ' (it is being recorded right now)' if is_being_written(path) else ''
+    _log.warning(f'recording {str(path)!r} has no summary{busy}{where}: '
+                 f'`ring_gyro recover {path}` writes a complete copy that every MCAP reader '
+                 f'opens')
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -108,16 +168,26 @@ def _summary(reader):
         return None
 
 
-def _linear_records(stream):
-    """Yield the records of a possibly truncated file until the first unreadable one."""
+def _linear_records(stream, stop=None):
+    """
+    Yield the records of a possibly truncated file until the first unreadable one.
+
+    The records of a chunk come only once the whole chunk has been read and checked. If
+    ``stop`` is a list, (byte offset of the first unreadable record, reason) is appended to it
+    when reading stops before the end of the file.
+    """
     records = StreamReader(stream, validate_crcs=True).records
+    good = stream.tell()
     while True:
         try:
             record = next(records)
         except StopIteration:
             return
-        except _TRUNCATION_ERRORS:
+        except _TRUNCATION_ERRORS as exc:
+            if stop is not None and good < _size(stream):
+                stop.append((good, _reason(exc)))
             return
+        good = stream.tell()
         yield record
 
 
@@ -135,18 +205,22 @@ def _bag_message(schema, channel, message):
 def _iter_messages(path, topics):
     with open(path, 'rb') as stream:
         if len(stream.read(len(_MAGIC))) < len(_MAGIC):
+            _hint_incomplete(path, None)
             return
         stream.seek(0, io.SEEK_SET)
-        reader = SeekingReader(stream)
+        reader = SeekingReader(stream, validate_crcs=True)
         summary = _summary(reader)
         if summary is not None and summary.chunk_indexes:
-            for schema, channel, message in reader.iter_messages(
-                    topics=topics, log_time_order=True):
-                yield _bag_message(schema, channel, message)
+            try:
+                for schema, channel, message in reader.iter_messages(
+                        topics=topics, log_time_order=True):
+                    yield _bag_message(schema, channel, message)
+            except _TRUNCATION_ERRORS as exc:
+                raise _corrupt(path, exc) from exc
             return
         stream.seek(0, io.SEEK_SET)
-        schemas, channels, found = {}, {}, []
-        for record in _linear_records(stream):
+        schemas, channels, found, stop = {}, {}, [], []
+        for record in _linear_records(stream, stop):
             if isinstance(record, Schema):
                 schemas[record.id] = record
             elif isinstance(record, Channel):
@@ -156,6 +230,8 @@ def _iter_messages(path, topics):
                 if channel is None or (topics is not None and channel.topic not in topics):
                     continue
                 found.append(_bag_message(schemas.get(channel.schema_id), channel, record))
+        if summary is None:
+            _hint_incomplete(path, stop[0] if stop else None)
         # Without the index, log-time order needs every message in memory (stable: ties keep
         # file order, as the indexed read does).
         found.sort(key=lambda message: message.log_time_ns)
@@ -182,12 +258,13 @@ def read_topics(path):
             schemas, channels = summary.schemas, summary.channels.values()
         else:
             stream.seek(0, io.SEEK_SET)
-            schemas, channels = {}, []
-            for record in _linear_records(stream):
+            schemas, channels, stop = {}, [], []
+            for record in _linear_records(stream, stop):
                 if isinstance(record, Schema):
                     schemas[record.id] = record
                 elif isinstance(record, Channel):
                     channels.append(record)
+            _hint_incomplete(path, stop[0] if stop else None)
         return {c.topic: schemas[c.schema_id].name for c in channels if c.schema_id in schemas}
 
 
@@ -235,17 +312,24 @@ def read_metadata(path, name):
     with open(path, 'rb') as stream:
         if len(stream.read(len(_MAGIC))) == len(_MAGIC):
             stream.seek(0, io.SEEK_SET)
-            reader = SeekingReader(stream)
+            reader = SeekingReader(stream, validate_crcs=True)
             summary = _summary(reader)
             indexed = summary is not None and (
                 summary.statistics is None
                 or summary.statistics.metadata_count <= len(summary.metadata_indexes))
             if indexed:
-                records = [record for record in reader.iter_metadata() if record.name == name]
+                try:
+                    records = [record for record in reader.iter_metadata()
+                               if record.name == name]
+                except _TRUNCATION_ERRORS as exc:
+                    raise _corrupt(path, exc) from exc
             else:
                 stream.seek(0, io.SEEK_SET)
-                records = [record for record in _linear_records(stream)
+                stop = []
+                records = [record for record in _linear_records(stream, stop)
                            if isinstance(record, Metadata) and record.name == name]
+                if summary is None:
+                    _hint_incomplete(path, stop[0] if stop else None)
     if not records:
         raise RecordingError(f'recording {str(path)!r} has no metadata record {name!r}')
     return dict(records[-1].metadata)
@@ -270,3 +354,91 @@ def decode(message: BagMessage):
         raise RecordingError(
             f'cannot decode a {message.type_name} message on {message.topic!r} '
             f'at {message.log_time_ns} ns: {exc}') from exc
+
+
+# The block topics of a run, relative to the node (recordings made before the metadata
+# listed them hold these three).
+_BLOCK_NAMES = ('modal_displacement', 'radial_gap', 'sense_electrodes')
+
+
+def _run_metadata(path):
+    return read_metadata(path, RUN_METADATA_NAME)
+
+
+def _output_period_ns(path, meta):
+    if 'output_period_ns' in meta:
+        return int(meta['output_period_ns'])
+    # Recordings made before the metadata held the period: from the parameters.
+    try:
+        rate = float(yaml.safe_load(meta['parameters'])['output.rate'])
+    except (KeyError, TypeError, ValueError, yaml.YAMLError) as exc:
+        raise RecordingError(f'recording {str(path)!r}: the {RUN_METADATA_NAME} metadata gives '
+                             f'no output period ({exc})') from None
+    return int(round(1e9 / rate))
+
+
+def block_end_times_ns(path):
+    """
+    Return the simulation times (ns) at which the blocks of a recorded run ended, in order.
+
+    A run starts at 0 ns and is cut into blocks of ``output.block_duration`` (the last one of a
+    run with a ``duration`` may be shorter); every block message is logged at the time of the
+    block's last sample, also in a decimated recording, where it holds fewer samples (or none).
+    The ends are taken from, in this order: the log times of the block topics the recording
+    holds (all of them, so a block whose first message survived a kill counts); the ``/clock``
+    messages (one per block); or, when ``record.topics`` kept neither, the regular cut of
+    ``block_samples`` samples (metadata) up to the last ``/diagnostics`` message (always
+    published at a block end).
+
+    Raises
+    ------
+    RecordingError
+        If the file is not a run recording, or it holds none of these topics.
+
+    """
+    meta = _run_metadata(path)
+    namespace = meta.get('namespace', '/ring_gyro')
+    if 'block_topics' in meta:
+        block_topics = json.loads(meta['block_topics'])
+    else:
+        block_topics = [f'{namespace}/{name}' for name in _BLOCK_NAMES]
+    blocks, clock, diagnostics = set(), set(), []
+    for message in read_messages(path, topics=block_topics + ['/clock', '/diagnostics']):
+        if message.topic == '/clock':
+            clock.add(message.log_time_ns)
+        elif message.topic == '/diagnostics':
+            diagnostics.append(message.log_time_ns)
+        else:
+            blocks.add(message.log_time_ns)
+    if blocks or clock:
+        return sorted(blocks or clock)
+    if not diagnostics or 'block_samples' not in meta:
+        raise RecordingError(
+            f'recording {str(path)!r} tells no block ends: it holds no block topic, no /clock '
+            f'and no /diagnostics (record.topics)')
+    step = int(meta['block_samples']) * _output_period_ns(path, meta)
+    end = max(diagnostics)
+    ends = list(range(step, end, step))
+    return ends + [end] if end > 0 else []
+
+
+def block_sample_counts(path):
+    """
+    Return the number of samples of every block of a recorded run (see block_end_times_ns).
+
+    Raises
+    ------
+    RecordingError
+        As :func:`block_end_times_ns`, or if a block end is not on the output sample grid.
+
+    """
+    period = _output_period_ns(path, _run_metadata(path))
+    counts, previous = [], 0
+    for end in block_end_times_ns(path):
+        samples, rest = divmod(end - previous, period)
+        if rest or samples <= 0:
+            raise RecordingError(f'recording {str(path)!r}: a block ends at {end} ns, not '
+                                 f'on the {period} ns output grid after {previous} ns')
+        counts.append(samples)
+        previous = end
+    return counts

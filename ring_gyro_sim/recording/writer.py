@@ -27,24 +27,43 @@ What rosbag2_storage_mcap (Jazzy) writes and this writer reproduces:
   statistics, chunk / metadata indexes and summary offsets; every chunk is followed by its
   message indexes.
 
-Chunks are zstd-compressed and written straight to the file descriptor (no user-space buffer),
-so after ``kill -9`` every completed chunk is on disk and readable with
+Chunks are compressed with zstd (default), lz4 (needs the ``lz4`` package) or not at all, as
+rosbag2's MCAP storage offers, and written straight to the file descriptor (no user-space
+buffer), so after ``kill -9`` every completed chunk is on disk and readable with
 :func:`ring_gyro_sim.recording.reader.read_messages`; the ``rosbag2`` record is then absent,
-never partial.
+never partial, and :func:`ring_gyro_sim.recording.recover.recover` (``ring_gyro recover``)
+writes a complete copy that every MCAP reader opens.
+
+The output file:
+
+- its parent directories are created;
+- an existing file is refused (:class:`~ring_gyro_sim.recording.errors.OutputExistsError`,
+  as rosbag2 refuses an existing output) unless ``overwrite=True``, and even then only an MCAP
+  file (or an empty one) is replaced: a scenario file given as the output by mistake is never
+  destroyed;
+- the writer holds an advisory lock (``flock``) on it until :meth:`BagWriter.finish`: a second
+  writer on the same file is refused
+  (:class:`~ring_gyro_sim.recording.errors.OutputBusyError`) instead of corrupting it;
+- a write error (a full disk) is raised once, as a :class:`RecordingError` naming the file and
+  the reason; the writer then stops writing, and :meth:`BagWriter.finish` only closes the
+  file (what was written before stays readable like a killed recording).
 """
 
 import operator
 import os
 import pathlib
+import stat
 import threading
 
 from mcap import __version__ as mcap_version
+from mcap.exceptions import UnsupportedCompressionError
 from mcap.writer import CompressionType, IndexType, Writer
 from rclpy.serialization import serialize_message
 
 from ring_gyro_sim import __version__
 from ring_gyro_sim.recording import _rosbag2
-from ring_gyro_sim.recording.errors import RecordingError
+from ring_gyro_sim.recording._filelock import is_being_written, lock_exclusive
+from ring_gyro_sim.recording.errors import OutputBusyError, OutputExistsError, RecordingError
 from ring_gyro_sim.recording.schemas import (
     message_definition,
     message_type_name,
@@ -57,6 +76,12 @@ DEFAULT_CHUNK_SIZE = 1024 * 1024
 
 #: Name of the metadata record that rosbag2 reads (``serialized_metadata``); reserved.
 ROSBAG2_METADATA_NAME = 'rosbag2'
+
+#: Chunk compressions (the names of ``record.compression``), as rosbag2's MCAP storage offers.
+COMPRESSIONS = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
+                'none': CompressionType.NONE}
+
+MCAP_MAGIC = b'\x89MCAP0\r\n'
 
 _MAX_TIME_NS = 2**63 - 1  # rosbag2 timestamps are int64 ns
 
@@ -78,13 +103,69 @@ def _string_map(data, what):
     return dict(data)
 
 
+def _open_output(path, overwrite):
+    """
+    Create (or, with ``overwrite``, replace) ``path`` and lock it; return the descriptor.
+
+    The lock is taken before the file is truncated, so a writer never empties a file that
+    another writer is filling.
+    """
+    name = repr(str(path))
+    parent = path.parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise RecordingError(f'cannot create recording {name}: {str(parent)!r} exists and is '
+                             f'not a directory') from None
+    except OSError as exc:
+        raise RecordingError(f'cannot create recording {name}: cannot create its directory '
+                             f'{str(parent)!r}: {exc.strerror or exc}') from exc
+    flags = os.O_RDWR | os.O_CREAT | os.O_CLOEXEC | (0 if overwrite else os.O_EXCL)
+    try:
+        fd = os.open(path, flags, 0o666)
+    except FileExistsError:
+        if is_being_written(path):
+            raise OutputBusyError(
+                f'cannot create recording {name}: another recorder is writing it right now '
+                f'(two recorders on one file would corrupt it)') from None
+        kind = 'a directory' if path.is_dir() else 'a file'
+        raise OutputExistsError(f'cannot create recording {name}: {kind} of that name exists '
+                                f'(refusing to replace it)') from None
+    except OSError as exc:
+        raise RecordingError(
+            f'cannot create recording {name}: {exc.strerror or exc}') from exc
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise OutputExistsError(f'cannot create recording {name}: it exists and is not a '
+                                    f'regular file')
+        if not lock_exclusive(fd):
+            raise OutputBusyError(
+                f'cannot create recording {name}: another recorder is writing it right now '
+                f'(two recorders on one file would corrupt it)')
+        if info.st_size > 0:
+            head = os.pread(fd, len(MCAP_MAGIC), 0)
+            if head != MCAP_MAGIC[:len(head)]:
+                raise OutputExistsError(
+                    f'cannot create recording {name}: the existing file is not an MCAP '
+                    f'recording (refusing to replace it even with overwrite)')
+            os.ftruncate(fd, 0)
+    except OSError as exc:
+        os.close(fd)
+        raise RecordingError(f'cannot create recording {name}: {exc.strerror or exc}') from exc
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
 class _FileSink:
     """Unbuffered binary output for mcap.writer.Writer: every write() reaches the kernel."""
 
-    def __init__(self, path):
+    def __init__(self, path, overwrite):
         self.path = path
         self._fd = -1  # for __del__ if open fails
-        self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_CLOEXEC, 0o666)
+        self._fd = _open_output(path, overwrite)
         self._position = 0
 
     def write(self, data):
@@ -104,7 +185,7 @@ class _FileSink:
     def close(self):
         if self._fd >= 0:
             fd, self._fd = self._fd, -1
-            os.close(fd)
+            os.close(fd)  # releases the lock
 
     def __del__(self):
         # An unfinished writer that is garbage collected must not leak its descriptor; what it
@@ -113,6 +194,16 @@ class _FileSink:
             self.close()
         except OSError:
             pass
+
+
+class _NullSink:
+    """Discards everything (to ask mcap whether a compression is available)."""
+
+    def write(self, data):
+        return len(data)
+
+    def tell(self):
+        return 0
 
 
 class _Topic:
@@ -132,7 +223,7 @@ class BagWriter:
     A ROS 2 bag (profile ros2, ros2msg schemas, cdr messages) in one MCAP file.
 
     Use as a context manager: :meth:`finish` runs on exit, also when the body raises, so the file
-    is always finalised. The file is created (or truncated) at construction.
+    is always finalised. The file is created (and locked) at construction.
 
     Parameters
     ----------
@@ -141,6 +232,11 @@ class BagWriter:
     chunk_size : int, optional
         Uncompressed size in bytes above which a chunk is compressed and written (default
         1 MiB). A killed process loses at most the chunk in progress.
+    compression : {'zstd', 'lz4', 'none'}, optional
+        Chunk compression (default 'zstd'; 'lz4' needs the ``lz4`` package).
+    overwrite : bool, optional
+        Replace an existing MCAP file at ``path`` (default False: refuse it). A file that is
+        not an MCAP recording is never replaced.
     ros_distro : str, optional
         Value of ``ros_distro`` in the rosbag2 metadata (default 'jazzy'; the layout is
         Jazzy's, metadata version 9).
@@ -149,6 +245,10 @@ class BagWriter:
 
     Raises
     ------
+    OutputExistsError
+        If the file exists and ``overwrite`` is False, or it is not an MCAP file.
+    OutputBusyError
+        If another writer (in any process) is writing the file.
     RecordingError
         If the file cannot be created; the message names the path and the reason.
 
@@ -160,8 +260,8 @@ class BagWriter:
 
     """
 
-    def __init__(self, path, *, chunk_size=DEFAULT_CHUNK_SIZE, ros_distro='jazzy',
-                 custom_data=None):
+    def __init__(self, path, *, chunk_size=DEFAULT_CHUNK_SIZE, compression='zstd',
+                 overwrite=False, ros_distro='jazzy', custom_data=None):
         try:
             chunk_size = operator.index(chunk_size)
         except TypeError:
@@ -170,6 +270,9 @@ class BagWriter:
             raise ValueError(f'chunk_size must be positive, got {chunk_size} bytes')
         if not isinstance(ros_distro, str) or not ros_distro:
             raise ValueError(f'ros_distro must be a non-empty string, got {ros_distro!r}')
+        if compression not in COMPRESSIONS:
+            raise ValueError(f'compression must be one of {", ".join(COMPRESSIONS)}, '
+                             f'got {compression!r}')
         self._custom_data = _string_map(custom_data or {}, 'custom_data')
         self._ros_distro = ros_distro
         self._path = pathlib.Path(path)
@@ -180,16 +283,22 @@ class BagWriter:
         self._start_ns = None
         self._end_ns = None
         self._closed = False
+        self._failure = None  # the first write error, raised once
+        self._compression = compression
         try:
-            self._sink = _FileSink(self._path)
-        except OSError as exc:
+            # Checks that the compression library is there, before the file is created.
+            Writer(_NullSink(), compression=COMPRESSIONS[compression])
+        except UnsupportedCompressionError:
+            package = 'lz4' if compression == 'lz4' else 'zstandard'
             raise RecordingError(
-                f'cannot create recording {str(self._path)!r}: {exc.strerror or exc}') from exc
+                f'cannot create recording {str(self._path)!r}: compression {compression} needs '
+                f'the Python package {package} (pip install {package})') from None
+        self._sink = _FileSink(self._path, bool(overwrite))
         try:
             self._writer = Writer(
                 self._sink,
                 chunk_size=chunk_size,
-                compression=CompressionType.ZSTD,
+                compression=COMPRESSIONS[compression],
                 index_types=IndexType.ALL,
                 repeat_channels=True,
                 repeat_schemas=True,
@@ -224,6 +333,11 @@ class BagWriter:
         """Return the number of messages written so far."""
         return self._message_count
 
+    @property
+    def compression(self) -> str:
+        """Return the chunk compression: 'zstd', 'lz4' or 'none'."""
+        return self._compression
+
     def __enter__(self):
         return self
 
@@ -235,9 +349,20 @@ class BagWriter:
         return RecordingError(
             f'cannot {action} recording {str(self._path)!r}: {exc.strerror or exc}')
 
+    def _failed(self, action, exc):
+        """Note the first write error (the writer stops writing) and return it as raised."""
+        error = self._io_error(action, exc)
+        if self._failure is None:
+            self._failure = error
+            self._sink.close()  # what is on disk stays, like a killed recording
+        return error
+
     def _check_open(self):
         if self._closed:
             raise RecordingError(f'recording {str(self._path)!r} is already finished')
+        if self._failure is not None:
+            raise RecordingError(f'recording {str(self._path)!r} stopped after a write error: '
+                                 f'{self._failure}')
 
     def add_topic(self, topic, type_name, *, reliable=True, durability='volatile', depth=10):
         """
@@ -308,7 +433,7 @@ class BagWriter:
                     },
                 )
             except OSError as exc:
-                raise self._io_error('write to', exc) from exc
+                raise self._failed('write to', exc) from exc
             self._topics[topic] = _Topic(topic, type_name, channel_id, profile, type_hash)
 
     def write(self, topic, message, log_time_ns, publish_time_ns=None):
@@ -363,7 +488,7 @@ class BagWriter:
                     sequence=info.message_count & 0xFFFFFFFF,  # uint32 in MCAP
                 )
             except OSError as exc:
-                raise self._io_error('write to', exc) from exc
+                raise self._failed('write to', exc) from exc
             finally:
                 # Counted as the mcap statistics count it, even if the chunk write failed.
                 self._message_count += 1
@@ -390,7 +515,7 @@ class BagWriter:
             try:
                 self._writer.add_metadata(name, data)
             except OSError as exc:
-                raise self._io_error('write to', exc) from exc
+                raise self._failed('write to', exc) from exc
 
     def flush(self):
         """Compress and write the chunk in progress now (less to lose on a kill, worse ratio)."""
@@ -399,7 +524,7 @@ class BagWriter:
             try:
                 self._writer.flush()
             except OSError as exc:
-                raise self._io_error('write to', exc) from exc
+                raise self._failed('write to', exc) from exc
 
     def _rosbag2_metadata(self):
         topics = [(t.name, t.type_name, t.profile, t.type_hash, t.message_count)
@@ -415,7 +540,8 @@ class BagWriter:
         """
         Write the last chunk, the rosbag2 metadata and the summary, and close the file.
 
-        Safe to call more than once; later calls do nothing.
+        Safe to call more than once; later calls do nothing. After a write error (raised
+        already) it only closes the file.
 
         Raises
         ------
@@ -427,6 +553,9 @@ class BagWriter:
             if self._closed:
                 return
             self._closed = True
+            if self._failure is not None:
+                self._sink.close()
+                return
             try:
                 # Last chunk first, so the rosbag2 record follows every message it counts.
                 self._writer.flush()
@@ -434,6 +563,6 @@ class BagWriter:
                     ROSBAG2_METADATA_NAME, {'serialized_metadata': self._rosbag2_metadata()})
                 self._writer.finish()
             except OSError as exc:
-                raise self._io_error('finish', exc) from exc
+                raise self._failed('finish', exc) from exc
             finally:
                 self._sink.close()

@@ -94,13 +94,14 @@ from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks, UnsupportedEventTypeError
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 from ring_gyro_sim import run as run_mod
 from ring_gyro_sim.analysis.nnm import drive_initial_state
 from ring_gyro_sim.core.errors import InputError, ParameterError, RingGyroError
 from ring_gyro_sim.paramfile import check_node_arguments
-from ring_gyro_sim.ros import conversions, EARLY_SIGNALS, parameters
+from ring_gyro_sim.recording.errors import RecordingError
+from ring_gyro_sim.ros import conversions, EARLY_SIGNALS, parameters, qos
 from ring_gyro_sim.ros.recorder import RunRecorder
 from ring_gyro_sim.ros.sinks import Publishers, RosSink
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -108,12 +109,6 @@ from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 # isort: on
 
-BLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
-                       reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.VOLATILE)
-SHOCK_QUEUE_DEPTH = 1000
-BASE_ACCELERATION_QUEUE_DEPTH = 1000
-DRIVE_QUEUE_DEPTH = 10
 DIAGNOSTICS_PERIOD_S = 1.0
 TICK_BUDGET_S = 0.05
 """Most wall time one timer callback spends on blocks before serving inputs and services."""
@@ -152,10 +147,11 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
             log.warn(f'ignoring {name!r}: not a parameter of ring_gyro_sim')
         fqn = self.get_fully_qualified_name()
         self.block_pubs = {name: self.create_publisher(Float64MultiArray, f'~/{name}',
-                                                       BLOCK_QOS)
+                                                       qos.BLOCK_QOS)
                            for name in conversions.OUTPUT_TOPICS}
-        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        clock_pub = (self.create_publisher(ClockMsg, '/clock', 10)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics',
+                                              qos.DIAGNOSTICS_QOS)
+        clock_pub = (self.create_publisher(ClockMsg, '/clock', qos.CLOCK_QOS)
                      if config.run.publish_clock else None)
         names = run_mod.channel_names(config)
         recorder = None
@@ -164,7 +160,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
             try:
                 recorder = RunRecorder(config.run.record_path, config, names, fqn,
                                        publish_clock=config.run.publish_clock)
-            except (OSError, RingGyroError) as exc:
+            except OSError as exc:  # RingGyroErrors name the parameter themselves
                 raise ParameterError(f'record.path: {exc}') from None
         self.sink = RosSink(names, fqn, recorder=recorder,
                             publishers=Publishers(self.block_pubs, self.diag_pub, clock_pub),
@@ -185,13 +181,11 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         self._ignored_z = set()
         self._contact_logged = False
         self._input_subs = [
-            self._input(Vector3Stamped, 'shock', self._on_shock, SHOCK_QUEUE_DEPTH),
+            self._input(Vector3Stamped, 'shock', self._on_shock, qos.SHOCK_QOS),
             self._input(AccelStamped, 'base_acceleration', self._on_base_acceleration,
-                        BASE_ACCELERATION_QUEUE_DEPTH),
-            self._input(Float64, 'drive/amplitude', self._on_drive_amplitude,
-                        DRIVE_QUEUE_DEPTH),
-            self._input(Float64, 'drive/frequency', self._on_drive_frequency,
-                        DRIVE_QUEUE_DEPTH),
+                        qos.BASE_ACCELERATION_QOS),
+            self._input(Float64, 'drive/amplitude', self._on_drive_amplitude, qos.DRIVE_QOS),
+            self._input(Float64, 'drive/frequency', self._on_drive_frequency, qos.DRIVE_QOS),
         ]
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -213,23 +207,20 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
             f'duration {"unlimited" if not rc.duration else f"{rc.duration:g} s"}'
             + (f', recording to {rc.record_path}' if recorder is not None else ''))
 
-    def _input(self, msg_type, topic: str, handler, depth: int):
+    def _input(self, msg_type, topic: str, handler, profile: QoSProfile):
         """Subscribe to an input topic; count the messages the middleware reports lost."""
         def lost(info) -> None:
             self.run.count_lost(topic, info.total_count_change)
             self.get_logger().warn(f'~/{topic}: the middleware lost '
                                    f'{info.total_count_change} messages',
                                    throttle_duration_sec=REJECT_LOG_PERIOD_S)
-        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.VOLATILE)
         try:
             sub = self.create_subscription(
-                msg_type, f'~/{topic}', handler, qos,
+                msg_type, f'~/{topic}', handler, profile,
                 event_callbacks=SubscriptionEventCallbacks(message_lost=lost))
         except UnsupportedEventTypeError:  # an RMW without the event: nothing to count
-            sub = self.create_subscription(msg_type, f'~/{topic}', handler, qos)
-        return sub, handler, depth
+            sub = self.create_subscription(msg_type, f'~/{topic}', handler, profile)
+        return sub, handler, profile.depth
 
     @property
     def real_time_factor(self) -> float:
@@ -449,10 +440,13 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         if summary and self.run is not None and not self.done:
             self.done = True
             print(f'[ring_gyro_node] stopped: {self.summary()}', file=sys.stderr)
-        if self.run is not None:
-            self.run.close()
-        elif getattr(self, 'sink', None) is not None:
-            self.sink.discard()
+        try:
+            if self.run is not None:
+                self.run.close()
+            elif getattr(self, 'sink', None) is not None:
+                self.sink.discard()
+        except RecordingError as exc:  # e.g. the disk filled up: one line, no traceback
+            self.get_logger().fatal(f'recording: {exc}')
         self.sink = None
 
 

@@ -26,26 +26,76 @@ What a recording holds (interface.md, Recording):
   ``<ns>/events/reset`` (std_msgs/Empty) and ``<ns>/events/parameters`` (std_msgs/String: a
   YAML mapping of the parameters changed at run time);
 * a metadata record ``ring_gyro_sim`` with the full resolved parameters (YAML), the package
-  version, the git revision, the namespace and the exact initial state (JSON, repr floats).
+  version, the git revision, the namespace, the exact initial state (JSON, repr floats), and
+  how the recording was cut: ``output_period_ns``, ``block_samples`` (samples per block of
+  the run), ``record_decimation``, ``record_topics`` and ``block_topics`` (JSON lists of the
+  topics it holds), ``compression``.
 
-Outputs are recorded reliable / volatile (what ``ros2 bag play`` then offers).
+Messages are written in log-time order: an input stamped ahead (a scheduled shock at 0.5 s)
+is held back until the outputs reach its time (one still pending when the run ends is written
+at the end, so the recording keeps every input that was accepted).
+
+Controls (parameters ``record.*``, read from the configuration):
+
+``record.topics``
+    The topics to record, as the node names them: ``modal_displacement``, ``radial_gap``,
+    ``sense_electrodes``, ``/diagnostics``, ``/clock``, and the inputs ``shock``,
+    ``base_acceleration``, ``drive/amplitude``, ``drive/frequency``, ``events/reset``,
+    ``events/parameters`` (fully qualified names ``<ns>/modal_displacement`` work too).
+    Empty = all. The inputs and events, and the metadata record, are always recorded whatever
+    the list says: they are what a re-simulation needs (:data:`ALWAYS_RECORDED`). An unknown
+    name is refused (``ParameterError`` naming ``record.topics``).
+``record.decimation``
+    N >= 1: the block topics keep the samples whose global sample index is a multiple of N
+    (sample i is at t = i * output period, i = 1 for the first sample after the start), so
+    what is kept does not depend on how the run is cut into blocks; every block message is
+    still written, at the block's end time, with the same layout and fewer rows (possibly
+    none). ``/diagnostics``, ``/clock`` and the inputs are not decimated. The metadata says N;
+    :func:`ring_gyro_sim.recording.reader.block_end_times_ns` returns the original block ends.
+``record.compression``
+    ``zstd`` (default), ``lz4`` (needs the ``lz4`` package) or ``none``: the MCAP chunk
+    compression, as rosbag2's MCAP storage offers.
+``record.overwrite``
+    False (default): an existing file at the output path is refused, as rosbag2 refuses an
+    existing output. True: an existing MCAP recording is replaced; a file that is not an MCAP
+    file (a scenario given as the output by mistake) is never replaced.
+
+The parent directories of the path are created; a path that cannot be written, an existing
+file or a file another recorder is writing right now (each recorder holds a ``flock`` on its
+file) is refused at construction with the reason, before anything is simulated.
+
+A write error (a full disk) is raised once, by the next call or by ``close()``, as a
+``RecordingError`` naming the file and the reason; the recorder then stops writing
+(:attr:`RunRecorder.failed`), later calls do nothing and ``close()`` only releases the file,
+which reads like a killed recording.
+
+QoS: each topic is recorded with the profile the node uses live (:mod:`ring_gyro_sim.ros.qos`),
+which is what ``ros2 bag play`` offers again.
 """
 
+import array
+import heapq
 import json
 import os
+import pathlib
 import queue
 import subprocess
 import threading
-from typing import Dict, Optional, Sequence
+from typing import Dict, Iterable, Optional, Sequence
 
+import numpy as np
 from ring_gyro_sim import __version__
+from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.params import SimConfig, to_flat
+from ring_gyro_sim.recording.errors import OutputExistsError, RecordingError
+from ring_gyro_sim.recording.reader import RUN_METADATA_NAME
 from ring_gyro_sim.recording.writer import BagWriter
 from ring_gyro_sim.ros import conversions
-from std_msgs.msg import Empty, String
+from ring_gyro_sim.ros.qos import recorded_qos, TOPIC_QOS
+from std_msgs.msg import Empty, Float64MultiArray, MultiArrayDimension, String
 import yaml
 
-METADATA_NAME = 'ring_gyro_sim'
+METADATA_NAME = RUN_METADATA_NAME
 BLOCK_TYPE = 'std_msgs/msg/Float64MultiArray'
 INPUT_TOPICS = {
     'shock': 'geometry_msgs/msg/Vector3Stamped',
@@ -55,6 +105,81 @@ INPUT_TOPICS = {
     'events/reset': 'std_msgs/msg/Empty',
     'events/parameters': 'std_msgs/msg/String',
 }
+OTHER_TOPICS = {
+    '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
+    '/clock': 'rosgraph_msgs/msg/Clock',
+}
+#: Every topic a recording can hold, by the name ``record.topics`` takes, with its type.
+RECORDABLE_TOPICS = {**{name: BLOCK_TYPE for name in conversions.OUTPUT_TOPICS},
+                     **OTHER_TOPICS, **INPUT_TOPICS}
+#: Recorded whatever ``record.topics`` says: what a re-simulation needs.
+ALWAYS_RECORDED = tuple(INPUT_TOPICS)
+
+
+def recorded_topic_names(record_topics: Iterable[str], namespace: str = '/ring_gyro',
+                         publish_clock: bool = True) -> list:
+    """
+    Return the names (as ``record.topics`` takes them) that a recording holds.
+
+    ``record_topics`` empty means every topic; the inputs and events are always added.
+    ``/clock`` is recorded only when it is published.
+
+    Raises
+    ------
+    ParameterError
+        If a name is not a topic of the node (the message names ``record.topics``).
+
+    """
+    if isinstance(record_topics, str):
+        record_topics = [record_topics]
+    prefix = namespace.rstrip('/') + '/'
+    wanted = set()
+    for given in record_topics:
+        name = given
+        if isinstance(name, str):
+            name = name[2:] if name.startswith('~/') else name
+            if name.startswith(prefix) and name[len(prefix):] in RECORDABLE_TOPICS:
+                name = name[len(prefix):]
+        if name not in RECORDABLE_TOPICS:
+            raise ParameterError(
+                f'record.topics: {given!r} is not a topic of the node (topics: '
+                f'{", ".join(RECORDABLE_TOPICS)})')
+        wanted.add(name)
+    if not wanted:
+        wanted = set(RECORDABLE_TOPICS)
+    wanted.update(ALWAYS_RECORDED)
+    if not publish_clock:
+        wanted.discard('/clock')
+    return [name for name in RECORDABLE_TOPICS if name in wanted]
+
+
+def check_output_path(output, inputs: Iterable) -> None:
+    """
+    Refuse an output path that is one of the run's input files (even with overwrite).
+
+    ``ring_gyro run X.yaml -o X.yaml`` or ``--from A.mcap -o A.mcap`` would destroy the run's
+    own source.
+
+    Raises
+    ------
+    OutputExistsError
+        Naming ``record.path``, the file and the reason.
+
+    """
+    if not output:
+        return
+    out = pathlib.Path(output)
+    for source in inputs:
+        if not source:
+            continue
+        try:
+            same = out.exists() and os.path.samefile(out, source)
+        except OSError:
+            same = False
+        if same:
+            raise OutputExistsError(
+                f'record.path: {str(output)!r} is the input file {str(source)!r} of this run '
+                f'(refusing to write over it, whatever record.overwrite says)')
 
 
 def git_revision() -> str:
@@ -72,55 +197,90 @@ def git_revision() -> str:
 WRITE_QUEUE_DEPTH = 300
 
 
+def _parameters_message(text: str) -> String:
+    return String(data=text)
+
+
 class RunRecorder:
     """
     Writes one run to ``path`` (a context manager; the file is finalised on exit).
 
+    The file is created, locked and checked at construction (see the module doc), so build the
+    recorder before the expensive start-up (a start orbit); the metadata record is written with
+    the first message, so the initial state may be given later with :meth:`set_initial_state`.
+
     Parameters
     ----------
     path : str
-        The ``.mcap`` file.
+        The ``.mcap`` file (``record.path`` or ``ring_gyro run -o``).
     config : SimConfig
-        Resolved configuration (goes to the metadata record).
+        Resolved configuration: goes to the metadata record; ``record.topics``,
+        ``record.decimation``, ``record.compression`` and ``record.overwrite`` are taken from
+        it.
     channel_names : dict
         ``Simulator.channel_names``.
     namespace : str
         Topic namespace of the node, e.g. '/ring_gyro'.
     initial_state : (ndarray, ndarray), optional
-        Initial coordinates and velocities (m, m/s). When None the metadata record waits
-        for :meth:`start`, so that a caller can open (and so check) the file before it
-        computes the start state.
+        Initial coordinates and velocities (m, m/s); zeros when None (and not set later).
     publish_clock : bool
-        Also record ``/clock``.
+        Also record ``/clock`` (if ``record.topics`` keeps it).
     threaded : bool
         Serialise, compress and write in a background thread (messages keep their order; a
         write error is raised by the next call or by :meth:`close`).
+
+    Raises
+    ------
+    ParameterError
+        A name in ``record.topics`` that is not a topic of the node.
+    RecordingError
+        The file cannot be created: it exists (``OutputExistsError``; with the hint to set
+        ``record.overwrite``), another recorder writes it (``OutputBusyError``), or the path
+        is not writable; the message starts with ``record.path:`` and gives the reason.
 
     """
 
     def __init__(self, path: str, config: SimConfig, channel_names: Dict[str, Sequence[str]],
                  namespace: str = '/ring_gyro', initial_state=None,
                  publish_clock: bool = False, threaded: bool = True) -> None:
+        run = config.run
         self.namespace = namespace.rstrip('/') or ''
         self.channel_names = channel_names
-        self._path = path
-        self.writer = BagWriter(path)
-        for name in conversions.OUTPUT_TOPICS:
-            self.writer.add_topic(self.topic(name), BLOCK_TYPE)
-        self.writer.add_topic('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray')
+        self.config = config
         self.publish_clock = publish_clock
-        if publish_clock:
-            self.writer.add_topic('/clock', 'rosgraph_msgs/msg/Clock')
-        for name, type_name in INPUT_TOPICS.items():
-            self.writer.add_topic(self.topic(name), type_name)
-        self._config = config
+        self.names = recorded_topic_names(run.record_topics, self.namespace or '/',
+                                          publish_clock)
+        self.decimation = int(run.record_decimation)
+        self.period_ns = run.output_period_ns
+        self.block_samples = max(1, int(round(run.block_duration / (self.period_ns * 1e-9))))
+        try:
+            self.writer = BagWriter(path, compression=run.record_compression,
+                                    overwrite=run.record_overwrite)
+        except RecordingError as exc:
+            hint = (' (set record.overwrite: true to replace a recording)'
+                    if isinstance(exc, OutputExistsError) and not run.record_overwrite else '')
+            raise type(exc)(f'record.path: {exc}{hint}') from None
+        self._topics = {name: self.topic(name) for name in self.names}
+        try:
+            for name in self.names:
+                self.writer.add_topic(self._topics[name], RECORDABLE_TOPICS[name],
+                                      **recorded_qos(TOPIC_QOS[name]))
+        except BaseException:
+            self.writer.finish()
+            raise
+        self._blocks = [name for name in conversions.OUTPUT_TOPICS if name in self._topics]
+        self._initial_state = initial_state
         self._started = False
-        if initial_state is not None:
-            self.start(initial_state)
+        self._now_ns = 0  # log time of the latest output written: inputs after it wait
+        # Inputs acting after _now_ns, as a heap of (t_ns, order, name, build, args): compact,
+        # the message is built when it is written (100 000 pending samples stay a few MB).
+        self._pending = []
+        self._order = 0
         # Serialising and zstd-compressing 25 MB per simulated second (200 kHz) costs about a
         # quarter of the simulation itself; a writer thread does it while the (GIL-free)
         # kernel runs, on the second core. The bounded queue keeps memory bounded.
-        self._failure: Optional[BaseException] = None
+        self._failure: Optional[BaseException] = None  # a write error not reported yet
+        self._failed = False  # a write failed: nothing more is written
         self._queue: 'queue.Queue' = queue.Queue(maxsize=WRITE_QUEUE_DEPTH)
         self._thread: Optional[threading.Thread] = None
         if threaded:
@@ -128,23 +288,37 @@ class RunRecorder:
                                             daemon=True)
             self._thread.start()
 
-    def start(self, initial_state) -> None:
-        """Write the metadata record with the run's initial state (q, v) (once)."""
+    def topic(self, name: str) -> str:
+        """Full topic name of a node-relative name ('/diagnostics' and '/clock' stay)."""
+        return name if name.startswith('/') else f'{self.namespace}/{name}'
+
+    @property
+    def path(self) -> pathlib.Path:
+        """Return the path of the recording."""
+        return self.writer.path
+
+    def set_initial_state(self, q, v) -> None:
+        """
+        Set the initial coordinates and velocities (m, m/s) written to the metadata record.
+
+        Raises
+        ------
+        RecordingError
+            If the metadata record has been written already (a message was recorded).
+
+        """
         if self._started:
-            return
-        self._started = True
-        self.writer.add_metadata(METADATA_NAME, {
-            'parameters': yaml.safe_dump(to_flat(self._config), sort_keys=True),
-            'version': __version__,
-            'git_revision': git_revision(),
-            'namespace': self.namespace,
-            'initial_state': json.dumps({'q': [float(x) for x in initial_state[0]],
-                                         'v': [float(x) for x in initial_state[1]]}),
-        })
+            raise RecordingError(f'{str(self.path)!r}: the initial state must be set before '
+                                 f'the first message is recorded')
+        self._initial_state = (q, v)
+
+    def start(self, initial_state) -> None:
+        """Set the initial state (q, v) of the run (the :class:`~ring_gyro_sim.run.Sink` call)."""
+        self.set_initial_state(*initial_state)
 
     def discard(self) -> None:
         """Close and delete the file: the run never started (no metadata, no samples)."""
-        path = self._path
+        path = self.path
         try:
             self.close()
         finally:
@@ -153,9 +327,29 @@ class RunRecorder:
             except OSError:
                 pass
 
-    def topic(self, name: str) -> str:
-        """Full topic name of a node-relative name."""
-        return f'{self.namespace}/{name}'
+    def _start(self) -> None:
+        """Write the metadata record (once, before the first message)."""
+        if self._started:
+            return
+        self._started = True
+        state = self._initial_state
+        if state is None:
+            n = len(self.channel_names['modal_displacement'])
+            state = (np.zeros(n), np.zeros(n))
+        self.writer.add_metadata(METADATA_NAME, {
+            'parameters': yaml.safe_dump(to_flat(self.config), sort_keys=True),
+            'version': __version__,
+            'git_revision': git_revision(),
+            'namespace': self.namespace,
+            'initial_state': json.dumps({'q': [float(x) for x in state[0]],
+                                         'v': [float(x) for x in state[1]]}),
+            'output_period_ns': str(self.period_ns),
+            'block_samples': str(self.block_samples),
+            'record_decimation': str(self.decimation),
+            'record_topics': json.dumps(list(self._topics.values())),
+            'block_topics': json.dumps([self._topics[name] for name in self._blocks]),
+            'compression': self.writer.compression,
+        })
 
     def __enter__(self) -> 'RunRecorder':
         return self
@@ -164,21 +358,73 @@ class RunRecorder:
         self.close()
 
     def close(self) -> None:
-        """Write what is queued, then finalise the file (summary, indexes). Idempotent."""
-        if self._thread is not None:
-            self._queue.put(None)
-            self._thread.join()
-            self._thread = None
-        self.writer.finish()
-        self._raise_failure()
+        """
+        Write the inputs still held back and what is queued, then finalise the file.
 
-    def _write(self, topic: str, msg, t_ns: int) -> None:
-        """Queue one message for the writer thread (blocks while the queue is full)."""
+        Idempotent. A write error is raised once (here or by the call that met it first);
+        after that, close() only releases the file.
+        """
+        try:
+            if not self.writer.closed and not self._failed:
+                self._start()
+                self._release(None)
+        finally:
+            if self._thread is not None:
+                self._queue.put(None)
+                self._thread.join()
+                self._thread = None
+            failure, self._failure = self._failure, None
+            try:
+                self.writer.finish()
+            finally:
+                if failure is not None:
+                    raise failure
+
+    @property
+    def failed(self) -> bool:
+        """Tell whether writing stopped on an error (raised once; nothing is written after)."""
+        return self._failed
+
+    def _put(self, topic: str, msg, t_ns: int) -> None:
+        """Hand one message to the writer (thread), in the order of the calls."""
         self._raise_failure()
+        if self._failed:
+            return
         if self._thread is None:
-            self.writer.write(topic, msg, t_ns)
+            try:
+                self.writer.write(topic, msg, t_ns)
+            except BaseException:
+                self._failed = True
+                raise
             return
         self._queue.put((topic, msg, t_ns))
+
+    def _release(self, t_ns: Optional[int]) -> None:
+        """Write the inputs held back that act at or before ``t_ns`` (None: all of them)."""
+        while self._pending and (t_ns is None or self._pending[0][0] <= t_ns):
+            at_ns, _, name, build, args = heapq.heappop(self._pending)
+            self._put(self._topics[name], build(*args), at_ns)
+
+    def _advance(self, t_ns: int) -> None:
+        """Move the run's time to ``t_ns``: write the inputs held back up to it."""
+        self._start()
+        self._release(t_ns)
+        self._now_ns = max(self._now_ns, t_ns)
+
+    def _input(self, name: str, at_ns: int, build, *args) -> None:
+        """Write the input ``build(*args)`` acting at ``at_ns``, now or when outputs reach it."""
+        self._raise_failure()
+        self._start()
+        if at_ns <= self._now_ns:
+            self._put(self._topics[name], build(*args), at_ns)
+            return
+        self._order += 1
+        heapq.heappush(self._pending, (at_ns, self._order, name, build, args))
+
+    def _write(self, topic: str, msg, t_ns: int) -> None:
+        """Write one message of any topic now (no ordering, no decimation)."""
+        self._start()
+        self._put(topic, msg, t_ns)
 
     def _drain(self) -> None:
         """Writer thread: serialise, compress and write the queued messages in order."""
@@ -186,56 +432,83 @@ class RunRecorder:
             item = self._queue.get()
             if item is None:
                 return
-            if self._failure is not None:
+            if self._failed:
                 continue  # keep draining so that producers never block forever
             try:
                 self.writer.write(*item)
-            except BaseException as exc:  # reported to the caller's thread
+            except BaseException as exc:  # reported to the caller's thread, once
                 self._failure = exc
+                self._failed = True
 
     def _raise_failure(self) -> None:
         if self._failure is not None:
             failure, self._failure = self._failure, None
             raise failure
 
+    def _decimated(self, msg: Float64MultiArray, t_ns: int) -> Float64MultiArray:
+        """Keep the rows of a block whose global sample index is a multiple of N."""
+        rows, columns = msg.layout.dim[0].size, msg.layout.dim[1].size
+        end_index, rest = divmod(t_ns, self.period_ns)
+        if rest:
+            raise ValueError(f'block end {t_ns} ns is not on the {self.period_ns} ns grid')
+        first_index = end_index - rows + 1
+        skip = (-first_index) % self.decimation
+        data = np.frombuffer(msg.data, dtype=np.float64).reshape(rows, columns)
+        kept = np.ascontiguousarray(data[skip::self.decimation])
+        out = Float64MultiArray()
+        out.layout.dim = [
+            MultiArrayDimension(label=msg.layout.dim[0].label, size=len(kept),
+                                stride=len(kept) * columns),
+            MultiArrayDimension(label=msg.layout.dim[1].label, size=columns, stride=columns),
+        ]
+        out.layout.data_offset = msg.layout.data_offset
+        out.data = array.array('d', kept.tobytes())
+        return out
+
     def outputs(self, blocks: Dict[str, object], t_ns: int) -> None:
-        """Record the block messages of one chunk, logged at its last sample time ``t_ns``."""
+        """Record the block messages of one block, logged at its last sample time ``t_ns``."""
+        self._advance(t_ns)
         for name, msg in blocks.items():
-            self._write(self.topic(name), msg, t_ns)
+            if name not in self._topics:
+                continue
+            if self.decimation > 1:
+                msg = self._decimated(msg, t_ns)
+            self._put(self._topics[name], msg, t_ns)
 
     def diagnostics(self, msg, t_ns: int) -> None:
         """Record a /diagnostics message."""
-        self._write('/diagnostics', msg, t_ns)
+        self._advance(t_ns)
+        if '/diagnostics' in self._topics:
+            self._put('/diagnostics', msg, t_ns)
 
     def clock(self, t_ns: int) -> None:
         """Record /clock at ``t_ns`` (only when the run publishes it)."""
-        if self.publish_clock:
-            self._write('/clock', conversions.clock_message(t_ns), t_ns)
+        self._advance(t_ns)
+        if '/clock' in self._topics:
+            self._put('/clock', conversions.clock_message(t_ns), t_ns)
 
     def shock(self, at_ns: int, x: float, y: float = 0.0) -> None:
         """Record a shock applied at ``at_ns``."""
-        self._write(self.topic('shock'), conversions.shock_message(at_ns, x, y), at_ns)
+        self._input('shock', at_ns, conversions.shock_message, at_ns, x, y)
 
     def base_acceleration(self, at_ns: int, x: float, y: float = 0.0) -> None:
         """Record a base-acceleration sample applied at ``at_ns``."""
-        self._write(self.topic('base_acceleration'),
-                    conversions.base_acceleration_message(at_ns, x, y), at_ns)
+        self._input('base_acceleration', at_ns, conversions.base_acceleration_message,
+                    at_ns, x, y)
 
     def drive(self, at_ns: int, amplitude: Optional[float] = None,
               frequency_hz: Optional[float] = None) -> None:
         """Record a drive change applied at ``at_ns``."""
         if amplitude is not None:
-            self._write(self.topic('drive/amplitude'),
-                        conversions.float_message(amplitude), at_ns)
+            self._input('drive/amplitude', at_ns, conversions.float_message, amplitude)
         if frequency_hz is not None:
-            self._write(self.topic('drive/frequency'),
-                        conversions.float_message(frequency_hz), at_ns)
+            self._input('drive/frequency', at_ns, conversions.float_message, frequency_hz)
 
     def reset(self, at_ns: int) -> None:
         """Record a reset applied at ``at_ns``."""
-        self._write(self.topic('events/reset'), Empty(), at_ns)
+        self._input('events/reset', at_ns, Empty)
 
     def parameters(self, at_ns: int, changed: Dict[str, object]) -> None:
         """Record parameters changed at run time, applied at ``at_ns``."""
-        self._write(self.topic('events/parameters'),
-                    String(data=yaml.safe_dump(dict(changed), sort_keys=True)), at_ns)
+        self._input('events/parameters', at_ns, _parameters_message,
+                    yaml.safe_dump(dict(changed), sort_keys=True))

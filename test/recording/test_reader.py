@@ -14,8 +14,10 @@
 
 """Tests of ring_gyro_sim.recording.reader, including files cut short by a killed recorder."""
 
+import logging
 import os
 import signal
+import struct
 import subprocess
 import sys
 import textwrap
@@ -30,7 +32,8 @@ import recording_samples as samples
 
 import ring_gyro_sim
 from ring_gyro_sim.recording.errors import RecordingError
-from ring_gyro_sim.recording.reader import BagMessage, decode, read_messages, read_metadata
+from ring_gyro_sim.recording.reader import (
+    BagMessage, decode, read_messages, read_metadata, read_topics)
 from ring_gyro_sim.recording.writer import BagWriter
 
 REPOSITORY = os.path.dirname(os.path.dirname(os.path.abspath(ring_gyro_sim.__file__)))
@@ -209,3 +212,82 @@ def test_decode_errors(sample_bag):
         decode(broken)
     with pytest.raises(RecordingError, match='no schema'):
         decode(BagMessage('/x', '', b'', 0, 0))
+
+
+def summary_start(data):
+    """Return the offset of the summary section of a finished MCAP file (from its footer)."""
+    footer = len(data) - 8 - (1 + 8 + 8 + 8 + 4)  # magic; opcode, length, 2 offsets, crc
+    return struct.unpack_from('<Q', data, footer + 1 + 8)[0]
+
+
+def contents(messages):
+    return [(m.topic, m.log_time_ns, m.data) for m in messages]
+
+
+def test_corrupt_bytes_give_a_clean_end_or_a_recording_error(tmp_path):
+    """Two recorders on one file, a damaged disk: never another exception."""
+    path = write_blocks(tmp_path / 'full.mcap', 60, chunk_size=1024)
+    data = path.read_bytes()
+    original = contents(read_messages(path))
+    damaged = tmp_path / 'damaged.mcap'
+    outcomes = {'clean': 0, 'error': 0}
+    # A prime step hits every kind of record and field somewhere; the file is read through its
+    # index (finished) and linearly (the same bytes without the summary: a killed recorder).
+    for variant in ('finished', 'killed'):
+        source = data if variant == 'finished' else data[:summary_start(data)]
+        for position in range(8, len(source), 97):  # after the magic
+            corrupt = bytearray(source)
+            corrupt[position] ^= 0xFF
+            damaged.write_bytes(bytes(corrupt))
+            try:
+                read = contents(read_messages(damaged))
+                read_topics(damaged)
+                read_metadata(damaged, 'ring_gyro_sim')
+            except RecordingError:
+                outcomes['error'] += 1
+                continue
+            outcomes['clean'] += 1
+            if variant == 'killed':
+                # Reading stopped at the damaged record: what came back is what was written.
+                assert read == original[:len(read)], position
+    assert outcomes['clean'] > 0 and outcomes['error'] > 0, outcomes
+
+
+def test_invalid_utf8_in_an_indexed_file_is_a_recording_error(tmp_path):
+    # Uncompressed chunks, so the topic name of the channel record inside the chunk is there
+    # to damage; mcap's own reader (no CRC check by default) then raises UnicodeDecodeError,
+    # which is what our reader let through before.
+    path = tmp_path / 'plain.mcap'
+    with BagWriter(path, compression='none') as bag:
+        bag.add_topic(samples.BLOCK_TOPIC, 'std_msgs/msg/Float64MultiArray')
+        for b in range(3):
+            bag.write(samples.BLOCK_TOPIC, samples.block_message(b), b)
+    data = bytearray(path.read_bytes())
+    where = data.index(samples.BLOCK_TOPIC.encode())  # the first copy: inside the chunk
+    data[where + 1] = 0xFF
+    path.write_bytes(bytes(data))
+    with open(path, 'rb') as stream:
+        with pytest.raises(UnicodeDecodeError):
+            list(mcap.reader.make_reader(stream).iter_messages())
+    with pytest.raises(RecordingError, match='is corrupt'):
+        list(read_messages(path))
+
+
+def test_a_file_without_summary_says_once_that_recover_completes_it(tmp_path, caplog):
+    path = write_blocks(tmp_path / 'full.mcap', 60)
+    with caplog.at_level(logging.WARNING, logger='ring_gyro_sim.recording.reader'):
+        list(read_messages(path))
+        read_metadata(path, 'ring_gyro_sim')
+    assert caplog.records == []  # a finished file needs nothing
+    killed = tmp_path / 'killed.mcap'
+    data = path.read_bytes()
+    killed.write_bytes(data[:summary_start(data) - 5])
+    with caplog.at_level(logging.WARNING, logger='ring_gyro_sim.recording.reader'):
+        list(read_messages(killed))
+        read_metadata(killed, 'ring_gyro_sim')
+        read_topics(killed)
+    assert len(caplog.records) == 1
+    line = caplog.records[0].getMessage()
+    assert '\n' not in line and 'has no summary' in line
+    assert f'`ring_gyro recover {killed}`' in line
+    assert 'read up to byte' in line

@@ -23,7 +23,7 @@ import mcap_ros2.decoder
 import pytest
 import rclpy.serialization
 import recording_samples as samples
-from ring_gyro_sim.recording.errors import RecordingError
+from ring_gyro_sim.recording.errors import OutputExistsError, RecordingError
 from ring_gyro_sim.recording.schemas import message_definition, type_description_hash
 from ring_gyro_sim.recording.writer import BagWriter
 from rosbags.highlevel import AnyReader
@@ -294,15 +294,30 @@ def test_publish_time_and_serialized_bytes(tmp_path):
     assert read == [(5, 7, 1, cdr[5]), (9, 9, 2, cdr[9])]
 
 
+def test_missing_parent_directories_are_created(tmp_path):
+    path = tmp_path / 'no' / 'such' / 'dir' / 'run.mcap'
+    with BagWriter(path) as bag:
+        bag.add_topic(samples.SHOCK_TOPIC, 'geometry_msgs/msg/Vector3Stamped')
+        bag.write(samples.SHOCK_TOPIC, samples.shock_message(0, 1.0), 0)
+    assert rosbag2_document(path)['message_count'] == 1
+
+
 def test_unwritable_path_is_reported_at_construction(tmp_path):
-    missing = tmp_path / 'no' / 'such' / 'dir' / 'run.mcap'
+    # Tests run as root, for whom permissions do not stop a write: a path through a regular
+    # file cannot be created by anyone.
+    blocker = tmp_path / 'plain_file'
+    blocker.write_text('not a directory')
+    missing = blocker / 'dir' / 'run.mcap'
     with pytest.raises(RecordingError) as info:
         BagWriter(missing)
     assert str(missing) in str(info.value)
-    assert 'No such file or directory' in str(info.value)
+    assert 'Not a directory' in str(info.value)
     assert isinstance(info.value, RuntimeError)
-    with pytest.raises(RecordingError, match='Is a directory'):
+    with pytest.raises(OutputExistsError, match='a directory of that name exists'):
         BagWriter(tmp_path)
+    with pytest.raises(RecordingError, match='Is a directory'):
+        BagWriter(tmp_path, overwrite=True)
+    assert blocker.read_text() == 'not a directory'
 
 
 def test_finish_runs_on_exception_and_is_idempotent(tmp_path):
