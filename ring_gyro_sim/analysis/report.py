@@ -83,7 +83,7 @@ DIFFERENCES = (
     'instead of 0.03 um): they depend on how deep inside the bistable interval the drive '
     "sits and on the decay of q1, both of which differ slightly from the paper's model.",
 )
-"""Differences from the paper and their causes (README, "Calibration"), for summary.md."""
+"""Differences from the paper and their causes (doc/calibration.md), for summary.md."""
 
 RIDGE_BAND_HZ = (9.5e3, 12.0e3)
 """Band searched for the 1theta line of the spectrogram, Hz."""

@@ -54,8 +54,8 @@ Physical limits (see each row's ``range_note``)
       :data:`MAX_TIME_S`: ROS stamps (``builtin_interfaces/Time.sec``) are int32.
 
 Defaults are the studied device of the paper (section 3.1, Table 1), N_R = 3, N_T = 10, with
-the calibrated outer voltage (see ``config/default.yaml`` and the README for how it was
-obtained).
+the calibrated outer voltage (see ``config/default.yaml`` and ``doc/calibration.md`` for how it
+was obtained).
 """
 
 from dataclasses import dataclass, field, fields
@@ -71,12 +71,12 @@ EPSILON_0 = 8.8541878128e-12
 STANDARD_GRAVITY = 9.80665
 """Standard gravity, m/s^2 (only for conversions from g at the boundaries)."""
 
-# Calibrated outer voltage (V), see config/default.yaml and README "Calibration": with
+# Calibrated outer voltage (V), see config/default.yaml and doc/calibration.md: with
 # N_R = 3, N_T = 10 the 1theta backbone is at 10.685 kHz at 6 um (Fig. 4: ~10.6 kHz), and a
 # 10 000 g shock on top of the upper-branch drive leaves the ring free of contact at every
 # drive phase (at 80 V, 3 phases in 16 pull in; the exact Fig. 4 fit, 83.5 V, pulls in from rest).
 DEFAULT_OUTER_VOLTAGE = 78.0
-# Drive (README "Calibration"): A_e per unit modal mass (m/s^2) at 15798.6 Hz puts the upper
+# Drive (doc/calibration.md): A_e per unit modal mass (m/s^2) at 15798.6 Hz puts the upper
 # branch at q2 = 0.394 um and the lower one at 0.037 um (paper: ~0.39 um and ~0.03 um at
 # 15798.3 Hz). Our upper branch ends at 15798.29 Hz: at the paper's 15798.3 Hz it is 9 mHz
 # from its fold, and a 2 000 g shock knocks it down for good (Case 1 then disagrees).

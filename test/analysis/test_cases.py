@@ -183,7 +183,7 @@ def test_case1_at_the_papers_frequency_falls_off_our_fold():
 
     The drive sits 0.009 Hz above the fold of our upper branch (stable orbit 0.4265 um,
     saddle 0.4243 um), so its basin is very thin: q2 nearly returns (0.37 um at 7 s) and
-    falls off at ~8 s. This is why the default drive is 0.3 Hz higher (README).
+    falls off at ~8 s. This is why the default drive is 0.3 Hz higher (doc/calibration.md).
     """
     spec = cases.paper_cases()['case1']
     r = cases.run_case(replace(spec, overrides=(('drive.frequency', 15798.3),)))

@@ -171,7 +171,7 @@ def test_forced_response_has_two_stable_branches(config, branches):
           f'lower {np.max(np.abs(lower.floquet_multipliers)):.8f}')
     # Paper (section 3.4) at 15 798.3 Hz: ~0.39 um and ~0.03 um. Measured here 0.4265 and
     # 0.0307 um: this drive sits 9 mHz above our fold, where the upper branch is at its
-    # highest (README "Calibration"); within 10 % of the paper's values.
+    # highest (doc/calibration.md); within 10 % of the paper's values.
     assert upper.amplitude_m[1] == pytest.approx(0.39e-6, rel=0.10)
     assert lower.amplitude_m[1] == pytest.approx(0.03e-6, rel=0.10)
     assert upper.stable and lower.stable
