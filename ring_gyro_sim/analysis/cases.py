@@ -57,7 +57,7 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 from ring_gyro_sim.analysis import envelope as env
-from ring_gyro_sim.analysis import nnm
+from ring_gyro_sim.analysis import nnm, plotting
 from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.params import build_config, SimConfig, STANDARD_GRAVITY
 from ring_gyro_sim.core.simulator import Status
@@ -378,7 +378,6 @@ class CaseResult:
 
     def plot(self, path, **kwargs) -> None:
         """Save the envelopes (Figs. 10-12, 14-15) to ``path``; see ``plotting``."""
-        from ring_gyro_sim.analysis import plotting
         plotting.plot_case(self, path, **kwargs)
 
 

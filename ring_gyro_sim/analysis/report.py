@@ -44,6 +44,7 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 from ring_gyro_sim.analysis import cases
 from ring_gyro_sim.analysis import envelope as env
+from ring_gyro_sim.analysis import hbm, plotting
 from ring_gyro_sim.core.params import build_config
 from ring_gyro_sim.run import format_number
 
@@ -165,15 +166,6 @@ def make_plan(quick: bool = False, base: Optional[Mapping[str, Any]] = None) -> 
                       quick=quick, base=base)
 
 
-def hbm_module():
-    """Return :mod:`ring_gyro_sim.analysis.hbm`, or None when it is not available."""
-    try:
-        from ring_gyro_sim.analysis import hbm
-    except ImportError:
-        return None
-    return hbm
-
-
 def _spectral_numbers(result: cases.CaseResult) -> Dict[str, Any]:
     """Spectrogram of q1 (Fig. 7) and its 1theta ridge, computed where the raw data are."""
     t, q1 = result.raw_t, result.raw_q[:, 0]
@@ -205,9 +197,9 @@ def _job(job):
         payload = (result, extra)
     elif kind == 'backbone':
         base, order = args
-        payload = hbm_module().backbone(build_config(base), mode=1, taylor_terms=order)
+        payload = hbm.backbone(build_config(base), mode=1, taylor_terms=order)
     elif kind == 'frf':
-        payload = hbm_module().frf(build_config(args), mode=2)
+        payload = hbm.frf(build_config(args), mode=2)
     else:
         raise ValueError(f'job kind: unknown {kind!r}')
     return key, payload, time.perf_counter() - wall0
@@ -230,11 +222,10 @@ def plan_jobs(plan: ReportPlan) -> List[tuple]:
         jobs.append(('case', spec.name, (spec, plan.base, rate)))
     for spec in plan.ritz:
         jobs.append(('case', spec.name, (spec, plan.base, plan.ritz_rate_hz)))
-    if hbm_module() is not None:
-        for order in plan.backbone_orders:
-            jobs.append(('backbone', f'backbone_nt{order}', (plan.base, order)))
-        if plan.frf:
-            jobs.append(('frf', 'frf', plan.base))
+    for order in plan.backbone_orders:
+        jobs.append(('backbone', f'backbone_nt{order}', (plan.base, order)))
+    if plan.frf:
+        jobs.append(('frf', 'frf', plan.base))
     return sorted(jobs, key=_cost, reverse=True)
 
 
@@ -480,13 +471,11 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
         The content of ``summary.json``.
 
     """
-    from ring_gyro_sim.analysis import plotting
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     wall0 = time.perf_counter()
     plan = make_plan(quick, base)
     jobs = plan_jobs(plan)
-    hbm = hbm_module()
     if progress:
         sys.stderr.write(f'[report] {len(jobs)} jobs on {workers} workers '
                          f"({'quick' if quick else 'full'}) -> {out}\n")
@@ -498,28 +487,24 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
                                'base_parameters': plan.base}
     # --- harmonic balance (Figs. 4, 9)
     hb: Dict[str, Any] = {}
-    if hbm is None:
-        summary['hbm_note'] = ('ring_gyro_sim.analysis.hbm is not available: Figs. 4 and 9 '
-                               'were not produced.')
-    else:
-        f6 = {}
-        backbones = [done[f'backbone_nt{o}'] for o in plan.backbone_orders]
-        for b in backbones:
-            b.to_csv(out / f'fig04_backbone_nt{b.taylor_terms}.csv')
-            try:
-                f6[f'N_T={b.taylor_terms}'] = b.frequency_at(6e-6)
-            except ValueError:
-                f6[f'N_T={b.taylor_terms}'] = math.nan
-        hb['backbone_f_at_6um_hz'] = f6
-        hb['backbone_f0_hz'] = float(backbones[-1].frequency_hz[0])
-        _plot_backbones(backbones, out / 'fig04_backbones.png')
-        if plan.frf:
-            resp = done['frf']
-            resp.to_csv(out / 'fig09_frf.csv')
-            resp.plot(out / 'fig09_frf.png', marker_hz=build_config(plan.base).drive.frequency)
-            hb['frf_folds_hz'] = list(resp.fold_frequencies_hz)
-            hb['frf_branches_at_drive'] = resp.branches_at(
-                build_config(plan.base).drive.frequency)
+    f6 = {}
+    backbones = [done[f'backbone_nt{o}'] for o in plan.backbone_orders]
+    for b in backbones:
+        b.to_csv(out / f'fig04_backbone_nt{b.taylor_terms}.csv')
+        try:
+            f6[f'N_T={b.taylor_terms}'] = b.frequency_at(6e-6)
+        except ValueError:
+            f6[f'N_T={b.taylor_terms}'] = math.nan
+    hb['backbone_f_at_6um_hz'] = f6
+    hb['backbone_f0_hz'] = float(backbones[-1].frequency_hz[0])
+    _plot_backbones(backbones, out / 'fig04_backbones.png')
+    if plan.frf:
+        resp = done['frf']
+        resp.to_csv(out / 'fig09_frf.csv')
+        resp.plot(out / 'fig09_frf.png', marker_hz=build_config(plan.base).drive.frequency)
+        hb['frf_folds_hz'] = list(resp.fold_frequencies_hz)
+        hb['frf_branches_at_drive'] = resp.branches_at(
+            build_config(plan.base).drive.frequency)
     summary['hbm'] = hb
     # --- time-domain cases
     results: Dict[str, cases.CaseResult] = {}
@@ -564,7 +549,6 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
 
 def _plot_backbones(backbones, path) -> None:
     """Fig. 4: the 1theta backbones for several N_T on one axis (skipped without matplotlib)."""
-    from ring_gyro_sim.analysis import plotting
     plotting.plot_backbones(backbones, path)
 
 

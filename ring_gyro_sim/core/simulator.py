@@ -514,10 +514,6 @@ class Simulator:
             raise InputError(f'seconds: must be finite and >= 0, got {seconds!r}')
         return self.advance_samples(int(round(seconds / self.period_s)))
 
-    def advance_to(self, t_ns: int) -> Samples:
-        """Advance to the last sample time <= ``t_ns`` and return the samples."""
-        return self.advance_samples(max(0, int(t_ns) // self.period_ns - self.sample_index))
-
     def advance_samples(self, n_samples: int) -> Samples:
         """Advance by ``n_samples`` output periods; returns samples at the new times."""
         n = self.model.n_coordinates

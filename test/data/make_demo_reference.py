@@ -22,7 +22,9 @@ SHA-256 of each channel's complete array (all 8000 samples), so that the file st
 still pins every sample. It was made with the tree of commit 14aa740 (before the run-path
 redesign of issue 9); ``test/test_reference_outputs.py`` checks that the current tree
 reproduces it bit for bit. Run ``python test/data/make_demo_reference.py`` only when the
-physics is meant to change, and say why in the commit.
+physics is meant to change, and say why in the commit. (The file was written through the
+Simulator directly; it is now computed through :class:`ring_gyro_sim.run.Run`, the one run
+path, which must give the same samples.)
 """
 
 import hashlib
@@ -44,15 +46,13 @@ def compute():
     sys.path.insert(0, str(REPO))
     from ring_gyro_sim.analysis.nnm import drive_initial_state
     from ring_gyro_sim.core.params import build_config, to_flat
-    from ring_gyro_sim.core.simulator import Simulator
     from ring_gyro_sim.paramfile import load_yaml
+    from ring_gyro_sim.run import Run
 
     base = load_yaml(str(REPO / 'config' / 'demo.yaml'))
     config = build_config({**to_flat(base), **OVERRIDES})
-    sim = Simulator(config)
-    start = drive_initial_state(config)
-    sim.set_state(*start)
-    parts = [sim.advance_samples(n) for n in BLOCK_SAMPLES]
+    run = Run(config, start_state=drive_initial_state(config))  # the one run path
+    parts = [run.advance(n).samples for n in BLOCK_SAMPLES]
     return {name: np.ascontiguousarray(np.concatenate([getattr(p, name) for p in parts]))
             for name in CHANNELS}
 
