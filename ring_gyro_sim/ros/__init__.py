@@ -45,6 +45,8 @@ def _is_node_process() -> bool:
     return any(a == '-m' and b == 'ring_gyro_sim.ros.node' for a, b in zip(argv, argv[1:]))
 
 
-if _is_node_process() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+# Also when SIGINT came in ignored (a shell's background job): the node handles both signals
+# once it runs (node.main), so it must not die of one, or ignore one, before that.
+if _is_node_process():
     for _signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(_signum, lambda signum, frame: EARLY_SIGNALS.append(signum))

@@ -451,18 +451,33 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
 
 
 class _StopOnSignal:
-    """SIGINT / SIGTERM handler: the first one asks the node to end its run cleanly."""
+    """
+    SIGINT / SIGTERM handler: the first one asks the node to end its run cleanly.
+
+    Only a flag, never an exception, for the first signal: while the node is being built
+    (parameters, recorder, start state, kernels) it is noted and the run ends as soon as the
+    node exists, with the usual summary; an exception raised at an arbitrary point of that
+    construction could leave the process in a state it cannot report. A second signal
+    raises KeyboardInterrupt at once.
+    """
 
     def __init__(self) -> None:
         self.node: Optional[RingGyroNode] = None
+        self.early: Optional[str] = None
 
     def __call__(self, signum, frame) -> None:
+        name = signal.Signals(signum).name
         node = self.node
-        if node is None or node.stop_requested:
-            raise KeyboardInterrupt  # before the node exists, or a second signal
-        # Only a flag here: the next timer callback (<= 20 ms) ends the run with the context
-        # still up, so the final diagnostics and the summary are still published.
-        node.stop_requested = signal.Signals(signum).name
+        if node is None:
+            if self.early is not None:
+                raise KeyboardInterrupt  # a second signal during start-up
+            self.early = name
+            return
+        if node.stop_requested:
+            raise KeyboardInterrupt  # a second signal
+        # The next timer callback (<= 20 ms) ends the run with the context still up, so the
+        # final diagnostics and the summary are still published.
+        node.stop_requested = name
 
 
 def main(args=None) -> int:
@@ -491,6 +506,7 @@ def main(args=None) -> int:
             return 0
         node = RingGyroNode()
         stop.node = node
+        node.stop_requested = node.stop_requested or stop.early
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         while not node.done and rclpy.ok():
