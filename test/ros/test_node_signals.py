@@ -59,13 +59,25 @@ def in_interpreter_start_up(code, stderr, sig):
     """
     Tell whether the signal came while Python itself started, before any code of ours ran.
 
-    SIGINT then gives a traceback with no frame of ours; SIGTERM, whose default action is
-    to end the process, an exit by the signal with nothing written.
+    SIGINT then gives a traceback with no frame of ours (Python's frozen start-up modules,
+    ``site`` and the ``.pth`` files it runs: the editable install's finder imports pathlib);
+    SIGTERM, whose default action is to end the process, an exit by the signal with nothing
+    written.
     """
     if code == -sig and not stderr.strip():
         return True
     files = re.findall(r'File "([^"]+)"', stderr)
-    return bool(files) and all(f.startswith('<frozen ') for f in files)
+    if not files:
+        return False
+    frozen = all(f.startswith('<frozen ') for f in files)
+    in_site = 'init_import_site' in stderr and not any(_ours(f) for f in files)
+    return frozen or in_site
+
+
+def _ours(path):
+    """Tell whether a traceback's file is the package's (or its console script)."""
+    return ('/ring_gyro_sim/' in path and 'site-packages' not in path
+            or path.endswith('ring_gyro_node'))
 
 
 @pytest.fixture(scope='module')
