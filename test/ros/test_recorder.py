@@ -539,6 +539,25 @@ def test_ring_gyro_run_on_a_full_disk_prints_one_error_line(tiny_disk, tmp_path)
     assert time.monotonic() - start < 600
 
 
+def test_the_node_on_a_full_disk_logs_one_fatal_line(tiny_disk, tmp_path):
+    """Issue 10 item 6: a full disk gave a FATAL line, then two tracebacks from close()."""
+    params = tmp_path / 'full.yaml'
+    params.write_text(params_yaml({**FAST, 'duration': 1.0, 'real_time_factor': 0.0,
+                                   'drive.start_on': 'rest',
+                                   'record.path': str(tiny_disk / 'node.mcap')}))
+    node = NodeProcess(params, tmp_path)
+    try:
+        code = node.wait(120.0)
+    finally:
+        node.stop()
+    log = node.output()
+    print(log[-2000:])
+    assert code == 1, log
+    assert 'Traceback' not in log
+    fatal = [line for line in log.splitlines() if '[FATAL]' in line]
+    assert len(fatal) == 1 and 'No space left on device' in fatal[0], fatal
+
+
 def test_a_decimated_recording_resimulates_with_its_original_block_sizes(tmp_path):
     """offline.load_recording takes block sizes from block_sample_counts, not the layouts."""
     from ring_gyro_sim import offline
