@@ -143,9 +143,25 @@ def sample_indices(t_s):
 
 
 def assert_contiguous(probe):
+    """
+    Every block received is contiguous inside, and blocks come in order, never repeated.
+
+    That no block is ever skipped by the node is checked on its recording (which gets every
+    block: test_sigterm_ends_the_node_and_finalises_the_recording). A live subscriber gets
+    every block only while it keeps up (the QoS contract: keep last 50); the probe shares
+    the machine with the node and the offline comparisons, and on a loaded machine it fell
+    behind by more than 50 blocks, so gaps between received blocks are counted and printed
+    here, not asserted.
+    """
     for topic, blocks in probe.blocks.items():
-        index = sample_indices(np.concatenate([b.t for b in blocks]))
-        assert np.all(np.diff(index) == 1), f'{topic}: blocks not contiguous'
+        for b in blocks:
+            assert np.all(np.diff(sample_indices(b.t)) == 1), f'{topic}: a block not contiguous'
+        starts = sample_indices([b.t[0] for b in blocks])
+        ends = sample_indices([b.t[-1] for b in blocks])
+        assert np.all(starts[1:] > ends[:-1]), f'{topic}: blocks repeated or out of order'
+        missed = int(np.count_nonzero(starts[1:] != ends[:-1] + 1))
+        if missed:
+            print(f'{topic}: {missed} gaps between the blocks received (subscriber behind)')
 
 
 def compare_with_offline(probe, sim, from_ns):
