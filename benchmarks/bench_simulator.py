@@ -382,16 +382,13 @@ def _force_loop(x, force, work, out, info, count):
     """
     Evaluate the force ``count`` times at slowly changing states (no Python in between).
 
-    The calls are made as ``kernels.run_samples`` makes them (the common case inline, the
-    general path called from the loop).
+    The calls are made as ``kernels.run_samples`` makes them (``kernels._force_any``
+    inline).
     """
     total = 0.0
     for k in range(count):
         x[0] += 1e-15 * (1 - 2 * (k & 1))
-        kernels._force(x, force, work, out, info)
-        if info[0] != 0:
-            info[0] = 0
-            kernels._force_general(x, force, work, out, info)
+        kernels._force_any(x, force, work, out, info)
         total += out[0]
     return total
 

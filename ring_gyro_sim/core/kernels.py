@@ -452,17 +452,47 @@ def _force_general(x, force, work, out, info):
     if k >= 0:
         info[1] = k
         return
-    for k in range(m):
-        p[k] = _p_of_u(u[k], force.poly, force.taylor_terms, force.outer, force.inner,
-                       force.fold, force.gap)
+    if force.taylor_terms > 0:
+        # _p_of_u's Horner (from p = 0: 0 * u + top is top) over all angles at once, one
+        # degree per pass, so that the loops vectorise: the same operations per value.
+        poly = force.poly
+        top = poly[poly.size - 1]
+        for k in range(m):
+            p[k] = top
+        for d in range(poly.size - 2, -1, -1):
+            c = poly[d]
+            for k in range(m):
+                p[k] = p[k] * u[k] + c
+    else:
+        for k in range(m):
+            p[k] = _p_of_u(u[k], force.poly, force.taylor_terms, force.outer, force.inner,
+                           force.fold, force.gap)
+    # out[i] = sum_j projection[i, j] ((P0 + s1 P1) + s2 (P2 + s1 P3)), summed over j in
+    # order for each i as one loop per i would, but with j outside: the n sums are
+    # independent chains (a loop per i is one chain of r dependent adds). The four parity
+    # combinations are formed once per j: s1 P and s2 (...) with s = +-1 are exact
+    # negations, so each value is the same bit for bit.
     for i in range(n):
-        s1 = signs[0, i]
-        s2 = signs[1, i]
-        acc = 0.0
-        for j in range(r):
-            acc += projection[i, j] * ((p[j] + s1 * p[r + j])
-                                       + s2 * (p[2 * r + j] + s1 * p[3 * r + j]))
-        out[i] = acc
+        out[i] = 0.0
+    for j in range(r):
+        p0 = p[j]
+        p1 = p[r + j]
+        p2 = p[2 * r + j]
+        p3 = p[3 * r + j]
+        e_p = p0 + p1
+        e_m = p0 - p1
+        f_p = p2 + p3
+        f_m = p2 - p3
+        pp = e_p + f_p  # (s1, s2) = (+, +)
+        pm = e_p - f_p  # (+, -)
+        mp = e_m + f_m  # (-, +)
+        mm = e_m - f_m  # (-, -)
+        for i in range(n):
+            if signs[0, i] > 0.0:
+                value = pp if signs[1, i] > 0.0 else pm
+            else:
+                value = mp if signs[1, i] > 0.0 else mm
+            out[i] += projection[i, j] * value
 
 
 NEEDS_GENERAL = -1
@@ -526,6 +556,28 @@ def _force(x, force, work, out, info):
     info[0] = 0 if ok else NEEDS_GENERAL
 
 
+@njit(cache=True, inline='always')
+def _force_any(x, force, work, out, info):
+    """
+    :func:`nl_accel` inline: :func:`_force` for a state without sine content, else (or when
+    it declines) :func:`_force_general`, called; ``info[0] != 0`` after it: out of range.
+
+    The sine content is checked first, so that a state with excited companions does not
+    pay for the common case's evaluation before the general one.
+    """
+    even = True
+    for c in range(x.size):
+        if force.signs[1, c] < 0.0 and x[c] != 0.0:
+            even = False
+    if even:
+        _force(x, force, work, out, info)
+    else:
+        info[0] = NEEDS_GENERAL
+    if info[0] != 0:
+        info[0] = 0
+        _force_general(x, force, work, out, info)
+
+
 @njit(cache=True)
 def nl_accel(x, force, work, out, info):
     """
@@ -547,10 +599,7 @@ def nl_accel(x, force, work, out, info):
     status, ``info[1]`` the column ``k R + j`` of ``kbasis`` (member k of representative j),
     and ``out`` is left unchanged.
     """
-    _force(x, force, work, out, info)
-    if info[0] != 0:
-        info[0] = 0
-        _force_general(x, force, work, out, info)
+    _force_any(x, force, work, out, info)
 
 
 @njit(cache=True, _nrt=False)
@@ -698,13 +747,10 @@ def _step(q, v, acc, ts, hs, prop, rot, method, force, drive, forcing, scratch):
         tt += hs * a[i]
         # nl_accel written out: its fallback is called from here, not from an inlined
         # function (see _force).
-        _force(q, force, scratch.work, acc, info)
+        _force_any(q, force, scratch.work, acc, info)
         if info[0] != 0:
-            info[0] = 0
-            _force_general(q, force, scratch.work, acc, info)
-            if info[0] != 0:
-                scratch.tinfo[0] = tt
-                return False
+            scratch.tinfo[0] = tt
+            return False
     if forcing.profile_t.size > 0:
         base_x, base_y = _profile_accel(ts + hs, forcing.profile_t, forcing.profile_x,
                                         forcing.profile_y)
