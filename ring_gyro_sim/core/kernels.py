@@ -374,20 +374,66 @@ def _range_status(u, inner_contact, taylor_terms):
 
 
 @njit(cache=True, inline='always')
+def _horner(poly, u, p, m):
+    """
+    ``p[:m] = P(u[:m])`` by Horner's rule, three degrees per pass over the angles.
+
+    Each value gets the same operations in the same order as the one-degree-per-pass loop
+    (``p = p u + c`` from the top coefficient down); three per pass keep ``p`` in a
+    register for three of them instead of storing and reloading it every degree.
+    """
+    d = poly.size - 1
+    top = poly[d]
+    d -= 1
+    rest = (d + 1) % 3
+    if rest == 1:
+        c0 = poly[d]
+        for k in range(m):
+            p[k] = top * u[k] + c0
+        d -= 1
+    elif rest == 2:
+        c0 = poly[d]
+        c1 = poly[d - 1]
+        for k in range(m):
+            uk = u[k]
+            p[k] = (top * uk + c0) * uk + c1
+        d -= 2
+    else:
+        for k in range(m):
+            p[k] = top
+    while d >= 2:
+        c0 = poly[d]
+        c1 = poly[d - 1]
+        c2 = poly[d - 2]
+        for k in range(m):
+            uk = u[k]
+            p[k] = ((p[k] * uk + c0) * uk + c1) * uk + c2
+        d -= 3
+
+
+@njit(cache=True, inline='always')
+def _all_inside(u, m):
+    """
+    Whether every one of ``u[:m]`` is finite and inside (-1, 1): the common case.
+
+    ``|u| < 1`` is false for NaN and infinities too. Counted as integers, so that the loop
+    vectorises (a floating-point min, max or sum is a chain of dependent operations without
+    fast-math: ~15 ns of a 66 ns force evaluation on the paper configuration).
+    """
+    outside = 0
+    for k in range(m):
+        outside += 0 if abs(u[k]) < 1.0 else 1
+    return outside == 0
+
+
+@njit(cache=True, inline='always')
 def _first_out_of_range(u, m, inner_contact, taylor_terms, info):
     """
     Index of the first of ``u[:m]`` outside the model's range (-1: all in range).
 
     The status goes to ``info[0]``; one min/max pass decides the common case.
     """
-    lo = 0.0
-    hi = 0.0
-    total = 0.0
-    for k in range(m):
-        lo = min(lo, u[k])
-        hi = max(hi, u[k])
-        total += u[k]
-    if hi < 1.0 and lo > -1.0 and math.isfinite(total):
+    if _all_inside(u, m):
         return -1
     for k in range(m):
         status = _range_status(u[k], inner_contact, taylor_terms)
@@ -455,14 +501,7 @@ def _force_general(x, force, work, out, info):
     if force.taylor_terms > 0:
         # _p_of_u's Horner (from p = 0: 0 * u + top is top) over all angles at once, one
         # degree per pass, so that the loops vectorise: the same operations per value.
-        poly = force.poly
-        top = poly[poly.size - 1]
-        for k in range(m):
-            p[k] = top
-        for d in range(poly.size - 2, -1, -1):
-            c = poly[d]
-            for k in range(m):
-                p[k] = p[k] * u[k] + c
+        _horner(force.poly, u, p, m)
     else:
         for k in range(m):
             p[k] = _p_of_u(u[k], force.poly, force.taylor_terms, force.outer, force.inner,
@@ -529,21 +568,8 @@ def _force(x, force, work, out, info):
         if signs[1, i] < 0.0 and x[i] != 0.0:
             even = False
     _angle_values(x, kbasis, m, u)
-    lo = 0.0
-    hi = 0.0
-    total = 0.0
-    for k in range(m):
-        lo = min(lo, u[k])
-        hi = max(hi, u[k])
-        total += u[k]
-    ok = even and hi < 1.0 and lo > -1.0 and math.isfinite(total)
-    top = poly[poly.size - 1]
-    for k in range(m):
-        p[k] = top
-    for d in range(poly.size - 2, -1, -1):
-        c = poly[d]
-        for k in range(m):
-            p[k] = p[k] * u[k] + c
+    ok = even and _all_inside(u, m)
+    _horner(poly, u, p, m)
     for i in range(n):
         s1 = signs[0, i]
         s2 = signs[1, i]
