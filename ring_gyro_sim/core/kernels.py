@@ -905,6 +905,41 @@ def run_samples(q, v, acc, k0, n_samples, method, force, drive, forcing, scratch
     return n_samples
 
 
+_LANES = 8
+
+
+@njit(cache=True, inline='always')
+def _first_argmax(w, m, lanes):
+    """
+    Index of the first largest of ``w[:m]`` (finite values), as a scan with ``>`` finds it.
+
+    The maximum is exact whatever the order of comparisons, so it is found in
+    :data:`_LANES` independent lanes (a loop that vectorises; a scan is one chain of
+    dependent compares), then its first index.
+    """
+    if m < _LANES:
+        best = 0
+        for g in range(1, m):
+            if w[g] > w[best]:
+                best = g
+        return best
+    for c in range(_LANES):
+        lanes[c] = w[c]
+    full = m - m % _LANES
+    for g0 in range(_LANES, full, _LANES):
+        for c in range(_LANES):
+            lanes[c] = max(lanes[c], w[g0 + c])
+    top = lanes[0]
+    for c in range(1, _LANES):
+        top = max(top, lanes[c])
+    for g in range(full, m):
+        top = max(top, w[g])
+    for g in range(m):
+        if w[g] == top:
+            return g
+    return 0
+
+
 @njit(cache=True, nogil=True)
 def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electrode_weights,
                     fine_shapes, fine_weights, curvature, refine_coeff, cap_scale, gap_floor,
@@ -970,18 +1005,18 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
     wg = np.empty(n_g)
     we = np.empty(n_e)
     w_top = np.empty(n_k)
+    lanes = np.empty(_LANES)
+    qs = np.empty(n)
     for s in range(n_s):
         for k in range(n_k):
             w = 0.0
             for i in range(n):
                 w += centre_shapes[i, k] * q[s, i]
             out_gap[s, k] = max(gap - w, 0.0)
-        qs = q[s]
+        for i in range(n):  # a copy, not a view: a view per sample is reference counted
+            qs[i] = q[s, i]
         _angle_values(qs, ring_shapes, n_g, wg)
-        best = 0
-        for g in range(1, n_g):
-            if wg[g] > wg[best]:
-                best = g
+        best = _first_argmax(wg, n_g, lanes)
         y0 = wg[best - 1 if best > 0 else n_g - 1]
         y1 = wg[best]
         y2 = wg[best + 1 if best < n_g - 1 else 0]
@@ -996,8 +1031,10 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
             for j in range(1, n_p):
                 top = max(top, we[k * n_p + j])
             w_top[k] = top
-        for e in range(n_e):
-            we[e] = electrode_weights[e % n_p] / max(gap - we[e], gap_floor)
+        for k in range(n_k):  # one loop per electrode, without a modulo: it vectorises
+            base = k * n_p
+            for j in range(n_p):
+                we[base + j] = electrode_weights[j] / max(gap - we[base + j], gap_floor)
         c2 = 0.0
         for i in range(n):
             c2 += curvature[i] * abs(qs[i])
