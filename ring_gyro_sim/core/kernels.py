@@ -585,11 +585,12 @@ def _force(x, force, work, out, info):
 @njit(cache=True, inline='always')
 def _force_any(x, force, work, out, info):
     """
-    :func:`nl_accel` inline: :func:`_force` for a state without sine content, else (or when
-    it declines) :func:`_force_general`, called; ``info[0] != 0`` after it: out of range.
+    Take :func:`nl_accel`'s two paths, inline: the common one or the general one.
 
-    The sine content is checked first, so that a state with excited companions does not
-    pay for the common case's evaluation before the general one.
+    :func:`_force` for a state without sine content, else (or when it declines)
+    :func:`_force_general`, called; ``info[0] != 0`` after it: out of range. The sine
+    content is checked first, so that a state with excited companions does not pay for the
+    common case's evaluation before the general one.
     """
     even = True
     for c in range(x.size):

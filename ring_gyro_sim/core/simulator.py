@@ -58,8 +58,8 @@ from ring_gyro_sim.core.errors import InputError, SimulationError
 from ring_gyro_sim.core.params import build_config, EPSILON_0, SimConfig, to_flat
 
 __all__ = ['STEPS_PER_PERIOD', 'STEP_HARMONICS', 'PULSE_SUBSTEPS_PER_DURATION',
-           'GAP_GRID_POINTS_PER_MODE', 'ELECTRODE_GAUSS_POINTS', 'GAP_FLOOR_RATIO', 'Status', 'default_max_step', 'Samples',
-           'Simulator']
+           'GAP_GRID_POINTS_PER_MODE', 'ELECTRODE_GAUSS_POINTS', 'GAP_FLOOR_RATIO', 'Status',
+           'default_max_step', 'Samples', 'Simulator']
 
 STEPS_PER_PERIOD = 8
 """Default steps per period of the fastest step-setting mode (see :func:`default_max_step`)."""
