@@ -507,31 +507,27 @@ def _force_general(x, force, work, out, info):
             p[k] = _p_of_u(u[k], force.poly, force.taylor_terms, force.outer, force.inner,
                            force.fold, force.gap)
     # out[i] = sum_j projection[i, j] ((P0 + s1 P1) + s2 (P2 + s1 P3)), summed over j in
-    # order for each i as one loop per i would, but with j outside: the n sums are
-    # independent chains (a loop per i is one chain of r dependent adds). The four parity
-    # combinations are formed once per j: s1 P and s2 (...) with s = +-1 are exact
-    # negations, so each value is the same bit for bit.
-    for i in range(n):
-        out[i] = 0.0
+    # order. The four parity combinations are formed once per j, into the scratch the
+    # angles' u held (a loop over j that vectorises): s1 P and s2 (...) with s = +-1 are
+    # exact negations, so each is the same value bit for bit as formed per coordinate.
+    # Then one chain of r adds per coordinate, in registers (the chains are independent).
+    comb = work[:m]
     for j in range(r):
-        p0 = p[j]
-        p1 = p[r + j]
-        p2 = p[2 * r + j]
-        p3 = p[3 * r + j]
-        e_p = p0 + p1
-        e_m = p0 - p1
-        f_p = p2 + p3
-        f_m = p2 - p3
-        pp = e_p + f_p  # (s1, s2) = (+, +)
-        pm = e_p - f_p  # (+, -)
-        mp = e_m + f_m  # (-, +)
-        mm = e_m - f_m  # (-, -)
-        for i in range(n):
-            if signs[0, i] > 0.0:
-                value = pp if signs[1, i] > 0.0 else pm
-            else:
-                value = mp if signs[1, i] > 0.0 else mm
-            out[i] += projection[i, j] * value
+        e_p = p[j] + p[r + j]
+        e_m = p[j] - p[r + j]
+        f_p = p[2 * r + j] + p[3 * r + j]
+        f_m = p[2 * r + j] - p[3 * r + j]
+        comb[j] = e_p + f_p  # (s1, s2) = (+, +)
+        comb[r + j] = e_p - f_p  # (+, -)
+        comb[2 * r + j] = e_m + f_m  # (-, +)
+        comb[3 * r + j] = e_m - f_m  # (-, -)
+    for i in range(n):
+        block = (0 if signs[0, i] > 0.0 else 2) + (0 if signs[1, i] > 0.0 else 1)
+        base = block * r
+        acc = 0.0
+        for j in range(r):
+            acc += projection[i, j] * comb[base + j]
+        out[i] = acc
 
 
 NEEDS_GENERAL = -1
@@ -975,8 +971,9 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
         through the best grid angle and its neighbours.
     electrode_shapes : ndarray, shape (n, K * P)
         Mode shapes at the P Gauss-Legendre angles (all panels) of each electrode.
-    electrode_weights : ndarray, shape (P,)
-        Their weights (Gauss-Legendre weights times the half panel length), rad.
+    electrode_weights : ndarray, shape (K * P,)
+        Their weights (Gauss-Legendre weights times the half panel length), rad, the same P
+        for every electrode (repeated, so that one loop runs over all K * P angles).
     fine_shapes : ndarray, shape (n, K * F)
         Mode shapes at the F = (2 + 4 + ... + R) P angles of each electrode's finer levels:
         each panel cut into 2, then 4, ... R panels, one level after the other.
@@ -997,8 +994,8 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
     n_s, n = q.shape
     n_k = centre_shapes.shape[1]
     n_g = ring_shapes.shape[1]
-    n_p = electrode_weights.size
     n_e = electrode_shapes.shape[1]
+    n_p = n_e // n_k
     n_f = fine_weights.size
     max_level = 2
     while (2 * max_level - 2) * n_p < n_f:
@@ -1032,10 +1029,8 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
             for j in range(1, n_p):
                 top = max(top, we[k * n_p + j])
             w_top[k] = top
-        for k in range(n_k):  # one loop per electrode, without a modulo: it vectorises
-            base = k * n_p
-            for j in range(n_p):
-                we[base + j] = electrode_weights[j] / max(gap - we[base + j], gap_floor)
+        for e in range(n_e):  # one loop over every angle, without a modulo: it vectorises
+            we[e] = electrode_weights[e] / max(gap - we[e], gap_floor)
         c2 = 0.0
         for i in range(n):
             c2 += curvature[i] * abs(qs[i])

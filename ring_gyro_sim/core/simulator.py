@@ -297,7 +297,8 @@ class Simulator:
             angles = (centres[:, None] + np.concatenate(local)[None, :]).ravel()
             return (np.ascontiguousarray(forces.mode_shapes(h, s, angles).T),
                     np.concatenate(weights))
-        self._electrode_shapes, self._electrode_weights = composite([panels])
+        self._electrode_shapes, weights = composite([panels])
+        self._electrode_weights = np.tile(weights, k)  # one per angle (output_channels)
         levels = 2 ** np.arange(1, int(math.log2(ELECTRODE_FINE_PANELS)) + 1)  # 2, 4, .. 16
         self._fine_shapes, self._fine_weights = composite([panels * r for r in levels])
         rho = (0.01 * ELECTRODE_RTOL) ** (-1.0 / (2 * ELECTRODE_GAUSS_POINTS))
