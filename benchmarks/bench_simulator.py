@@ -48,6 +48,7 @@ Progress goes to stderr, results to stdout; ``--json FILE`` also writes the numb
 """
 
 import argparse
+from dataclasses import replace
 import json
 import math
 import os
@@ -377,38 +378,50 @@ def bench_peak(count: int) -> Dict[str, Any]:
             'scalar_loop_packed': packed, 'load': os.getloadavg()}
 
 
-@njit
-def _force_loop(x, force, work, out, info, count):
+def stage_costs(config: SimConfig, state, repeats: int = 5) -> Dict[str, float]:
     """
-    Evaluate the force ``count`` times at slowly changing states (no Python in between).
+    CPU ns per sample of the integration alone, bm6 and strang, and what they imply.
 
-    The calls are made as ``kernels.run_samples`` makes them (``kernels._force_any``
-    inline).
+    ``Simulator._integrate`` (private: the benchmark splits the cost of ``advance``) over
+    10 ms blocks after the shock, best of ``repeats``; bm6 has 11 stages, strang 1, so their
+    difference / 10 is the marginal cost of one stage (force + kick + drift + external) and
+    the rest of strang the per-step cost; the output channels are timed alone on the same
+    block (``Simulator._samples``).
     """
-    total = 0.0
-    for k in range(count):
-        x[0] += 1e-15 * (1 - 2 * (k & 1))
-        kernels._force_any(x, force, work, out, info)
-        total += out[0]
-    return total
+    out: Dict[str, float] = {}
+    for method in ('bm6', 'strang'):
+        sim = Simulator(replace(config, integrator=replace(config.integrator, method=method)))
+        sim.set_state(*state)
+        per_block = int(round(CHUNK_S / sim.period_s))
+        sim.advance_samples(int(round(2.0 * SHOCK_TIME_S / sim.period_s)))  # past the shock
+        q = np.empty((per_block, sim.model.n_coordinates))
+        v = np.empty_like(q)
+        best = math.inf
+        for _ in range(repeats):
+            c0 = time.process_time()
+            sim._integrate(per_block, q, v)
+            best = min(best, time.process_time() - c0)
+        out[f'{method}_ns_per_sample'] = 1e9 * best / per_block
+        if method == 'bm6':
+            t = sim.period_s * np.arange(per_block)
+            best = math.inf
+            for _ in range(repeats):
+                c0 = time.process_time()
+                sim._samples(t, q, v)
+                best = min(best, time.process_time() - c0)
+            out['outputs_ns_per_sample'] = 1e9 * best / per_block
+            out['n_sub'] = sim.n_sub
+    stages = evaluations_per_step('bm6') - evaluations_per_step('strang')
+    out['stage_ns'] = (out['bm6_ns_per_sample'] - out['strang_ns_per_sample']) / stages / \
+        out['n_sub']
+    out['step_ns'] = out['strang_ns_per_sample'] / out['n_sub'] - out['stage_ns']
+    return out
 
 
-def standalone_force_ns(config: SimConfig, count: int) -> float:
-    """Ns per compiled force evaluation at a shocked state (all coordinates non-zero)."""
-    model = forces.build_force_model(config)
-    x = np.full(model.n_coordinates, 2e-7)
-    x[0] = 4e-6  # a shocked state: q1 at 40 % of the gap
-    work = np.empty(forces.scratch_size(model))
-    out = np.empty(model.n_coordinates)
-    info = np.zeros(2, dtype=np.int64)
-    args = (model.kernel, work, out, info)
-    _force_loop(x, *args, 10)
-    best = math.inf
-    for _ in range(5):
-        t0 = time.process_time()
-        _force_loop(x, *args, count)
-        best = min(best, time.process_time() - t0)
-    return 1e9 * best / count
+def evaluations_per_step(method: str) -> int:
+    """Force evaluations per step of a splitting method (one per drift, the last kick FSAL)."""
+    a, _ = kernels.splitting_coefficients(method)
+    return int(a.size)
 
 
 class ScipyProblem:
@@ -682,9 +695,11 @@ def print_report(r: Dict[str, Any]) -> None:
             line += (f'; achieved {total * run["rtf_cpu"] / 1e9:.2f} Gflop/s of CPU time '
                      f'(rtf_cpu {run["rtf_cpu"]:.2f})')
         print(line)
-    fe = r['force']
-    print('  standalone force evaluation (compiled loop, CPU time): '
-          + ', '.join(f'{k} {v:.0f} ns' for k, v in fe.items()))
+    print('  where the time goes (CPU time, in this process, best of 5; ns per sample):')
+    for name, st in r['stages'].items():
+        print(f'    {name}: integration {st["bm6_ns_per_sample"]:.0f} (n_sub {st["n_sub"]}: '
+              f'11 stages at {st["stage_ns"]:.0f} + {st["step_ns"]:.0f} per step), outputs '
+              f'{st["outputs_ns_per_sample"]:.0f}; strang {st["strang_ns_per_sample"]:.0f}')
 
     if 'scipy' in r:
         print_scipy(r['scipy'], r['recording'])
@@ -720,10 +735,11 @@ def main(argv: Optional[List[str]] = None) -> int:
                              args.baseline)
     log('peak flops of one core (a small compiled loop)')
     r['peak'] = bench_peak(2_000_000 if quick else 20_000_000)
-    log('standalone force evaluation (compiles a small loop)')
-    count = 20_000 if quick else 200_000
-    r['force'] = {name: standalone_force_ns(load_yaml(os.path.join(HERE, name)), count)
-                  for name, _, _ in CASES}
+    log('stage costs: bm6 and strang, integration alone, and the output channels alone')
+    r['stages'] = {}
+    for name, _, _ in CASES:
+        config = load_yaml(os.path.join(HERE, name))
+        r['stages'][name] = stage_costs(config, drive_initial_state(config))
     if everything:
         paper = paper_config()
         paper_state = drive_initial_state(paper)

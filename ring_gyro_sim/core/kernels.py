@@ -53,23 +53,38 @@ recorder thread can serialise and compress while they run.
 Cost
 ----
 Measured on the paper configuration (N_R = 3, N_T = 10, bm6, one 5 us step per 200 kHz
-sample; ``benchmarks/bench_simulator.py`` and the README's Performance section): ~0.9 us per
-step in this kernel, of which 11 force evaluations at ~66 ns (18 angles, Horner of degree 9,
-strict IEEE arithmetic: no fast-math, so results do not depend on the vector width), ~13 ns
-per stage of kick, drift and external force, and ~100 ns per step (drive phasor, loop);
-:func:`output_channels` adds ~190 ns per sample. What the code is shaped by, each measured:
+sample; ``benchmarks/bench_simulator.py``, ``doc/performance.md``): ~0.64 us per step in
+this kernel, of which 11 stages at ~54 ns (force evaluation at 18 angles, Horner of degree
+9, kick, drift and external force; strict IEEE arithmetic: no fast-math, so results do not
+depend on the vector width) and ~45 ns per step (drive phasor, loop, the last kick);
+:func:`output_channels` adds ~170 ns per sample. The stages form one chain of dependent
+operations (each force needs the previous drift, each drift the previous kick), so the
+latency of that chain, not the number of operations, sets the cost: ~190 cycles per stage
+for ~600 flops. What the code is shaped by, each measured:
 
 * numba's reference counting: a function that takes arrays and has branches increments and
   decrements every array argument atomically on every call unless its pruning pass can prove
   the pairs redundant. ``run_samples`` is compiled with ``_nrt=False`` (it allocates
-  nothing), which removed 29 % of the run time;
+  nothing), which removed 29 % of the run time; :func:`output_channels` copies each sample's
+  coordinates instead of taking a (reference-counted) view per sample;
 * the force's common case (:func:`_force`) has no branch that stores, returns early or calls
-  out (such a branch doubled its cost, ~65 -> ~130 ns); its fallback
-  (:func:`_force_general`) is called from :func:`_step`;
+  out (such a branch doubled its cost, ~65 -> ~130 ns); :func:`_force_any` decides between
+  it and the out-of-line :func:`_force_general` before either runs, so that a state with
+  excited companions (sine content) does not evaluate the common case first for nothing
+  (N_R = 3 with companions: 4.4 -> 2.4 us per sample);
+* floating-point min, max and sum reductions do not vectorise without fast-math (each is a
+  chain of dependent operations): the range check counts the angles outside (-1, 1) as
+  integers (:func:`_all_inside`), the smallest gap's grid maximum is found in independent
+  lanes (:func:`_first_argmax`; the maximum is exact in any order), and the projections sum
+  each coordinate in a register, the coordinates as independent chains;
+* Horner's rule runs three degrees per pass over the angles (:func:`_horner`), so that each
+  value stays in a register instead of a store and reload per degree; each value gets the
+  same operations in the same order, so results are unchanged bit for bit;
 * the pieces of a step (:func:`_cut_step`, :func:`_step`, :func:`_kick`, :func:`_drift`,
   :func:`_external`, :func:`_force`) are ``inline='always'``: inlined, they cost the same as
   the loop written out (measured, best of N in one session); called, a step passed ~20 array
-  structures every step (~25 % of a Strang run);
+  structures every step (~25 % of a Strang run). :func:`_force_general` inlined as well was
+  no faster;
 * named tuples cost nothing inside the kernel, but numba's dispatcher types each one on
   every call from Python (~1 us each, ~4 us per :func:`run_samples` call: 0.2 % of a 10 ms
   chunk of the paper configuration, more for very short calls);
