@@ -413,6 +413,14 @@ def _horner(poly, u, p, m):
             uk = u[k]
             p[k] = (top * uk + c0) * uk + c1
         d -= 2
+    elif d >= 2:  # the first three degrees from the top coefficient, without storing it
+        c0 = poly[d]
+        c1 = poly[d - 1]
+        c2 = poly[d - 2]
+        for k in range(m):
+            uk = u[k]
+            p[k] = ((top * uk + c0) * uk + c1) * uk + c2
+        d -= 3
     else:
         for k in range(m):
             p[k] = top
