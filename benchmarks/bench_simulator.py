@@ -13,31 +13,42 @@
 # limitations under the License.
 
 """
-Benchmark of the simulator (issue 3 item 5, issue 5 item 6): ``make bench``.
+Benchmark of the simulator (issues 3, 5 and 11): ``make bench``.
 
-Everything is measured in one process on one machine, and every speed is also given as a
-ratio against a reference run made in the same process, so the numbers can be compared
-between machines:
+Every configuration is a parameter file, so that ``ring_gyro run benchmarks/<name>.yaml``
+reproduces it: ``paper.yaml`` (the paper configuration, drive on its upper branch, 10 000 g
+along x), ``nr3_companions.yaml`` (N_R = 3 with the sine companions, the shock at 45 deg),
+``nr5_companions.yaml`` (N_R = 5 with companions, the shock at 45 deg). Sections:
 
-1. numba compile / cache-load time of the kernels (first Simulator construction, first
-   ``set_state`` and first 10 ms ``advance``), in this process and, in child processes, from
-   an empty numba cache (a full compile) and from the cache that compile left;
-2. real-time factor (simulated s per wall s, one core) of (a) the paper configuration (N_R = 3,
-   N_T = 10, 200 kHz output, the 2theta drive on its upper branch, a 10 000 g shock at 10 ms)
-   for every integrator method, and of (b) N_R = 5 with the sine companions; steps per
-   second, ns per step and ns per force evaluation;
-3. speed-up over scipy ``solve_ivp`` (DOP853, Python right-hand side) on problem (a) at
-   matched accuracy: the loosest rtol whose error against a tight DOP853 reference is no
-   larger than the simulator's;
-4. recording overhead (issue 5): (a) through :func:`ring_gyro_sim.offline.run_offline` with
-   and without an MCAP file, and the file's bytes per simulated second.
+1. numba compile / cache-load time (first Simulator construction, ``set_state`` and 10 ms
+   ``advance``), in this process and, in child processes, from an empty numba cache (a full
+   compile) and from the cache that compile left;
+2. the whole run of each file (integration + output channels at 200 kHz, through
+   :class:`ring_gyro_sim.run.Run` in the files' 10 ms blocks, nothing recorded): real-time
+   factor from wall time (``rtf``) and from process CPU time (``rtf_cpu``), best of N runs
+   in a child process per tree. With ``--baseline DIR`` (a checkout of an older tree, e.g.
+   ``git worktree add DIR <commit>``) the same runs are made with that tree's code in
+   alternation with the current tree's, in the same session, and printed side by side;
+3. the limit: floating-point operations per simulated second (the flops of one force
+   evaluation, of a splitting stage and of the output channels, counted from the code of
+   ``core/kernels.py`` for each configuration) against the measured peak of one core for
+   scalar double adds and multiplies without FMA (a small compiled loop of independent
+   chains);
+4. speed-up over scipy ``solve_ivp`` (DOP853, Python right-hand side) on the paper
+   configuration at matched accuracy: the loosest rtol whose error against a tight DOP853
+   reference is no larger than the simulator's;
+5. recording overhead (issue 5): the paper configuration through
+   :func:`ring_gyro_sim.offline.run_offline` with and without an MCAP file.
 
 Targets from the issues are printed next to the results; a missed target is reported with
-what limits it, never hidden. Progress goes to stderr, results to stdout; ``--json FILE``
-also writes the numbers, ``--quick`` shortens every run (a smoke test of under a minute).
+what limits it, never hidden. The machine's load average is printed with the numbers: on a
+shared machine compare ``rtf_cpu`` and the old/new ratio of one session, not wall times.
+Progress goes to stderr, results to stdout; ``--json FILE`` also writes the numbers,
+``--quick`` shortens every run (a smoke test).
 """
 
 import argparse
+from dataclasses import replace
 import json
 import math
 import os
@@ -55,8 +66,9 @@ from ring_gyro_sim import offline
 from ring_gyro_sim.analysis.nnm import drive_initial_state
 from ring_gyro_sim.core import forces, kernels
 from ring_gyro_sim.core.errors import SimulationError
-from ring_gyro_sim.core.params import build_config, SimConfig, STANDARD_GRAVITY
+from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.core.simulator import Simulator
+from ring_gyro_sim.paramfile import load_yaml
 from ring_gyro_sim.run import Run
 import scipy
 from scipy.integrate import solve_ivp
@@ -66,8 +78,14 @@ SHOCK_TIME_S = 0.01
 CHUNK_S = 0.01
 """The simulator is advanced in 10 ms chunks, as the node publishes its blocks."""
 
-TARGET_RTF_PAPER = 10.0
-TARGET_RTF_FIVE_MODES = 1.0
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+CASES = (
+    # (parameter file, label, goal of issue 11 for the whole run's real-time factor)
+    ('paper.yaml', 'paper N_R=3, drive + 10 000 g', 10.0),
+    ('nr3_companions.yaml', 'N_R=3 + companions, 45 deg', 6.0),
+    ('nr5_companions.yaml', 'N_R=5 + companions, 45 deg', 3.0),
+)
 TARGET_SPEEDUP = 200.0
 TARGET_RTF_RECORDING = 1.0
 """Issue 5: recording must not pull the paper configuration below real time."""
@@ -77,17 +95,6 @@ REFERENCE_ATOL = 1e-16
 SCIPY_ATOL = 1e-16
 """Absolute tolerance of the scipy runs, m: tiny, so that rtol alone sets their accuracy."""
 
-# (b): Table 1 of the paper. With 8 legs only the 4theta pair splits (2n / N_l integer):
-# 36.3 kHz (Q 80 000) is the cos(4 theta) mode aligned with alpha = 0, 25.7 kHz (Q 180 000)
-# its sine companion; every other companion has the frequency and Q of its cos mode.
-FIVE_MODES = {
-    'modes.frequencies': [11200.0, 15800.0, 22000.0, 36300.0, 59200.0],
-    'modes.quality_factors': [120000.0, 64700.0, 170000.0, 80000.0, 50000.0],
-    'modes.companions': True,
-    'modes.companion_frequencies': [11200.0, 15800.0, 22000.0, 25700.0, 59200.0],
-    'modes.companion_quality_factors': [120000.0, 64700.0, 170000.0, 180000.0, 50000.0],
-}
-
 # Run in child processes: the first construction + set_state + 10 ms advance, timed.
 COLD_START_CODE = """
 import json, time
@@ -96,6 +103,7 @@ import numpy as np
 from ring_gyro_sim.core import kernels
 from ring_gyro_sim.core.params import build_config
 from ring_gyro_sim.core.simulator import Simulator
+from ring_gyro_sim.paramfile import load_yaml
 t1 = time.perf_counter()
 sim = Simulator(build_config({}))
 sim.set_state(np.zeros(3), np.zeros(3))
@@ -116,18 +124,9 @@ def log(text: str) -> None:
     sys.stderr.flush()
 
 
-def paper_values(**extra: Any) -> Dict[str, Any]:
-    """Flat parameters of problem (a): defaults, drive on, a 10 000 g shock at 10 ms."""
-    values: Dict[str, Any] = {'scenario.shock_times': [SHOCK_TIME_S],
-                              'scenario.shock_peaks': [SHOCK_G * STANDARD_GRAVITY]}
-    values.update(extra)
-    return values
-
-
-def evaluations_per_step(method: str) -> int:
-    """Force evaluations per step of a splitting method (one per drift, the last kick FSAL)."""
-    a, _ = kernels.splitting_coefficients(method)
-    return int(a.size)
+def paper_config() -> SimConfig:
+    """Return the paper configuration of ``benchmarks/paper.yaml`` (shock at 10 ms, drive on)."""
+    return load_yaml(os.path.join(HERE, 'paper.yaml'))
 
 
 def cache_state() -> str:
@@ -171,7 +170,7 @@ def child_cold_start(cache_dir: Optional[str]) -> Optional[Dict[str, float]]:
 def bench_compile(children: bool) -> Dict[str, Any]:
     """Section 1: JIT compile / cache-load time, measured before any timed run."""
     log('compile: first Simulator construction + set_state + 10 ms advance in this process')
-    config = build_config(paper_values())
+    config = paper_config()
     first = first_run(config)
     state = cache_state()
     steady = min((first_run(config) for _ in range(3)), key=sum)
@@ -189,93 +188,240 @@ def bench_compile(children: bool) -> Dict[str, Any]:
     return out
 
 
-def run_chunks(run: Run, duration_s: float) -> Tuple[float, float]:
-    """Advance ``run`` in 10 ms blocks, as the node does; return (wall s, process CPU s)."""
-    per_chunk = int(round(CHUNK_S / run.sim.period_s))
-    chunks = int(round(duration_s / CHUNK_S))
+# Run in a child process per tree (argv: tree, parameter file, state .npz, duration, repeats):
+# the whole run of a parameter file through Run in its blocks, best of N, after a warm-up.
+WHOLE_RUN_CODE = """
+import json, sys, time
+tree, path, state_file, duration, repeats = sys.argv[1:6]
+sys.path.insert(0, tree)
+import numpy as np
+import ring_gyro_sim
+from ring_gyro_sim.paramfile import load_yaml
+from ring_gyro_sim.run import Run
+config = load_yaml(path)
+with np.load(state_file) as f:
+    state = (f['q'], f['v'])
+period = config.run.output_period_ns * 1e-9
+block = max(1, int(round(config.run.block_duration / period)))
+n_blocks = max(1, int(round(float(duration) / (block * period))))
+warm = Run(config, start_state=state)
+warm.advance(block)
+best = None
+for _ in range(int(repeats)):
+    run = Run(config, start_state=state)
     w0 = time.perf_counter()
     c0 = time.process_time()
-    for _ in range(chunks):
-        run.advance(per_chunk)
-    return time.perf_counter() - w0, time.process_time() - c0
+    for _ in range(n_blocks):
+        run.advance(block)
+    cpu = time.process_time() - c0
+    wall = time.perf_counter() - w0
+    row = {'wall_s': wall, 'cpu_s': cpu, 'sim_s': run.sim.time_s, 'status': str(run.sim.status),
+           'message': run.sim.message, 'steps': run.sim.steps_taken,
+           'samples': run.sim.sample_index, 'module': ring_gyro_sim.__file__}
+    if best is None or cpu < best['cpu_s']:
+        best = dict(row, wall_s=min(wall, best['wall_s']) if best else wall)
+    else:
+        best['wall_s'] = min(best['wall_s'], wall)
+print(json.dumps(best))
+"""
 
 
-def measure_rtf(config: SimConfig, state, duration_s: float) -> Dict[str, Any]:
-    """Real-time factor and per-step costs of one configuration from ``state``."""
-    run = Run(config, start_state=state)
-    sim = run.sim
-    wall, cpu = run_chunks(run, duration_s)
-    out_ns = output_ns_per_sample(sim)
-    method = config.integrator.method
-    evals = evaluations_per_step(method)
-    steps = sim.steps_taken
-    return {
-        'method': method, 'sim_s': sim.time_s, 'wall_s': wall, 'cpu_s': cpu,
-        'rtf': sim.time_s / wall, 'rtf_cpu': sim.time_s / cpu,
-        'status': sim.status, 'message': sim.message,
-        'n_sub': sim.n_sub, 'step_us': sim.h * 1e6, 'steps': steps,
-        'steps_per_wall_s': steps / wall, 'ns_per_step': 1e9 * wall / steps,
-        'ns_per_step_cpu': 1e9 * cpu / steps,
-        'evals_per_step': evals,
-        'force_evals_per_sim_s': evals * steps / sim.time_s,
-        'ns_per_eval_in_step': 1e9 * wall / (steps * evals),
-        'samples_per_sim_s': 1.0 / sim.period_s,
-        'output_ns_per_sample': out_ns,
-        'integration_ns_per_step': (1e9 * wall - out_ns * sim.sample_index) / steps,
-        'coordinates': sim.model.n_coordinates,
-        'quadrature_representatives': int(sim.model.basis.shape[0]),
-    }
+def whole_run(tree: str, path: str, state_file: str, duration_s: float,
+              repeats: int) -> Optional[Dict[str, Any]]:
+    """Best of ``repeats`` whole runs of a parameter file with the code of ``tree`` (child)."""
+    env = dict(os.environ, PYTHONPATH=tree)
+    result = subprocess.run([sys.executable, '-c', WHOLE_RUN_CODE, tree, path, state_file,
+                             repr(duration_s), str(repeats)], env=env, capture_output=True,
+                            text=True, check=False, timeout=3600)
+    if result.returncode != 0:
+        log(f'child process failed ({tree}): {result.stderr.strip()[-500:]}')
+        return None
+    row = json.loads(result.stdout.strip().splitlines()[-1])
+    row['rtf'] = row['sim_s'] / row['wall_s']
+    row['rtf_cpu'] = row['sim_s'] / row['cpu_s']
+    return row
 
 
-def output_ns_per_sample(sim: Simulator) -> float:
-    """Ns per output sample of the gap / capacitance channels (best of 5, one 10 ms block)."""
-    k = int(round(CHUNK_S / sim.period_s))
-    q = np.repeat(sim.q[None, :], k, axis=0)
-    v = np.zeros_like(q)
-    t = sim.period_s * np.arange(1, k + 1)
-    best = math.inf
-    for _ in range(5):
-        t0 = time.perf_counter()
-        sim._samples(t, q, v)  # private: the benchmark splits the cost of advance()
-        best = min(best, time.perf_counter() - t0)
-    return 1e9 * best / k
+def bench_cases(duration_s: float, repeats: int, rounds: int,
+                baseline: Optional[str]) -> List[Dict[str, Any]]:
+    """Section 2: each parameter file as a whole run, the current tree and the baseline."""
+    rows = []
+    with tempfile.TemporaryDirectory(prefix='ring_gyro_bench_') as tmp:
+        for name, label, goal in CASES:
+            path = os.path.join(HERE, name)
+            config = load_yaml(path)
+            log(f'{name}: start state (drive.start_on = {config.drive.start_on}, not timed)')
+            q, v = drive_initial_state(config)
+            state_file = os.path.join(tmp, name + '.npz')
+            np.savez(state_file, q=q, v=v)
+            trees = [('new', REPO)] + ([('old', baseline)] if baseline else [])
+            found: Dict[str, Any] = {}
+            for k in range(rounds):  # alternate the trees, so both see the same load
+                for tag, tree in trees:
+                    log(f'{name}: {tag} tree, {repeats} x {duration_s:g} s simulated '
+                        f'(round {k + 1} of {rounds})')
+                    got = whole_run(tree, path, state_file, duration_s, repeats)
+                    if got is None:
+                        continue
+                    prev = found.get(tag)
+                    if prev is None or got['cpu_s'] < prev['cpu_s']:
+                        wall = min(got['wall_s'], prev['wall_s']) if prev else got['wall_s']
+                        found[tag] = dict(got, wall_s=wall, rtf=got['sim_s'] / wall)
+                    else:
+                        prev['wall_s'] = min(prev['wall_s'], got['wall_s'])
+                        prev['rtf'] = prev['sim_s'] / prev['wall_s']
+            sim = Simulator(config)
+            rows.append({'file': name, 'label': label, 'goal': goal, 'runs': found,
+                         'flops': flop_model(sim), 'load': os.getloadavg()})
+    return rows
 
 
-@njit
-def _force_loop(x, force, work, out, info, count):
+def flop_model(sim: Simulator) -> Dict[str, Any]:
     """
-    Evaluate the force ``count`` times at slowly changing states (no Python in between).
+    Floating-point operations of the kernels per simulated second, counted from the code.
 
-    The calls are made as ``kernels.run_samples`` makes them (the common case inline, the general
-    path called from the loop): ``kernels.nl_accel`` called as a function costs ~3x more.
+    ``core/kernels.py``: one force evaluation at m angles (``_force``: m = 2 R without sine
+    content, ``_force_general``: m = 4 R) is ``m (2 n - 1)`` for the angle values (all
+    coordinates non-zero), m for the range check's sum, ``2 D m`` for Horner of degree D, and
+    the projection (5 per representative and coordinate even under theta -> -theta on the
+    common path, 8 per representative and coordinate on the general one); a stage adds the
+    kick (3 n), the drift (6 n) and the drive (3). The output channels of one sample: the
+    centre gaps (2 n K), the ring grid (G (2 n - 1)), the electrode angles (E (2 n - 1)),
+    their gaps, divisions and sums (4 E, of which E divisions), the curvature (2 n) and the
+    scale (K). Shock sub-steps (a few per shock) are left out.
     """
-    total = 0.0
-    for k in range(count):
-        x[0] += 1e-15 * (1 - 2 * (k & 1))
-        kernels._force(x, force, work, out, info)
-        if info[0] != 0:
-            info[0] = 0
-            kernels._force_general(x, force, work, out, info)
-        total += out[0]
-    return total
+    model = sim.model
+    n = model.n_coordinates
+    r = int(model.kernel.projection.shape[1])
+    degree = int(model.kernel.poly.size) - 1
+    general = bool(sim.config.modes.companions)  # the companions are excited in the files
+    m = (4 if general else 2) * r
+    even = int(np.sum(model.kernel.signs[1] > 0.0))
+    projection = 8 * n * r if general else 5 * even * r
+    force = m * (2 * n - 1) + m + 2 * degree * m + projection
+    stage = force + 3 * n + 6 * n + 3
+    stages = int(sim._a.size)
+    step = stages * stage + 3 * n + 3
+    steps_per_s = sim.n_sub / sim.period_s
+    k = sim._centre_shapes.shape[1]
+    g = sim._ring_shapes.shape[1]
+    e = sim._electrode_shapes.shape[1]
+    output = 2 * n * k + g * (2 * n - 1) + e * (2 * n - 1) + 4 * e + 2 * n + k
+    samples_per_s = 1.0 / sim.period_s
+    return {'n': n, 'angles': m, 'degree': degree, 'force_flops': force,
+            'stage_flops': stage, 'stages': stages, 'step_flops': step,
+            'steps_per_sim_s': steps_per_s, 'output_flops': output, 'output_divisions': e,
+            'samples_per_sim_s': samples_per_s,
+            'integration_flops_per_sim_s': step * steps_per_s,
+            'output_flops_per_sim_s': output * samples_per_s,
+            'flops_per_sim_s': step * steps_per_s + output * samples_per_s}
 
 
-def standalone_force_ns(config: SimConfig, state, count: int) -> float:
-    """Ns per compiled force evaluation, called from a compiled loop (no Python overhead)."""
-    model = forces.build_force_model(config)
-    x = np.array(state[0] if state is not None else np.zeros(model.n_coordinates))
-    x[0] = 4e-6  # a shocked state: q1 at 40 % of the gap
-    work = np.empty(forces.scratch_size(model))
-    out = np.empty(model.n_coordinates)
-    info = np.zeros(2, dtype=np.int64)
-    args = (model.kernel, work, out, info)
-    _force_loop(x, *args, 10)
-    best = math.inf
+@njit(cache=False)
+def _scalar_peak_loop(count, seed):
+    """16 independent chains of one multiply and one add each (no FMA: no fast-math)."""
+    x = np.empty(16)
+    for c in range(16):
+        x[c] = seed + c
+    a0, a1, a2, a3, a4, a5, a6, a7 = x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7]
+    b0, b1, b2, b3, b4, b5, b6, b7 = x[8], x[9], x[10], x[11], x[12], x[13], x[14], x[15]
+    m = 0.999999999
+    d = 1e-9
+    for _ in range(count):
+        a0 = a0 * m + d
+        a1 = a1 * m + d
+        a2 = a2 * m + d
+        a3 = a3 * m + d
+        a4 = a4 * m + d
+        a5 = a5 * m + d
+        a6 = a6 * m + d
+        a7 = a7 * m + d
+        b0 = b0 * m + d
+        b1 = b1 * m + d
+        b2 = b2 * m + d
+        b3 = b3 * m + d
+        b4 = b4 * m + d
+        b5 = b5 * m + d
+        b6 = b6 * m + d
+        b7 = b7 * m + d
+    return a0 + a1 + a2 + a3 + a4 + a5 + a6 + a7 + b0 + b1 + b2 + b3 + b4 + b5 + b6 + b7
+
+
+@njit(cache=False)
+def _vector_peak_loop(count, x):
+    """Run the same multiply and add over a short array (the loop vectorises, as the kernels')."""
+    m = 0.999999999
+    d = 1e-9
+    for _ in range(count):
+        for k in range(x.size):
+            x[k] = x[k] * m + d
+    return x[0]
+
+
+def bench_peak(count: int) -> Dict[str, Any]:
+    """Section 3: peak double adds + multiplies per second of one core (best of 5, CPU time)."""
+    _scalar_peak_loop(10, 1.0)
+    x = np.ones(512)  # 4 kB: in L1, and long enough to be throughput-bound
+    _vector_peak_loop(10, x)
+    asm = next(iter(_scalar_peak_loop.inspect_asm().values()))
+    packed = 'mulpd' in asm
+    best_s = best_v = math.inf
     for _ in range(5):
-        t0 = time.perf_counter()
-        _force_loop(x, *args, count)
-        best = min(best, time.perf_counter() - t0)
-    return 1e9 * best / count
+        c0 = time.process_time()
+        _scalar_peak_loop(count, 1.0)
+        best_s = min(best_s, time.process_time() - c0)
+        c0 = time.process_time()
+        _vector_peak_loop(count // 32, x)
+        best_v = min(best_v, time.process_time() - c0)
+    return {'scalar_flops_per_s': 32.0 * count / best_s,
+            'vector_flops_per_s': 2.0 * x.size * (count // 32) / best_v,
+            'scalar_loop_packed': packed, 'load': os.getloadavg()}
+
+
+def stage_costs(config: SimConfig, state, repeats: int = 5) -> Dict[str, float]:
+    """
+    CPU ns per sample of the integration alone, bm6 and strang, and what they imply.
+
+    ``Simulator._integrate`` (private: the benchmark splits the cost of ``advance``) over
+    10 ms blocks after the shock, best of ``repeats``; bm6 has 11 stages, strang 1, so their
+    difference / 10 is the marginal cost of one stage (force + kick + drift + external) and
+    the rest of strang the per-step cost; the output channels are timed alone on the same
+    block (``Simulator._samples``).
+    """
+    out: Dict[str, float] = {}
+    for method in ('bm6', 'strang'):
+        sim = Simulator(replace(config, integrator=replace(config.integrator, method=method)))
+        sim.set_state(*state)
+        per_block = int(round(CHUNK_S / sim.period_s))
+        sim.advance_samples(int(round(2.0 * SHOCK_TIME_S / sim.period_s)))  # past the shock
+        q = np.empty((per_block, sim.model.n_coordinates))
+        v = np.empty_like(q)
+        best = math.inf
+        for _ in range(repeats):
+            c0 = time.process_time()
+            sim._integrate(per_block, q, v)
+            best = min(best, time.process_time() - c0)
+        out[f'{method}_ns_per_sample'] = 1e9 * best / per_block
+        if method == 'bm6':
+            t = sim.period_s * np.arange(per_block)
+            best = math.inf
+            for _ in range(repeats):
+                c0 = time.process_time()
+                sim._samples(t, q, v)
+                best = min(best, time.process_time() - c0)
+            out['outputs_ns_per_sample'] = 1e9 * best / per_block
+            out['n_sub'] = sim.n_sub
+    stages = evaluations_per_step('bm6') - evaluations_per_step('strang')
+    out['stage_ns'] = (out['bm6_ns_per_sample'] - out['strang_ns_per_sample']) / stages / \
+        out['n_sub']
+    out['step_ns'] = out['strang_ns_per_sample'] / out['n_sub'] - out['stage_ns']
+    return out
+
+
+def evaluations_per_step(method: str) -> int:
+    """Force evaluations per step of a splitting method (one per drift, the last kick FSAL)."""
+    a, _ = kernels.splitting_coefficients(method)
+    return int(a.size)
 
 
 class ScipyProblem:
@@ -354,9 +500,9 @@ def simulator_window(config: SimConfig, state, n_samples: int) -> Tuple[np.ndarr
     return np.concatenate(parts), wall
 
 
-def bench_scipy(state, after_shock_s: float, repeats: int) -> Dict[str, Any]:
-    """Section 3: speed-up over DOP853 with a Python RHS at matched accuracy, problem (a)."""
-    config = build_config(paper_values())
+def bench_scipy(config: SimConfig, state, after_shock_s: float,
+                repeats: int) -> Dict[str, Any]:
+    """Section 4: speed-up over DOP853 with a Python RHS at matched accuracy (paper.yaml)."""
     problem = ScipyProblem(config)
     period = config.run.output_period_ns * 1e-9
     n_samples = int(round((SHOCK_TIME_S + after_shock_s) / period))
@@ -406,7 +552,7 @@ def bench_scipy(state, after_shock_s: float, repeats: int) -> Dict[str, Any]:
 
 
 def bench_recording(config: SimConfig, state, duration_s: float) -> Dict[str, Any]:
-    """Section 4: run_offline with and without an MCAP recording (issue 5)."""
+    """Section 5: run_offline with and without an MCAP recording (issue 5)."""
     log(f'recording: run_offline without output, {duration_s:g} s simulated')
     plain = offline.run_offline(config, duration_s=duration_s, progress=False,
                                 start_state=state)
@@ -430,19 +576,8 @@ def verdict(value: float, target: float) -> str:
     return f'{"PASS" if value >= target else "MISS"} (target >= {target:g})'
 
 
-def print_report(r: Dict[str, Any]) -> None:
-    """Print every number of a run (stdout)."""
-    m = r['machine']
-    print('=' * 99)
-    print(f'ring_gyro_sim benchmark ({"quick" if r["quick"] else "full"}): python '
-          f'{m["python"]}, numpy {m["numpy"]}, scipy {m["scipy"]}, numba {m["numba"]}')
-    print(f'machine: {m["processor"]}, {m["cpus"]} CPUs, load average '
-          f'{m["load_start"][0]:.2f} at start, {m["load_end"][0]:.2f} at end')
-    if max(m['load_start'][0], m['load_end'][0]) > 0.5 * m['cpus']:
-        print('  WARNING: the machine was busy with other work: wall-clock speeds are low and '
-              'noisy; the rtf_cpu columns (process CPU time) are less affected')
-
-    c = r['compile']
+def print_compile(c: Dict[str, Any]) -> None:
+    """Print section 1."""
     print('\n1. JIT compile / cache load (first construction + set_state + 10 ms advance)')
     print(f'  this process: {c["this_process_first_s"]:.3f} s (construct '
           f'{c["first_construct_s"]:.3f}, set_state {c["first_set_state_s"]:.3f}, advance '
@@ -456,58 +591,10 @@ def print_report(r: Dict[str, Any]) -> None:
             print(f'  {label}: {child["first_run_s"]:.3f} s (+ imports {child["import_s"]:.3f} '
                   f's; cache hits {child["cache_hits"]}, misses {child["cache_misses"]})')
 
-    print('\n2. Real-time factor (one core, 10 ms chunks, from the upper branch, shock at '
-          f'{SHOCK_TIME_S * 1e3:g} ms)')
-    header = (f'  {"case":<24}{"method":<8}{"sim s":>7}{"wall s":>8}{"RTF":>7}{"rtf_cpu":>8}'
-              f'{"n_sub":>6}{"h us":>7}{"steps/s":>10}{"ns/step":>9}{"ev/st":>6}'
-              f'{"ns/ev":>7}{"out ns":>7}')
-    print(header)
-    for row in r['rtf']:
-        print(f'  {row["case"]:<24}{row["method"]:<8}{row["sim_s"]:>7.2f}{row["wall_s"]:>8.2f}'
-              f'{row["rtf"]:>7.2f}{row["rtf_cpu"]:>8.2f}{row["n_sub"]:>6d}'
-              f'{row["step_us"]:>7.3f}{row["steps_per_wall_s"]:>10.0f}'
-              f'{row["ns_per_step"]:>9.0f}{row["evals_per_step"]:>6d}'
-              f'{row["ns_per_eval_in_step"]:>7.0f}{row["output_ns_per_sample"]:>7.0f}')
-        if row['status'] != 'running':
-            print(f'    !! status {row["status"]}: {row["message"]} (the RTF is not meaningful)')
-    base = r['rtf'][0]
-    ratios = ', '.join(f'{row["method"]} {row["rtf"] / base["rtf"]:.2f}'
-                       for row in r['rtf'] if row['case'] == base['case'])
-    print(f'  RTF relative to {base["method"]} on (a): {ratios}')
-    print(f'  (b) modes: frequencies {FIVE_MODES["modes.frequencies"]} Hz, Q '
-          f'{FIVE_MODES["modes.quality_factors"]};')
-    print(f'      companions {FIVE_MODES["modes.companion_frequencies"]} Hz, Q '
-          f'{FIVE_MODES["modes.companion_quality_factors"]}')
-    f = r['force']
-    print(f'  standalone force evaluation (compiled loop): (a) {f["paper_ns"]:.0f} ns, '
-          f'(b) {f["five_ns"]:.0f} ns')
-    stage = r.get('stage_ns')
-    if stage is not None:
-        print(f'  marginal cost of one splitting stage (force + drift + kick + drive), '
-              f'from bm6 - strang on (a), process CPU time: {stage:.0f} ns')
-    for row in r['rtf']:
-        if row['case'].startswith('(a)') and row['method'] != base['method']:
-            continue
-        target = TARGET_RTF_PAPER if row['case'].startswith('(a)') else TARGET_RTF_FIVE_MODES
-        print(f'  {row["case"]} {row["method"]}: RTF {row["rtf"]:.2f} '
-              f'{verdict(row["rtf"], target)}')
-        ns_eval = f['paper_ns'] if row['case'].startswith('(a)') else f['five_ns']
-        force_share = ns_eval * row['force_evals_per_sim_s'] * 1e-9
-        output_share = row['output_ns_per_sample'] * row['samples_per_sim_s'] * 1e-9
-        print(f'    limit: {row["samples_per_sim_s"]:.0f} samples/s x n_sub {row["n_sub"]} x '
-              f'{row["evals_per_step"]} force evaluations/step = '
-              f'{row["force_evals_per_sim_s"]:.3g} evaluations per simulated s; at '
-              f'{ns_eval:.0f} ns each that alone is {force_share:.2f} s of CPU per simulated s '
-              f'(RTF <= {1.0 / force_share:.2f}); measured {row["wall_s"] / row["sim_s"]:.2f} '
-              f'wall s ({row["cpu_s"] / row["sim_s"]:.2f} CPU s) per simulated s, of which '
-              f'output channels {output_share:.2f} s')
-        if row['rtf'] < target:
-            need = 1e9 / (target * row['force_evals_per_sim_s'])
-            print(f'    to reach {target:g}x at this step and method one force evaluation may '
-                  f'take at most {need:.0f} ns, everything else included')
 
-    s = r['scipy']
-    print(f'\n3. Speed-up over scipy solve_ivp DOP853 (Python RHS), problem (a) with the drive '
+def print_scipy(s: Dict[str, Any], rec: Dict[str, Any]) -> None:
+    """Print sections 4 and 5."""
+    print(f'\n4. Speed-up over scipy solve_ivp DOP853 (Python RHS), paper configuration, drive '
           f'{"on" if s["drive_on"] else "off"}, 0..{s["window_s"] * 1e3:.1f} ms '
           f'({s["window_s"] * 1e3 - SHOCK_TIME_S * 1e3:.0f} ms after the shock), '
           f'{s["samples"]} samples compared')
@@ -516,7 +603,7 @@ def print_report(r: Dict[str, Any]) -> None:
           f'(vs rtol 1e-11) {s["reference_error_vs_rtol_1e-11"]:.2e} of peak |q1| = '
           f'{s["peak_q1_m"] * 1e6:.3f} um')
     print(f'  simulator ({s["simulator_method"]}): {s["simulator_wall_s"] * 1e3:.1f} ms, '
-          f'max error / peak |q1| = {s["simulator_error"]:.2e}')
+          f'max error / peak |q1| = {s["simulator_error"]:.2e} (budget 1e-4)')
     for row in s['scan']:
         print(f'    scipy rtol {row["rtol"]:8.2g}: error {row["error"]:.2e}, '
               f'{row["wall_s"]:7.3f} s, {row["nfev"]} RHS calls')
@@ -534,14 +621,88 @@ def print_report(r: Dict[str, Any]) -> None:
         print('  note: the error of the simulator is near that of the reference: the matched '
               'rtol is uncertain')
 
-    rec = r['recording']
-    print(f'\n4. Recording (issue 5): run_offline on (a), {rec["sim_s"]:g} s simulated')
+    print(f'\n5. Recording (issue 5): run_offline on the paper configuration, {rec["sim_s"]:g} s '
+          'simulated')
     print(f'  RTF without recording {rec["rtf_plain"]:.2f}, with MCAP {rec["rtf_recorded"]:.2f}; '
           f'overhead ratio (wall with / without) {rec["overhead_ratio"]:.2f}')
     print(f'  file {rec["file_bytes"]} bytes = {rec["bytes_per_sim_s"] / 1e6:.2f} MB per '
           f'simulated second')
-    print(f'  recording keeps (a) at or above real time: '
+    print(f'  recording keeps the paper configuration at or above real time: '
           f'{verdict(rec["rtf_recorded"], TARGET_RTF_RECORDING)}')
+
+
+def print_report(r: Dict[str, Any]) -> None:
+    """Print every number of a run (stdout)."""
+    m = r['machine']
+    print('=' * 99)
+    print(f'ring_gyro_sim benchmark ({"quick" if r["quick"] else "full"}): python '
+          f'{m["python"]}, numpy {m["numpy"]}, scipy {m["scipy"]}, numba {m["numba"]}')
+    print(f'machine: {m["processor"]}, {m["cpus"]} CPUs, load average '
+          f'{m["load_start"][0]:.2f} at start, {m["load_end"][0]:.2f} at end')
+    if max(m['load_start'][0], m['load_end'][0]) > 0.5 * m['cpus']:
+        print('  WARNING: the machine was busy with other work: wall-clock speeds are low and '
+              'noisy; the rtf_cpu columns (process CPU time) and old/new ratios are less '
+              'affected')
+
+    c = r.get('compile')
+    if c:
+        print_compile(c)
+
+    print('\n2. Whole runs (integration + output channels at 200 kHz, Run in 10 ms blocks, '
+          'nothing recorded), best of N; `ring_gyro run benchmarks/<file>` reproduces each')
+    print(f'  {"case":<30}{"tree":<5}{"sim s":>6}{"wall s":>8}{"rtf":>7}{"cpu s":>8}'
+          f'{"rtf_cpu":>8}{"ns/sample":>10}  {"load":>5}  goal')
+    for row in r['cases']:
+        for tag in ('new', 'old'):
+            run = row['runs'].get(tag)
+            if run is None:
+                continue
+            ns = 1e9 * run['cpu_s'] / run['samples']
+            goal = verdict(run['rtf_cpu'], row['goal']) if tag == 'new' else ''
+            print(f'  {row["label"]:<30}{tag:<5}{run["sim_s"]:>6.2f}{run["wall_s"]:>8.3f}'
+                  f'{run["rtf"]:>7.2f}{run["cpu_s"]:>8.3f}{run["rtf_cpu"]:>8.2f}{ns:>10.0f}  '
+                  f'{row["load"][0]:>5.2f}  {goal}')
+            if run['status'] != 'running':
+                print(f'    !! status {run["status"]}: {run["message"]} (not meaningful)')
+        if 'new' in row['runs'] and 'old' in row['runs']:
+            new, old = row['runs']['new'], row['runs']['old']
+            print(f'    new / old: rtf_cpu x{new["rtf_cpu"] / old["rtf_cpu"]:.2f}, '
+                  f'rtf x{new["rtf"] / old["rtf"]:.2f}')
+    if r.get('baseline'):
+        print(f'  old = {r["baseline"]}')
+
+    p = r['peak']
+    print('\n3. Limit: floating-point operations per simulated second against one core')
+    print(f'  measured peak of one core, double multiply + add without FMA: scalar '
+          f'{p["scalar_flops_per_s"] / 1e9:.2f} Gflop/s'
+          f'{" (the compiler packed the loop!)" if p["scalar_loop_packed"] else ""}, '
+          f'vectorised loop {p["vector_flops_per_s"] / 1e9:.2f} Gflop/s (load '
+          f'{p["load"][0]:.2f})')
+    for row in r['cases']:
+        f = row['flops']
+        run = row['runs'].get('new')
+        print(f'  {row["label"]}: n = {f["n"]}, {f["angles"]} angles, Horner degree '
+              f'{f["degree"]}: force {f["force_flops"]} flops, stage {f["stage_flops"]}, step '
+              f'{f["step_flops"]} ({f["stages"]} stages) x {f["steps_per_sim_s"]:.0f} steps/s;'
+              f' outputs {f["output_flops"]} flops ({f["output_divisions"]} divisions) x '
+              f'{f["samples_per_sim_s"]:.0f} samples/s')
+        total = f['flops_per_sim_s']
+        outputs = f['output_flops_per_sim_s'] / 1e9
+        line = (f'    {total / 1e9:.2f} Gflop per simulated s ({outputs:.2f} of them outputs): '
+                f'rtf <= {p["scalar_flops_per_s"] / total:.1f} at the scalar '
+                f'peak, <= {p["vector_flops_per_s"] / total:.1f} at the vectorised peak')
+        if run is not None:
+            line += (f'; achieved {total * run["rtf_cpu"] / 1e9:.2f} Gflop/s of CPU time '
+                     f'(rtf_cpu {run["rtf_cpu"]:.2f})')
+        print(line)
+    print('  where the time goes (CPU time, in this process, best of 5; ns per sample):')
+    for name, st in r['stages'].items():
+        print(f'    {name}: integration {st["bm6_ns_per_sample"]:.0f} (n_sub {st["n_sub"]}: '
+              f'11 stages at {st["stage_ns"]:.0f} + {st["step_ns"]:.0f} per step), outputs '
+              f'{st["outputs_ns_per_sample"]:.0f}; strang {st["strang_ns_per_sample"]:.0f}')
+
+    if 'scipy' in r:
+        print_scipy(r['scipy'], r['recording'])
     print('=' * 99)
 
 
@@ -550,50 +711,40 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--quick', action='store_true', help='short runs (smoke test)')
     parser.add_argument('--json', metavar='FILE', help='also write the numbers as JSON')
+    parser.add_argument('--baseline', metavar='DIR',
+                        help='an older checkout whose code runs the same files, side by side')
+    parser.add_argument('--only', choices=('cases', 'all'), default='all',
+                        help='cases: sections 2 and 3 only (no compile, scipy, recording)')
+    parser.add_argument('--repeats', type=int, default=3, help='runs per child process')
     args = parser.parse_args(argv)
     quick = args.quick
-    paper_s = 0.1 if quick else 1.5
-    five_s = 0.05 if quick else 0.5
+    case_s = 0.05 if quick else 0.5
     record_s = 0.1 if quick else 1.0
     after_shock_s = 0.005 if quick else 0.02
 
-    r: Dict[str, Any] = {'quick': quick, 'machine': {
+    r: Dict[str, Any] = {'quick': quick, 'baseline': args.baseline, 'machine': {
         'python': platform.python_version(), 'numpy': np.__version__,
         'scipy': scipy.__version__, 'numba': numba.__version__,
         'processor': platform.processor() or platform.machine(), 'cpus': os.cpu_count(),
         'load_start': os.getloadavg()}}
     t_start = time.perf_counter()
-    r['compile'] = bench_compile(children=True)
-
-    log('start states: upper branch of the drive (shooting, not timed)')
-    paper = build_config(paper_values())
-    five = build_config(paper_values(**FIVE_MODES))
-    paper_state = drive_initial_state(paper)
-    five_state = drive_initial_state(five)
-
-    rows = []
-    for method in ('bm6', 'bm4', 'strang'):
-        log(f'RTF (a) paper configuration, {method}, {paper_s:g} s simulated')
-        row = measure_rtf(build_config(paper_values(**{'integrator.method': method})),
-                          paper_state, paper_s)
-        rows.append({'case': '(a) paper N_R=3', **row})
-    log(f'RTF (b) N_R = 5 with companions, bm6, {five_s:g} s simulated')
-    rows.append({'case': '(b) N_R=5 + companions', **measure_rtf(five, five_state, five_s)})
-    r['rtf'] = rows
-    by_method = {row['method']: row for row in rows if row['case'].startswith('(a)')}
-    if 'bm6' in by_method and 'strang' in by_method:
-        bm6, strang = by_method['bm6'], by_method['strang']
-        # From CPU time: less disturbed than wall time on a shared machine.
-        r['stage_ns'] = ((bm6['ns_per_step_cpu'] - strang['ns_per_step_cpu'])
-                         / (bm6['evals_per_step'] - strang['evals_per_step']))
-
-    log('standalone force evaluation (compiles a small loop)')
-    count = 20_000 if quick else 200_000
-    r['force'] = {'paper_ns': standalone_force_ns(paper, paper_state, count),
-                  'five_ns': standalone_force_ns(five, five_state, count)}
-
-    r['scipy'] = bench_scipy(paper_state, after_shock_s, repeats=3 if quick else 5)
-    r['recording'] = bench_recording(paper, paper_state, record_s)
+    everything = args.only == 'all'
+    if everything:
+        r['compile'] = bench_compile(children=True)
+    r['cases'] = bench_cases(case_s, 1 if quick else args.repeats, 1 if quick else 2,
+                             args.baseline)
+    log('peak flops of one core (a small compiled loop)')
+    r['peak'] = bench_peak(2_000_000 if quick else 20_000_000)
+    log('stage costs: bm6 and strang, integration alone, and the output channels alone')
+    r['stages'] = {}
+    for name, _, _ in CASES:
+        config = load_yaml(os.path.join(HERE, name))
+        r['stages'][name] = stage_costs(config, drive_initial_state(config))
+    if everything:
+        paper = paper_config()
+        paper_state = drive_initial_state(paper)
+        r['scipy'] = bench_scipy(paper, paper_state, after_shock_s, repeats=3 if quick else 5)
+        r['recording'] = bench_recording(paper, paper_state, record_s)
     r['machine']['load_end'] = os.getloadavg()
     r['total_wall_s'] = time.perf_counter() - t_start
     log(f'done in {r["total_wall_s"]:.0f} s')

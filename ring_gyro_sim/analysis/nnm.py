@@ -267,7 +267,10 @@ def forced_orbit(config: SimConfig, frequency_hz: float, amplitude_guess_m: floa
 
     """
     if config.modes.companions:
-        cos_only = forced_orbit(replace(config, modes=replace(config.modes, companions=False)),
+        # The scheduled shocks do not enter the orbit; one off the x axis needs companions.
+        cos_only = forced_orbit(replace(config, modes=replace(config.modes, companions=False),
+                                        run=replace(config.run, shock_times=(), shock_peaks=(),
+                                                    shock_angles=())),
                                 frequency_hz, amplitude_guess_m, drive_amplitude)
     m = _Model(config)
     n = m.n

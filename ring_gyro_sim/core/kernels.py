@@ -53,23 +53,38 @@ recorder thread can serialise and compress while they run.
 Cost
 ----
 Measured on the paper configuration (N_R = 3, N_T = 10, bm6, one 5 us step per 200 kHz
-sample; ``benchmarks/bench_simulator.py`` and the README's Performance section): ~0.9 us per
-step in this kernel, of which 11 force evaluations at ~66 ns (18 angles, Horner of degree 9,
-strict IEEE arithmetic: no fast-math, so results do not depend on the vector width), ~13 ns
-per stage of kick, drift and external force, and ~100 ns per step (drive phasor, loop);
-:func:`output_channels` adds ~190 ns per sample. What the code is shaped by, each measured:
+sample; ``benchmarks/bench_simulator.py``, ``doc/performance.md``): ~0.64 us per step in
+this kernel, of which 11 stages at ~54 ns (force evaluation at 18 angles, Horner of degree
+9, kick, drift and external force; strict IEEE arithmetic: no fast-math, so results do not
+depend on the vector width) and ~45 ns per step (drive phasor, loop, the last kick);
+:func:`output_channels` adds ~170 ns per sample. The stages form one chain of dependent
+operations (each force needs the previous drift, each drift the previous kick), so the
+latency of that chain, not the number of operations, sets the cost: ~190 cycles per stage
+for ~600 flops. What the code is shaped by, each measured:
 
 * numba's reference counting: a function that takes arrays and has branches increments and
   decrements every array argument atomically on every call unless its pruning pass can prove
   the pairs redundant. ``run_samples`` is compiled with ``_nrt=False`` (it allocates
-  nothing), which removed 29 % of the run time;
+  nothing), which removed 29 % of the run time; :func:`output_channels` copies each sample's
+  coordinates instead of taking a (reference-counted) view per sample;
 * the force's common case (:func:`_force`) has no branch that stores, returns early or calls
-  out (such a branch doubled its cost, ~65 -> ~130 ns); its fallback
-  (:func:`_force_general`) is called from :func:`_step`;
+  out (such a branch doubled its cost, ~65 -> ~130 ns); :func:`_force_any` decides between
+  it and the out-of-line :func:`_force_general` before either runs, so that a state with
+  excited companions (sine content) does not evaluate the common case first for nothing
+  (N_R = 3 with companions: 4.4 -> 2.4 us per sample);
+* floating-point min, max and sum reductions do not vectorise without fast-math (each is a
+  chain of dependent operations): the range check counts the angles outside (-1, 1) as
+  integers (:func:`_all_inside`), the smallest gap's grid maximum is found in independent
+  lanes (:func:`_first_argmax`; the maximum is exact in any order), and the projections sum
+  each coordinate in a register, the coordinates as independent chains;
+* Horner's rule runs three degrees per pass over the angles (:func:`_horner`), so that each
+  value stays in a register instead of a store and reload per degree; each value gets the
+  same operations in the same order, so results are unchanged bit for bit;
 * the pieces of a step (:func:`_cut_step`, :func:`_step`, :func:`_kick`, :func:`_drift`,
   :func:`_external`, :func:`_force`) are ``inline='always'``: inlined, they cost the same as
   the loop written out (measured, best of N in one session); called, a step passed ~20 array
-  structures every step (~25 % of a Strang run);
+  structures every step (~25 % of a Strang run). :func:`_force_general` inlined as well was
+  no faster;
 * named tuples cost nothing inside the kernel, but numba's dispatcher types each one on
   every call from Python (~1 us each, ~4 us per :func:`run_samples` call: 0.2 % of a 10 ms
   chunk of the paper configuration, more for very short calls);
@@ -374,20 +389,74 @@ def _range_status(u, inner_contact, taylor_terms):
 
 
 @njit(cache=True, inline='always')
+def _horner(poly, u, p, m):
+    """
+    ``p[:m] = P(u[:m])`` by Horner's rule, three degrees per pass over the angles.
+
+    Each value gets the same operations in the same order as the one-degree-per-pass loop
+    (``p = p u + c`` from the top coefficient down); three per pass keep ``p`` in a
+    register for three of them instead of storing and reloading it every degree.
+    """
+    d = poly.size - 1
+    top = poly[d]
+    d -= 1
+    rest = (d + 1) % 3
+    if rest == 1:
+        c0 = poly[d]
+        for k in range(m):
+            p[k] = top * u[k] + c0
+        d -= 1
+    elif rest == 2:
+        c0 = poly[d]
+        c1 = poly[d - 1]
+        for k in range(m):
+            uk = u[k]
+            p[k] = (top * uk + c0) * uk + c1
+        d -= 2
+    elif d >= 2:  # the first three degrees from the top coefficient, without storing it
+        c0 = poly[d]
+        c1 = poly[d - 1]
+        c2 = poly[d - 2]
+        for k in range(m):
+            uk = u[k]
+            p[k] = ((top * uk + c0) * uk + c1) * uk + c2
+        d -= 3
+    else:
+        for k in range(m):
+            p[k] = top
+    while d >= 2:
+        c0 = poly[d]
+        c1 = poly[d - 1]
+        c2 = poly[d - 2]
+        for k in range(m):
+            uk = u[k]
+            p[k] = ((p[k] * uk + c0) * uk + c1) * uk + c2
+        d -= 3
+
+
+@njit(cache=True, inline='always')
+def _all_inside(u, m):
+    """
+    Whether every one of ``u[:m]`` is finite and inside (-1, 1): the common case.
+
+    ``|u| < 1`` is false for NaN and infinities too. Counted as integers, so that the loop
+    vectorises (a floating-point min, max or sum is a chain of dependent operations without
+    fast-math: ~15 ns of a 66 ns force evaluation on the paper configuration).
+    """
+    outside = 0
+    for k in range(m):
+        outside += 0 if abs(u[k]) < 1.0 else 1
+    return outside == 0
+
+
+@njit(cache=True, inline='always')
 def _first_out_of_range(u, m, inner_contact, taylor_terms, info):
     """
     Index of the first of ``u[:m]`` outside the model's range (-1: all in range).
 
     The status goes to ``info[0]``; one min/max pass decides the common case.
     """
-    lo = 0.0
-    hi = 0.0
-    total = 0.0
-    for k in range(m):
-        lo = min(lo, u[k])
-        hi = max(hi, u[k])
-        total += u[k]
-    if hi < 1.0 and lo > -1.0 and math.isfinite(total):
+    if _all_inside(u, m):
         return -1
     for k in range(m):
         status = _range_status(u[k], inner_contact, taylor_terms)
@@ -452,16 +521,35 @@ def _force_general(x, force, work, out, info):
     if k >= 0:
         info[1] = k
         return
-    for k in range(m):
-        p[k] = _p_of_u(u[k], force.poly, force.taylor_terms, force.outer, force.inner,
-                       force.fold, force.gap)
+    if force.taylor_terms > 0:
+        # _p_of_u's Horner (from p = 0: 0 * u + top is top) over all angles at once, one
+        # degree per pass, so that the loops vectorise: the same operations per value.
+        _horner(force.poly, u, p, m)
+    else:
+        for k in range(m):
+            p[k] = _p_of_u(u[k], force.poly, force.taylor_terms, force.outer, force.inner,
+                           force.fold, force.gap)
+    # out[i] = sum_j projection[i, j] ((P0 + s1 P1) + s2 (P2 + s1 P3)), summed over j in
+    # order. The four parity combinations are formed once per j, into the scratch the
+    # angles' u held (a loop over j that vectorises): s1 P and s2 (...) with s = +-1 are
+    # exact negations, so each is the same value bit for bit as formed per coordinate.
+    # Then one chain of r adds per coordinate, in registers (the chains are independent).
+    comb = work[:m]
+    for j in range(r):
+        e_p = p[j] + p[r + j]
+        e_m = p[j] - p[r + j]
+        f_p = p[2 * r + j] + p[3 * r + j]
+        f_m = p[2 * r + j] - p[3 * r + j]
+        comb[j] = e_p + f_p  # (s1, s2) = (+, +)
+        comb[r + j] = e_p - f_p  # (+, -)
+        comb[2 * r + j] = e_m + f_m  # (-, +)
+        comb[3 * r + j] = e_m - f_m  # (-, -)
     for i in range(n):
-        s1 = signs[0, i]
-        s2 = signs[1, i]
+        block = (0 if signs[0, i] > 0.0 else 2) + (0 if signs[1, i] > 0.0 else 1)
+        base = block * r
         acc = 0.0
         for j in range(r):
-            acc += projection[i, j] * ((p[j] + s1 * p[r + j])
-                                       + s2 * (p[2 * r + j] + s1 * p[3 * r + j]))
+            acc += projection[i, j] * comb[base + j]
         out[i] = acc
 
 
@@ -499,21 +587,8 @@ def _force(x, force, work, out, info):
         if signs[1, i] < 0.0 and x[i] != 0.0:
             even = False
     _angle_values(x, kbasis, m, u)
-    lo = 0.0
-    hi = 0.0
-    total = 0.0
-    for k in range(m):
-        lo = min(lo, u[k])
-        hi = max(hi, u[k])
-        total += u[k]
-    ok = even and hi < 1.0 and lo > -1.0 and math.isfinite(total)
-    top = poly[poly.size - 1]
-    for k in range(m):
-        p[k] = top
-    for d in range(poly.size - 2, -1, -1):
-        c = poly[d]
-        for k in range(m):
-            p[k] = p[k] * u[k] + c
+    ok = even and _all_inside(u, m)
+    _horner(poly, u, p, m)
     for i in range(n):
         s1 = signs[0, i]
         s2 = signs[1, i]
@@ -524,6 +599,29 @@ def _force(x, force, work, out, info):
                 acc += projection[i, j] * (half + half)
         out[i] = acc if ok else out[i]
     info[0] = 0 if ok else NEEDS_GENERAL
+
+
+@njit(cache=True, inline='always')
+def _force_any(x, force, work, out, info):
+    """
+    Take :func:`nl_accel`'s two paths, inline: the common one or the general one.
+
+    :func:`_force` for a state without sine content, else (or when it declines)
+    :func:`_force_general`, called; ``info[0] != 0`` after it: out of range. The sine
+    content is checked first, so that a state with excited companions does not pay for the
+    common case's evaluation before the general one.
+    """
+    even = True
+    for c in range(x.size):
+        if force.signs[1, c] < 0.0 and x[c] != 0.0:
+            even = False
+    if even:
+        _force(x, force, work, out, info)
+    else:
+        info[0] = NEEDS_GENERAL
+    if info[0] != 0:
+        info[0] = 0
+        _force_general(x, force, work, out, info)
 
 
 @njit(cache=True)
@@ -547,10 +645,7 @@ def nl_accel(x, force, work, out, info):
     status, ``info[1]`` the column ``k R + j`` of ``kbasis`` (member k of representative j),
     and ``out`` is left unchanged.
     """
-    _force(x, force, work, out, info)
-    if info[0] != 0:
-        info[0] = 0
-        _force_general(x, force, work, out, info)
+    _force_any(x, force, work, out, info)
 
 
 @njit(cache=True, _nrt=False)
@@ -698,13 +793,10 @@ def _step(q, v, acc, ts, hs, prop, rot, method, force, drive, forcing, scratch):
         tt += hs * a[i]
         # nl_accel written out: its fallback is called from here, not from an inlined
         # function (see _force).
-        _force(q, force, scratch.work, acc, info)
+        _force_any(q, force, scratch.work, acc, info)
         if info[0] != 0:
-            info[0] = 0
-            _force_general(q, force, scratch.work, acc, info)
-            if info[0] != 0:
-                scratch.tinfo[0] = tt
-                return False
+            scratch.tinfo[0] = tt
+            return False
     if forcing.profile_t.size > 0:
         base_x, base_y = _profile_accel(ts + hs, forcing.profile_t, forcing.profile_x,
                                         forcing.profile_y)
@@ -833,6 +925,41 @@ def run_samples(q, v, acc, k0, n_samples, method, force, drive, forcing, scratch
     return n_samples
 
 
+_LANES = 8
+
+
+@njit(cache=True, inline='always')
+def _first_argmax(w, m, lanes):
+    """
+    Index of the first largest of ``w[:m]`` (finite values), as a scan with ``>`` finds it.
+
+    The maximum is exact whatever the order of comparisons, so it is found in
+    :data:`_LANES` independent lanes (a loop that vectorises; a scan is one chain of
+    dependent compares), then its first index.
+    """
+    if m < _LANES:
+        best = 0
+        for g in range(1, m):
+            if w[g] > w[best]:
+                best = g
+        return best
+    for c in range(_LANES):
+        lanes[c] = w[c]
+    full = m - m % _LANES
+    for g0 in range(_LANES, full, _LANES):
+        for c in range(_LANES):
+            lanes[c] = max(lanes[c], w[g0 + c])
+    top = lanes[0]
+    for c in range(1, _LANES):
+        top = max(top, lanes[c])
+    for g in range(full, m):
+        top = max(top, w[g])
+    for g in range(m):
+        if w[g] == top:
+            return g
+    return 0
+
+
 @njit(cache=True, nogil=True)
 def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electrode_weights,
                     fine_shapes, fine_weights, curvature, refine_coeff, cap_scale, gap_floor,
@@ -867,8 +994,9 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
         through the best grid angle and its neighbours.
     electrode_shapes : ndarray, shape (n, K * P)
         Mode shapes at the P Gauss-Legendre angles (all panels) of each electrode.
-    electrode_weights : ndarray, shape (P,)
-        Their weights (Gauss-Legendre weights times the half panel length), rad.
+    electrode_weights : ndarray, shape (K * P,)
+        Their weights (Gauss-Legendre weights times the half panel length), rad, the same P
+        for every electrode (repeated, so that one loop runs over all K * P angles).
     fine_shapes : ndarray, shape (n, K * F)
         Mode shapes at the F = (2 + 4 + ... + R) P angles of each electrode's finer levels:
         each panel cut into 2, then 4, ... R panels, one level after the other.
@@ -889,8 +1017,8 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
     n_s, n = q.shape
     n_k = centre_shapes.shape[1]
     n_g = ring_shapes.shape[1]
-    n_p = electrode_weights.size
     n_e = electrode_shapes.shape[1]
+    n_p = n_e // n_k
     n_f = fine_weights.size
     max_level = 2
     while (2 * max_level - 2) * n_p < n_f:
@@ -898,18 +1026,18 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
     wg = np.empty(n_g)
     we = np.empty(n_e)
     w_top = np.empty(n_k)
+    lanes = np.empty(_LANES)
+    qs = np.empty(n)
     for s in range(n_s):
         for k in range(n_k):
             w = 0.0
             for i in range(n):
                 w += centre_shapes[i, k] * q[s, i]
             out_gap[s, k] = max(gap - w, 0.0)
-        qs = q[s]
+        for i in range(n):  # a copy, not a view: a view per sample is reference counted
+            qs[i] = q[s, i]
         _angle_values(qs, ring_shapes, n_g, wg)
-        best = 0
-        for g in range(1, n_g):
-            if wg[g] > wg[best]:
-                best = g
+        best = _first_argmax(wg, n_g, lanes)
         y0 = wg[best - 1 if best > 0 else n_g - 1]
         y1 = wg[best]
         y2 = wg[best + 1 if best < n_g - 1 else 0]
@@ -924,8 +1052,8 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
             for j in range(1, n_p):
                 top = max(top, we[k * n_p + j])
             w_top[k] = top
-        for e in range(n_e):
-            we[e] = electrode_weights[e % n_p] / max(gap - we[e], gap_floor)
+        for e in range(n_e):  # one loop over every angle, without a modulo: it vectorises
+            we[e] = electrode_weights[e] / max(gap - we[e], gap_floor)
         c2 = 0.0
         for i in range(n):
             c2 += curvature[i] * abs(qs[i])
