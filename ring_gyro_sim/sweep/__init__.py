@@ -19,7 +19,7 @@ A point is (parameter set) -> metrics (:func:`point.evaluate`, one pure function
 run path, through :func:`ring_gyro_sim.analysis.cases.run_case`); a spec (:mod:`.spec`)
 says which points; :func:`engine.run_sweep` computes the missing ones on a Dask cluster,
 stores each as it finishes (:mod:`.store`) and writes the results as an ``xarray.Dataset``
-(:mod:`.results`) with PNG maps (:mod:`.plots`). User guide: ``doc/sweeps.md``.
+(:mod:`.results`) with PNG maps (``analysis.plotting.plot_sweep``). User guide: ``doc/sweeps.md``.
 
 Why a package of its own, above ``analysis``: it needs ``dask.distributed``, ``xarray`` and
 ``netCDF4`` (the ``sweep`` extra of setup.py), which neither the node nor ``ring_gyro

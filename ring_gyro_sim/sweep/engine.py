@@ -40,8 +40,8 @@ Resume
 
 Output
     ``DIR/results.nc`` and ``DIR/results.csv`` (:mod:`.results`), ``DIR/jump_map.png`` and
-    ``DIR/map_<metric>.png`` (:mod:`.plots`), ``DIR/sweep.json`` (the resolved spec),
-    ``DIR/failures.json``.
+    ``DIR/map_<metric>.png`` (:func:`ring_gyro_sim.analysis.plotting.plot_sweep`),
+    ``DIR/sweep.json`` (the resolved spec), ``DIR/failures.json``.
 """
 
 from contextlib import contextmanager
@@ -255,8 +255,8 @@ def run_sweep(spec: SweepSpec, out_dir, scheduler: Optional[str] = None,
         json.dump(failures, fh, indent=1, sort_keys=True, default=str)
     files['failures'] = fpath
     if plots:
-        from ring_gyro_sim.sweep import plots as plot_mod
-        files['plots'] = plot_mod.plot_all(ds, spec.plot_axes, spec.metrics, out)
+        from ring_gyro_sim.analysis import plotting
+        files['plots'] = plotting.plot_sweep(ds, spec.plot_axes, spec.metrics, out)
     outcome = SweepOutcome(dataset=ds, points=len(points), computed=computed, reused=reused,
                            failures=failures, wall_time_s=time.perf_counter() - wall0,
                            workers=n_workers, dashboard=dashboard, files=files)
