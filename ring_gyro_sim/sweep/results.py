@@ -48,6 +48,9 @@ BRANCH_CODES = {'lower': 0, 'upper': 1, 'contact': 2}
 """``branch_code`` of each final branch (-1: none)."""
 REPRODUCIBLE_EXCLUDED = ('wall_time_s',)
 """Variables that differ between two runs of the same sweep."""
+NO_VALUE = '-1: no value (the point failed)'
+"""The int8 flags' missing value: not a CF ``missing_value`` attribute, which xarray would
+decode into a float array with nan."""
 
 
 def _json(value: Any) -> str:
@@ -130,11 +133,12 @@ def build_dataset(spec: SweepSpec, points: Sequence[Point],
             attrs = {'units': unit, 'long_name': meaning}
             if kind == 'bool':
                 attrs.update(flag_values=np.array([0, 1], dtype=np.int8),
-                             flag_meanings='false true', missing_value=np.int8(-1))
+                             flag_meanings='false true', comment=NO_VALUE)
         elif name == 'branch_code':
             attrs = {'long_name': 'final branch code (the jump map)',
                      'flag_values': np.array([0, 1, 2], dtype=np.int8),
-                     'flag_meanings': 'lower upper contact', 'missing_value': np.int8(-1)}
+                     'flag_meanings': 'lower upper contact',
+                     'comment': NO_VALUE + ' or no drive'}
         elif name == 'error':
             attrs = {'long_name': "'' or the exception of a failed point"}
         else:
