@@ -53,6 +53,7 @@ import os
 import sys
 import time
 from typing import Any, Dict, List, Optional, TextIO
+import warnings
 
 from ring_gyro_sim.core.errors import RingGyroError
 from ring_gyro_sim.sweep import point as point_mod
@@ -111,9 +112,11 @@ class SweepOutcome:
                 'wall_time_s': round(self.wall_time_s, 3), 'files': self.files}
 
 
-def _dashboard_line(client, local: bool) -> str:
+def _dashboard_line(client, local: bool, disabled: bool = False) -> str:
     """Return 'dashboard: URL' when it answers, else why there is none."""
     link = getattr(client, 'dashboard_link', None)
+    if local and disabled:
+        return 'dashboard: none (disabled)'
     if local and importlib.util.find_spec('bokeh') is None:
         return 'dashboard: none (bokeh is not installed: pip install "bokeh>=3.1")'
     if not link:
@@ -144,8 +147,15 @@ def _client(scheduler: Optional[str], workers: Optional[int], dashboard_address)
             client.close()
         return
     n = workers if workers else (os.cpu_count() or 1)
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                           dashboard_address=dashboard_address, silence_logs=logging.ERROR)
+    with warnings.catch_warnings():
+        if dashboard_address is None:
+            # no dashboard: the scheduler's plain HTTP server (health, metrics) then tries
+            # :8787 all the same and warns when it is taken; it moves to a free port
+            warnings.filterwarnings('ignore', message='Port .* is already in use')
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               dashboard_address=dashboard_address,
+                               silence_logs=logging.ERROR,
+                               preload=['ring_gyro_sim.sweep._worker'])
     try:
         client = Client(cluster)
         try:
@@ -229,17 +239,17 @@ def run_sweep(spec: SweepSpec, out_dir, scheduler: Optional[str] = None,
     n_workers = 0
     dashboard = ''
     if pending:
-        with _client(scheduler, workers, dashboard_address) as (client, local):
-            n_workers = len(client.nthreads())
-            dashboard = _dashboard_line(client, local)
-            if not n_workers:
-                log.write(f'[sweep] {scheduler} has no worker yet: the points wait for one\n')
-            log.write(f'[sweep] {len(pending)} of {len(unique)} points to compute '
-                      f'({reused} stored) on {n_workers} workers '
-                      f'({"local cluster" if local else scheduler}); {dashboard}\n')
+        try:
+            computed, n_workers, dashboard = _run_pending(
+                pending, store, out, reused, len(unique), scheduler, workers,
+                dashboard_address, progress, log)
+        except KeyboardInterrupt:
+            done = sum(1 for key in unique if store.has(key))
+            log.write(f'\n[sweep] interrupted: {done} of {len(unique)} points stored in '
+                      f'{out}/points; `ring_gyro sweep ... --out {out} --resume` computes '
+                      f'the rest\n')
             log.flush()
-            computed = _compute(client, pending, store, out, reused, len(unique), progress,
-                                log)
+            raise
     records = {p.key: store.read(p.key) for p in points}
     failures_by_key = {k: store.read_failure(k) for k, r in records.items() if r is None}
     failures = []
@@ -263,6 +273,23 @@ def run_sweep(spec: SweepSpec, out_dir, scheduler: Optional[str] = None,
     log.write(f'[sweep] done in {outcome.wall_time_s:.1f} s: {computed} computed, {reused} '
               f'stored before, {len(failures)} failed -> {out}\n')
     return outcome
+
+
+def _run_pending(pending, store: PointStore, out: str, reused: int, total: int,
+                 scheduler: Optional[str], workers: Optional[int], dashboard_address,
+                 progress: bool, log: TextIO):
+    """Open the cluster, compute ``pending``; return (computed, workers, dashboard line)."""
+    with _client(scheduler, workers, dashboard_address) as (client, local):
+        n_workers = len(client.nthreads())
+        dashboard = _dashboard_line(client, local, dashboard_address is None)
+        if not n_workers:
+            log.write(f'[sweep] {scheduler} has no worker yet: the points wait for one\n')
+        log.write(f'[sweep] {len(pending)} of {total} points to compute ({reused} stored) '
+                  f'on {n_workers} workers ({"local cluster" if local else scheduler}); '
+                  f'{dashboard}\n')
+        log.flush()
+        computed = _compute(client, pending, store, out, reused, total, progress, log)
+    return computed, n_workers, dashboard
 
 
 def _compute(client, pending, store: PointStore, out: str, reused: int, total: int,
@@ -292,13 +319,6 @@ def _compute(client, pending, store: PointStore, out: str, reused: int, total: i
                           f'({p.key}): {record["error"]}', file=log)
             bar.update(1)
             fut.release()
-    except KeyboardInterrupt:
+    finally:
         bar.close()
-        done = sum(1 for p in pending if store.has(p.key))
-        log.write(f'\n[sweep] interrupted: {reused + done} of {total} points stored in '
-                  f'{out}/points; `ring_gyro sweep ... --out {out} --resume` computes the '
-                  f'rest\n')
-        log.flush()
-        raise
-    bar.close()
     return computed

@@ -56,7 +56,7 @@ def sweep(spec_path, out, **kwargs):
 
 @pytest.fixture(scope='module')
 def reference(tmp_path_factory):
-    """The tiny sweep on one local worker: (spec path, output dir, outcome)."""
+    """Run the tiny sweep on one local worker: (spec path, output dir, outcome)."""
     d = tmp_path_factory.mktemp('reference')
     spec = write_spec(d)
     outcome = sweep(spec, d / 'out', workers=1)

@@ -121,3 +121,18 @@ def test_base_file_goes_through_the_params_file_check(tmp_path):
     with pytest.raises(ValueError, match='drive.frequncy'):
         load_spec(str(path))
     assert Path(path).is_file()
+
+
+def test_the_sweep_verb_refuses_a_bad_spec_naming_the_key(tmp_path, capsys):
+    from ring_gyro_sim import cli
+    bad = write_spec(tmp_path, 'duration: 1\naxes:\n  modes.quality_factors[7]: [1.0]\n')
+    assert cli.main(['sweep', str(bad), '--out', str(tmp_path / 'o')]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith('ring_gyro sweep: error: sweep spec') and 'index 7' in err
+    good = write_spec(tmp_path)
+    assert cli.main(['sweep', str(good), '--out', str(tmp_path / 'o'), '--workers', '2',
+                     '--scheduler', 'tcp://127.0.0.1:1']) == 1
+    assert '--workers: applies to the local cluster only' in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(['--help'])
+    assert 'sweep' in capsys.readouterr().out
