@@ -119,7 +119,9 @@ def _dashboard_line(client, local: bool, disabled: bool = False) -> str:
         return 'dashboard: none (disabled)'
     if local and importlib.util.find_spec('bokeh') is None:
         return 'dashboard: none (bokeh is not installed: pip install "bokeh>=3.1")'
-    if not link:
+    services = client.scheduler_info().get('services', {})
+    if not link or 'dashboard' not in services:
+        # no HTTP service at all: nothing to probe
         return 'dashboard: none (the scheduler serves no dashboard)'
     import urllib.error
     import urllib.request
