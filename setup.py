@@ -31,7 +31,9 @@ setup(
     ],
     install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'mcap', 'PyYAML', 'zstandard',
                       'lz4', 'tqdm'],
-    extras_require={'plots': ['matplotlib']},
+    # `ring_gyro sweep` (ring_gyro_sim/sweep): imported only when a sweep runs.
+    extras_require={'plots': ['matplotlib'],
+                    'sweep': ['dask[distributed]', 'xarray', 'netCDF4', 'matplotlib']},
     zip_safe=True,
     maintainer='ring_gyro_sim developers',
     maintainer_email='dev@ring-gyro-sim.invalid',

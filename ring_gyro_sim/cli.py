@@ -82,7 +82,27 @@ def _parser() -> argparse.ArgumentParser:
     rpt.add_argument('--quick', action='store_true',
                      help='short runs (a few minutes; branches not decided)')
     rpt.add_argument('--workers', type=int, default=2, help='worker processes (default 2)')
+    _add_sweep_verb(sub)
     return p
+
+
+def _add_sweep_verb(sub) -> None:
+    sw = sub.add_parser('sweep', help='a parameter sweep on Dask (jump maps): results.nc, '
+                                      'results.csv and PNG maps (doc/sweeps.md)')
+    sw.add_argument('spec', help='sweep spec YAML (base params file, axes, duration, metrics)')
+    sw.add_argument('--out', required=True, help='output directory (points/ stored as they '
+                                                 'finish)')
+    sw.add_argument('--scheduler', metavar='ADDRESS',
+                    help='a running Dask scheduler (tcp://host:port); default: a local '
+                         'cluster')
+    sw.add_argument('--workers', type=int,
+                    help='processes of the local cluster (default: the cores)')
+    sw.add_argument('--resume', action='store_true',
+                    help='keep the points stored in --out and compute the rest')
+    sw.add_argument('--no-progress', action='store_true', help='no progress bar')
+    sw.add_argument('--no-plots', action='store_true', help='no PNG maps')
+    sw.add_argument('--dashboard-address', default=':8787',
+                    help="local cluster's dashboard (default :8787; '' none)")
 
 
 def _add_harmonic_balance_verbs(sub) -> None:
@@ -261,6 +281,17 @@ def cmd_report(args) -> int:
     return 0
 
 
+def cmd_sweep(args) -> int:
+    """``ring_gyro sweep``: exit 0, or 3 when some points failed (results written)."""
+    from ring_gyro_sim.sweep import load_spec, run_sweep
+    outcome = run_sweep(load_spec(args.spec), args.out, scheduler=args.scheduler,
+                        workers=args.workers, resume=args.resume,
+                        progress=not args.no_progress, plots=not args.no_plots,
+                        dashboard_address=args.dashboard_address or None)
+    print(json.dumps(outcome.summary()))
+    return 3 if outcome.failures else 0
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Entry point of ``ring_gyro``."""
     parser = _parser()
@@ -271,7 +302,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     handler = {'run': cmd_run, 'replay': cmd_replay, 'recover': cmd_recover,
                'calibrate': cmd_calibrate,
                'backbone': cmd_backbone, 'frf': cmd_frf,
-               'report': cmd_report}[args.verb]
+               'report': cmd_report, 'sweep': cmd_sweep}[args.verb]
     try:
         return handler(args)
     except RingGyroError as exc:

@@ -26,7 +26,9 @@ Conventions
 -----------
 * The shock is the half-sine of eq. (32) on q_1 at t = 0 (drive phase 0), duration
   ``shock.duration`` (default one tenth of the 2theta period), peak ``A_s`` g with
-  g = 9.80665 m/s^2 (converted here, the boundary).
+  g = 9.80665 m/s^2 (converted here, the boundary). A sweep may move it: it then starts at
+  ``shock_phase`` drive periods (t = phase / f_drive, exact, between samples) and points
+  ``shock_angle_deg`` from x towards y (needs ``modes.companions``); 0 and 0 are the paper's.
 * Branches: the upper and lower periodic responses to the drive with the ring otherwise at
   rest (q1 = q3 = 0 is invariant under the drive alone, so they do not depend on Q_1) are
   found by shooting (:func:`ring_gyro_sim.analysis.nnm.forced_orbit`). The threshold
@@ -107,6 +109,10 @@ class CaseSpec:
         Branch the paper ends on ('upper', 'lower'), None if not applicable.
     keep_raw_s : float
         Keep the full-rate record of the first ``keep_raw_s`` seconds (spectrogram, zooms).
+    shock_phase : float
+        Start of the shock in drive periods, in [0, 1) (0: t = 0, the paper's cases).
+    shock_angle_deg : float
+        Direction of the shock from x towards y, deg (0: along x, the paper's cases).
 
     """
 
@@ -120,6 +126,8 @@ class CaseSpec:
     paper: str = ''
     expected_branch: Optional[str] = None
     keep_raw_s: float = 0.0
+    shock_phase: float = 0.0
+    shock_angle_deg: float = 0.0
 
     def config(self, base: Optional[Mapping[str, Any]] = None,
                output_rate_hz: float = DEFAULT_OUTPUT_RATE_HZ) -> SimConfig:
@@ -291,6 +299,62 @@ def drive_branches(config: SimConfig) -> Optional[Branches]:
     return Branches(upper_m=upper, lower_m=lower, threshold_m=threshold)
 
 
+@dataclass(frozen=True)
+class DriveSetup:
+    """
+    What a case computes before it runs: the drive branches and the start state.
+
+    Both depend on the configuration only (shooting, about 1.5 s): :func:`drive_setup`
+    computes them, a caller that runs many cases on one configuration (a sweep over the
+    shock) may compute them once and pass them to :func:`run_case`.
+
+    Attributes
+    ----------
+    branches : Branches or None
+        :func:`drive_branches` of the configuration.
+    start_state : (ndarray, ndarray) or None
+        ``(q m, v m/s)`` of ``drive.start_on``, from
+        :func:`~ring_gyro_sim.analysis.nnm.drive_initial_state` (None: rest).
+
+    """
+
+    branches: Optional[Branches]
+    start_state: Optional[Tuple[np.ndarray, np.ndarray]]
+
+
+def drive_setup(config: SimConfig) -> DriveSetup:
+    """Return the :class:`DriveSetup` of ``config`` (branches, then start state)."""
+    return DriveSetup(branches=drive_branches(config),
+                      start_state=nnm.drive_initial_state(config))
+
+
+def shock_input(spec: CaseSpec, config: SimConfig) -> Shock:
+    """
+    Return the shock of ``spec`` for the run: m/s^2 along x and y, start time in ns.
+
+    ``shock_phase`` p starts it at ``round(p / f_drive)`` (ns); p = 0 is t = 0.
+
+    Raises
+    ------
+    ValueError
+        ``shock_phase`` outside [0, 1), or not 0 without a drive frequency.
+
+    """
+    phase = float(spec.shock_phase)
+    if not 0.0 <= phase < 1.0:
+        raise ValueError(f'shock_phase: must be in [0, 1) drive periods, got {phase!r}')
+    at_ns = None
+    if phase:
+        if config.drive.frequency <= 0.0:
+            raise ValueError('shock_phase: needs a drive frequency (drive.frequency > 0)')
+        at_ns = int(round(phase / config.drive.frequency * 1e9))
+    peak = spec.shock_g * STANDARD_GRAVITY
+    angle = math.radians(float(spec.shock_angle_deg))
+    if angle:
+        return Shock(peak * math.cos(angle), peak * math.sin(angle), at_ns=at_ns)
+    return Shock(peak, at_ns=at_ns)
+
+
 @dataclass
 class CaseResult:
     """
@@ -315,6 +379,8 @@ class CaseResult:
         Simulator status and its message.
     contact_time_s : float
         Time of the contact, s (nan without contact).
+    contact_theta_rad : float
+        Where the ring touched: angle from x, rad (nan without contact).
     sim_time_s, wall_time_s : float
         Simulated and wall-clock time, s.
     raw_t, raw_q : ndarray or None
@@ -338,6 +404,7 @@ class CaseResult:
     sim_time_s: float
     wall_time_s: float
     sample_rate_hz: float
+    contact_theta_rad: float = math.nan
     raw_t: Optional[np.ndarray] = None
     raw_q: Optional[np.ndarray] = None
     numbers: Dict[str, Any] = field(default_factory=dict)
@@ -395,7 +462,9 @@ def _key_numbers(r: CaseResult) -> Dict[str, Any]:
     """Numbers of a run from its envelope (definitions in the module docstring)."""
     e = r.envelope
     out: Dict[str, Any] = {'contact': r.contact, 'status': r.status, 'message': r.message,
-                           'contact_time_s': r.contact_time_s, 'min_gap_m': r.min_gap_m,
+                           'contact_time_s': r.contact_time_s,
+                           'contact_theta_deg': math.degrees(r.contact_theta_rad),
+                           'min_gap_m': r.min_gap_m,
                            'min_gap_fraction': r.min_gap_m / r.gap_m,
                            'sim_time_s': r.sim_time_s, 'wall_time_s': r.wall_time_s,
                            'final_branch': 'contact' if r.contact else None}
@@ -452,7 +521,8 @@ def _key_numbers(r: CaseResult) -> Dict[str, Any]:
 
 def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
              output_rate_hz: float = DEFAULT_OUTPUT_RATE_HZ,
-             window_s: float = env.DEFAULT_WINDOW_S, progress: bool = True) -> CaseResult:
+             window_s: float = env.DEFAULT_WINDOW_S, progress: bool = True,
+             setup: Optional[DriveSetup] = None) -> CaseResult:
     """
     Run one case and return its envelopes and numbers.
 
@@ -469,6 +539,8 @@ def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
         Envelope window, s.
     progress : bool
         Print a progress line on stderr every few wall seconds.
+    setup : DriveSetup, optional
+        :func:`drive_setup` of this case's configuration, computed before (None: here).
 
     Returns
     -------
@@ -480,11 +552,14 @@ def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
     if output_rate_hz <= 2.0 * f_max:
         raise ValueError(f'output_rate_hz: must exceed twice the fastest mode '
                          f'({2.0 * f_max:.0f} Hz), got {output_rate_hz!r}')
-    branches = drive_branches(config)
-    run = Run(config, start_state=nnm.drive_initial_state(config))
+    shock = shock_input(spec, config)
+    if setup is None:
+        setup = drive_setup(config)
+    branches = setup.branches
+    run = Run(config, start_state=setup.start_state)
     sim = run.sim
     if spec.shock_g:
-        run.apply(Shock(spec.shock_g * STANDARD_GRAVITY))
+        run.apply(shock)
     names = list(sim.coordinates) + ['w0', 'wmax']
     acc = env.StreamingEnvelope(1.0 / sim.period_s, names, window_s, t0_s=sim.time_s)
     gap = config.electrodes.gap
@@ -498,6 +573,7 @@ def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
     chunk = max(1, int(round(CHUNK_S / sim.period_s)))
     done = 0
     contact_time = math.nan
+    contact_theta = math.nan
     while done < n_total:
         size = min(chunk, n_total - done)
         s = run.advance(size).samples
@@ -508,6 +584,7 @@ def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
             s = replace(s, t=s.t[keep], q=s.q[keep], v=s.v[keep], gap=s.gap[keep],
                         min_gap=s.min_gap[keep], capacitance=s.capacitance[keep])
             contact_time = sim.contact_time_s
+            contact_theta = sim.contact_theta_rad
         if len(s):
             w0 = np.sum(s.q[:, cos_cols], axis=1)
             acc.add(np.column_stack([s.q, w0, gap - s.min_gap]))
@@ -526,7 +603,8 @@ def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
     result = CaseResult(
         spec=spec, envelope=acc.result(), branches=branches, gap_m=gap, min_gap_m=min_gap,
         contact=sim.status != Status.RUNNING, status=sim.status, message=sim.message,
-        contact_time_s=contact_time, sim_time_s=sim.time_s, wall_time_s=wall,
+        contact_time_s=contact_time, contact_theta_rad=contact_theta, sim_time_s=sim.time_s,
+        wall_time_s=wall,
         sample_rate_hz=1.0 / sim.period_s,
         raw_t=np.concatenate(raw_t) if raw_t else None,
         raw_q=np.concatenate(raw_q) if raw_q else None)
@@ -568,6 +646,7 @@ def case_table(results: Sequence[CaseResult]) -> List[Dict[str, Any]]:
     return [r.summary() for r in results]
 
 
-__all__ = ['Branches', 'CaseResult', 'CaseSpec', 'case4_specs', 'case_table',
-           'drive_branches', 'inner_electrode_cases', 'paper_cases', 'ritz_order_specs',
-           'run_case', 'run_cases', 'symmetric_inner_voltage']
+__all__ = ['Branches', 'CaseResult', 'CaseSpec', 'DriveSetup', 'case4_specs', 'case_table',
+           'drive_branches', 'drive_setup', 'inner_electrode_cases', 'paper_cases',
+           'ritz_order_specs', 'run_case', 'run_cases', 'shock_input',
+           'symmetric_inner_voltage']

@@ -27,6 +27,10 @@ once, at the start).
 """
 
 import functools
+import itertools
+import math
+from pathlib import Path
+from typing import List, Sequence
 
 import numpy as np
 
@@ -354,3 +358,184 @@ def plot_spectrogram(spec, path, ridge_t=None, ridge_hz=None, f_max_hz=70e3,
         ax2.grid(True, alpha=0.3)
     _save(plt, fig, path)
     return True
+
+
+# ---------------------------------------------------------------------------- sweep maps
+# ``ring_gyro sweep`` (ring_gyro_sim/sweep): the two map axes are the spec's ``plot`` axes;
+# every combination of the remaining axes gets its own panel (at most SWEEP_PANELS_PER_FILE
+# per file, more go to ``*_part2.png`` ...). Cells are drawn on an index grid, one cell per
+# point, labelled with the axis values (linear, log or listed values alike).
+# jump_map.png: branch_code (lower / upper / contact / none-or-failed); '?' marks a point whose
+# q2 had not settled (the branch is not decided), 'x' a failed point. map_<metric>.png: each
+# float metric (m drawn in um); a metric that is nan everywhere is not drawn.
+SWEEP_PANELS_PER_FILE = 16
+SWEEP_BRANCH_COLOURS = ('#bdbdbd', '#3b6fb6', '#f2b134', '#c0392b')
+"""Colours of branch_code -1 (none / failed), 0 (lower), 1 (upper), 2 (contact)."""
+
+
+def _sweep_fmt(value) -> str:
+    if isinstance(value, (float, np.floating)):
+        return f'{value:.6g}'
+    return str(value)
+
+
+def _sweep_panels(ds, plot_axes: Sequence[str]):
+    """Yield ``(title, 2-D or 1-D selection dict)`` for each combination of the other axes."""
+    others = [d for d in ds[next(iter(ds.data_vars))].dims if d not in plot_axes]
+    if not others:
+        yield '', {}
+        return
+    for combo in itertools.product(*(ds[d].values for d in others)):
+        sel = dict(zip(others, combo))
+        yield ', '.join(f'{k} = {_sweep_fmt(v)}' for k, v in sel.items()), sel
+
+
+def _sweep_grid(plt, n: int, width: float = 4.2, height: float = 3.4):
+    cols = min(n, 4)
+    rows = int(math.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(width * cols + 0.8, height * rows + 0.6),
+                             squeeze=False)
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
+    return fig, list(axes.flat[:n])
+
+
+def _sweep_matrix(da, plot_axes: Sequence[str]) -> np.ndarray:
+    """Return the values as (rows = y axis, cols = x axis); one row for a 1-D map."""
+    if len(plot_axes) == 1:
+        return np.asarray(da.values).reshape(1, -1)
+    return np.asarray(da.transpose(plot_axes[1], plot_axes[0]).values)
+
+
+def _sweep_label_axes(ax, ds, plot_axes: Sequence[str]) -> None:
+    x = ds[plot_axes[0]]
+    ax.set_xticks(range(x.size))
+    ax.set_xticklabels([_sweep_fmt(v) for v in x.values], rotation=60, fontsize=7)
+    ax.set_xlabel(f'{plot_axes[0]} ({x.attrs.get("units", "")})', fontsize=8)
+    if len(plot_axes) > 1:
+        y = ds[plot_axes[1]]
+        ax.set_yticks(range(y.size))
+        ax.set_yticklabels([_sweep_fmt(v) for v in y.values], fontsize=7)
+        ax.set_ylabel(f'{plot_axes[1]} ({y.attrs.get("units", "")})', fontsize=8)
+    else:
+        ax.set_yticks([])
+
+
+def _sweep_files(stem: Path, panels: List) -> List:
+    n = SWEEP_PANELS_PER_FILE
+    chunks = [panels[i:i + n] for i in range(0, len(panels), n)]
+    out = []
+    for i, chunk in enumerate(chunks):
+        name = stem.name + ('.png' if i == 0 else f'_part{i + 1}.png')
+        out.append((stem.with_name(name), chunk))
+    return out
+
+
+def plot_sweep_jump_map(ds, plot_axes: Sequence[str], path) -> List[str]:
+    """Draw ``branch_code`` over the plot axes, a panel per other combination; the files."""
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+    from matplotlib.patches import Patch
+    plt = _pyplot()
+    cmap = ListedColormap(SWEEP_BRANCH_COLOURS)
+    norm = BoundaryNorm([-1.5, -0.5, 0.5, 1.5, 2.5], cmap.N)
+    written = []
+    panel_list = list(_sweep_panels(ds, plot_axes))
+    for target, panels in _sweep_files(Path(path).with_suffix(''), panel_list):
+        fig, axes = _sweep_grid(plt, len(panels))
+        for ax, (title, sel) in zip(axes, panels):
+            sub = ds.sel(sel) if sel else ds
+            codes = _sweep_matrix(sub['branch_code'], plot_axes)
+            ax.imshow(codes, cmap=cmap, norm=norm, origin='lower', aspect='auto',
+                      interpolation='nearest')
+            settled = _sweep_matrix(sub['settled'], plot_axes) if 'settled' in sub else None
+            errors = _sweep_matrix(sub['error'], plot_axes)
+            for (r, c), code in np.ndenumerate(codes):
+                mark = ''
+                if errors[r, c]:
+                    mark = 'x'
+                elif settled is not None and settled[r, c] == 0 and code != 2:
+                    mark = '?'
+                if mark:
+                    ax.text(c, r, mark, ha='center', va='center', fontsize=8)
+            _sweep_label_axes(ax, sub, plot_axes)
+            ax.set_title(title or 'final branch of q2', fontsize=8)
+        handles = [Patch(color=SWEEP_BRANCH_COLOURS[i + 1], label=n)
+                   for i, n in enumerate(('lower', 'upper', 'contact'))]
+        handles.append(Patch(color=SWEEP_BRANCH_COLOURS[0], label='none / failed (x)'))
+        axes[-1].legend(handles=handles, loc='upper left', bbox_to_anchor=(1.02, 1.0),
+                        fontsize=7, frameon=False)
+        fig.suptitle('Jump map: final branch of the 2theta drive (? = not settled)',
+                     fontsize=9, x=0.02, ha='left')
+        _save(plt, fig, target)
+        written.append(str(target))
+    return written
+
+
+def plot_sweep_metric_maps(ds, plot_axes: Sequence[str], metrics: Sequence[str],
+                           out_dir) -> List[str]:
+    """Draw each float metric of ``metrics`` (um for ``*_m``); the files written."""
+    plt = _pyplot()
+    written = []
+    for name in metrics:
+        if name not in ds or ds[name].dtype.kind != 'f':
+            continue
+        values = ds[name].values
+        if not np.any(np.isfinite(values)):
+            continue
+        scale, unit = (1e6, 'um') if name.endswith('_m') else (1.0, ds[name].attrs.get(
+            'units', ''))
+        finite = values[np.isfinite(values)] * scale
+        vmin, vmax = float(finite.min()), float(finite.max())
+        stem = Path(out_dir) / f'map_{name}'
+        for target, panels in _sweep_files(stem, list(_sweep_panels(ds, plot_axes))):
+            fig, axes = _sweep_grid(plt, len(panels))
+            for ax, (title, sel) in zip(axes, panels):
+                sub = ds.sel(sel) if sel else ds
+                m = _sweep_matrix(sub[name], plot_axes) * scale
+                if len(plot_axes) == 1:
+                    x = np.arange(m.shape[1])
+                    ax.plot(x, m[0], 'o-', ms=4)
+                    ax.set_ylabel(f'{name} ({unit})', fontsize=8)
+                    ax.grid(True, alpha=0.3)
+                    _sweep_label_axes(ax, sub, plot_axes)
+                else:
+                    im = ax.imshow(m, origin='lower', aspect='auto', interpolation='nearest',
+                                   vmin=vmin, vmax=vmax, cmap='viridis')
+                    fig.colorbar(im, ax=ax, label=f'{unit}')
+                    _sweep_label_axes(ax, sub, plot_axes)
+                ax.set_title(title or name, fontsize=8)
+            fig.suptitle(f'{name}: {ds[name].attrs.get("long_name", "")}', fontsize=9,
+                         x=0.02, ha='left')
+            _save(plt, fig, target)
+            written.append(str(target))
+    return written
+
+
+def plot_sweep(ds, plot_axes: Sequence[str], metrics: Sequence[str], out_dir) -> List[str]:
+    """
+    Write the jump map (when ``final_branch`` was kept) and the metric maps of a sweep.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Results of :mod:`ring_gyro_sim.sweep.results` (dims = sweep axes).
+    plot_axes : sequence of str
+        x (and y) axis of the maps; a panel per combination of the other axes.
+    metrics : sequence of str
+        Metrics to draw (float variables only; nan everywhere: skipped).
+    out_dir : str or path-like
+        Directory of ``jump_map.png`` and ``map_<metric>.png``.
+
+    Returns
+    -------
+    list of str
+        The files written (none without matplotlib).
+
+    """
+    written = []
+    if not available():
+        return written
+    if 'branch_code' in ds:
+        written += plot_sweep_jump_map(ds, plot_axes, Path(out_dir) / 'jump_map.png')
+    written += plot_sweep_metric_maps(ds, plot_axes, metrics, out_dir)
+    return written

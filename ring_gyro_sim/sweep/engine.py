@@ -1,0 +1,326 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Running a sweep on ``dask.distributed``: :func:`run_sweep`.
+
+Where it runs
+    Without ``scheduler``: a ``LocalCluster`` of ``workers`` processes (default: the
+    machine's cores), one thread each (the numba kernels release no GIL worth sharing: one
+    point per process keeps it simple), each started by a nanny that restarts it if it
+    dies. With ``scheduler`` (``tcp://host:port``): that cluster, as it is; nothing else
+    changes. The Dask dashboard address is printed when the scheduler serves one (it needs
+    ``bokeh``: without it the line says so).
+
+What is computed
+    Every point of the spec whose record is not in ``DIR/points`` (:mod:`.store`): one
+    task per point (:func:`ring_gyro_sim.sweep.point.compute`), keyed by the point's hash,
+    submitted at once; the scheduler balances them. A point's record is stored by its
+    worker as soon as it is computed (when the worker sees ``DIR``) and again by the client
+    on receipt, atomically. A point that raises, or whose task the scheduler gives up on
+    (its workers died ``distributed.scheduler.allowed-failures`` times), is a failure: it is
+    reported with its parameters on stderr and in ``DIR/failures.json``, and the sweep goes
+    on. A worker killed mid-point costs that point's time only: Dask runs it again elsewhere.
+
+Resume
+    A new sweep refuses a ``DIR`` that already holds computed points; ``resume=True``
+    keeps every stored point (never recomputed: its key is its content) and computes the
+    rest, failures included. Ctrl-C stops the client: what was stored stays.
+
+Output
+    ``DIR/results.nc`` and ``DIR/results.csv`` (:mod:`.results`), ``DIR/jump_map.png`` and
+    ``DIR/map_<metric>.png`` (:func:`ring_gyro_sim.analysis.plotting.plot_sweep`),
+    ``DIR/sweep.json`` (the resolved spec), ``DIR/failures.json``.
+"""
+
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+import importlib.util
+import json
+import logging
+import os
+import sys
+import time
+from typing import Any, Dict, List, Optional, TextIO
+import warnings
+
+from ring_gyro_sim.core.errors import RingGyroError
+from ring_gyro_sim.sweep import point as point_mod
+from ring_gyro_sim.sweep.spec import describe, SweepSpec
+from ring_gyro_sim.sweep.store import PointStore
+
+__all__ = ['SweepError', 'SweepOutcome', 'TASK_PREFIX', 'run_sweep']
+
+TASK_PREFIX = 'ring_gyro_point-'
+"""Dask key of a point's task: this prefix and the point's hash."""
+DASHBOARD_PROBE_S = 3.0
+
+
+class SweepError(RingGyroError, RuntimeError):
+    """A sweep cannot start (output directory, scheduler, options)."""
+
+
+@dataclass
+class SweepOutcome:
+    """
+    What :func:`run_sweep` did.
+
+    Attributes
+    ----------
+    dataset : xarray.Dataset
+        The results (:mod:`ring_gyro_sim.sweep.results`).
+    points, computed, reused : int
+        Points of the spec, computed now, taken from the store.
+    failures : list of dict
+        Failure records (``key``, ``parameters``, ``error``) of the points without a result.
+    wall_time_s : float
+        Wall time of the sweep, s.
+    workers : int
+        Workers of the cluster when the sweep started (0: nothing to compute).
+    dashboard : str
+        The dashboard line printed.
+    files : dict
+        ``netcdf``, ``csv``, ``plots`` (list), ``failures``.
+
+    """
+
+    dataset: Any
+    points: int
+    computed: int
+    reused: int
+    failures: List[Dict[str, Any]]
+    wall_time_s: float
+    workers: int = 0
+    dashboard: str = ''
+    files: Dict[str, Any] = field(default_factory=dict)
+
+    def summary(self) -> Dict[str, Any]:
+        """Return the counts, times and files, JSON-ready (``ring_gyro sweep`` prints it)."""
+        return {'points': self.points, 'computed': self.computed, 'reused': self.reused,
+                'failed': len(self.failures), 'workers': self.workers,
+                'wall_time_s': round(self.wall_time_s, 3), 'files': self.files}
+
+
+def _dashboard_line(client, local: bool, disabled: bool = False) -> str:
+    """Return 'dashboard: URL' when it answers, else why there is none."""
+    link = getattr(client, 'dashboard_link', None)
+    if local and disabled:
+        return 'dashboard: none (disabled)'
+    if local and importlib.util.find_spec('bokeh') is None:
+        return 'dashboard: none (bokeh is not installed: pip install "bokeh>=3.1")'
+    services = client.scheduler_info().get('services', {})
+    if not link or 'dashboard' not in services:
+        # no HTTP service at all: nothing to probe
+        return 'dashboard: none (the scheduler serves no dashboard)'
+    import urllib.error
+    import urllib.request
+    try:
+        with urllib.request.urlopen(link, timeout=DASHBOARD_PROBE_S) as reply:  # noqa: S310
+            ok = reply.status == 200
+    except (urllib.error.URLError, OSError, ValueError):
+        ok = False
+    return f'dashboard: {link}' if ok else f'dashboard: none ({link} does not answer: ' \
+                                           f'bokeh missing on the scheduler?)'
+
+
+@contextmanager
+def _client(scheduler: Optional[str], workers: Optional[int], dashboard_address):
+    """Yield ``(client, local)`` connected to ``scheduler`` or to a new LocalCluster."""
+    from distributed import Client, LocalCluster
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout='30s')
+        except (OSError, TimeoutError) as exc:
+            raise SweepError(f'--scheduler {scheduler}: cannot connect ({exc})') from None
+        try:
+            yield client, False
+        finally:
+            client.close()
+        return
+    n = workers if workers else (os.cpu_count() or 1)
+    with warnings.catch_warnings():
+        if dashboard_address is None:
+            # no dashboard: the scheduler's plain HTTP server (health, metrics) then tries
+            # :8787 all the same and warns when it is taken; it moves to a free port
+            warnings.filterwarnings('ignore', message='Port .* is already in use')
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               dashboard_address=dashboard_address,
+                               silence_logs=logging.ERROR,
+                               preload=['ring_gyro_sim.sweep._worker'])
+    try:
+        client = Client(cluster)
+        try:
+            yield client, True
+        finally:
+            client.close()
+    finally:
+        cluster.close()
+
+
+def _bar(total: int, initial: int, enabled: bool):
+    from tqdm import tqdm
+    return tqdm(total=total, initial=initial, unit='point', desc='sweep', disable=not enabled,
+                file=sys.stderr, mininterval=0.5, dynamic_ncols=True)
+
+
+def run_sweep(spec: SweepSpec, out_dir, scheduler: Optional[str] = None,
+              workers: Optional[int] = None, resume: bool = False, progress: bool = True,
+              dashboard_address: Optional[str] = ':8787', plots: bool = True,
+              log: TextIO = sys.stderr) -> SweepOutcome:
+    """
+    Run ``spec`` on Dask and write its results into ``out_dir`` (module docstring).
+
+    Parameters
+    ----------
+    spec : SweepSpec
+        The sweep (:func:`ring_gyro_sim.sweep.spec.load_spec`).
+    out_dir : str or path-like
+        Output directory (created).
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://127.0.0.1:8786``); None: a LocalCluster.
+    workers : int, optional
+        Processes of the LocalCluster (default: the cores); refused with ``scheduler``.
+    resume : bool
+        Keep the points already stored in ``out_dir`` and compute the rest.
+    progress : bool
+        Progress bar (tqdm) on stderr.
+    dashboard_address : str or None
+        Dashboard of the LocalCluster (``':8787'``; ``':0'`` any free port; None: none).
+    plots : bool
+        Write the PNG maps.
+    log : file
+        Where the dashboard line, failures and the end line go.
+
+    Returns
+    -------
+    SweepOutcome
+
+    Raises
+    ------
+    SweepError
+        ``out_dir`` holds points and ``resume`` is False, ``workers`` with ``scheduler``,
+        or the scheduler cannot be reached.
+    KeyboardInterrupt
+        Ctrl-C: the points stored so far stay (``--resume`` continues).
+
+    """
+    from ring_gyro_sim.sweep import results
+    if scheduler and workers:
+        raise SweepError('--workers: applies to the local cluster only, not with --scheduler '
+                         '(start as many dask workers as you want)')
+    if workers is not None and workers < 1:
+        raise SweepError(f'--workers: must be >= 1, got {workers!r}')
+    wall0 = time.perf_counter()
+    out = os.path.abspath(os.fspath(out_dir))
+    store = PointStore(out)
+    points = spec.points()
+    stored = set(store.keys())
+    if stored and not resume:
+        raise SweepError(f'--out {out}: holds {len(stored)} computed points already: '
+                         f'--resume keeps them (none is recomputed), or choose another '
+                         f'directory')
+    with open(os.path.join(out, 'sweep.json'), 'w', encoding='utf-8') as fh:
+        json.dump(spec.describe(), fh, indent=1, sort_keys=True, default=str)
+    unique = {}
+    for p in points:
+        unique.setdefault(p.key, p)
+    pending = [p for key, p in unique.items() if key not in stored]
+    reused = len(unique) - len(pending)
+    computed = 0
+    n_workers = 0
+    dashboard = ''
+    if pending:
+        try:
+            computed, n_workers, dashboard = _run_pending(
+                pending, store, out, reused, len(unique), scheduler, workers,
+                dashboard_address, progress, log)
+        except KeyboardInterrupt:
+            done = sum(1 for key in unique if store.has(key))
+            log.write(f'\n[sweep] interrupted: {done} of {len(unique)} points stored in '
+                      f'{out}/points; `ring_gyro sweep ... --out {out} --resume` computes '
+                      f'the rest\n')
+            log.flush()
+            raise
+    records = {p.key: store.read(p.key) for p in points}
+    failures_by_key = {k: store.read_failure(k) for k, r in records.items() if r is None}
+    failures = []
+    for p in unique.values():
+        if records[p.key] is None:
+            f = failures_by_key.get(p.key) or point_mod.failure_record(p, 'not computed')
+            failures.append({'key': p.key, 'parameters': p.parameters(),
+                             'error': f.get('error')})
+    ds = results.build_dataset(spec, points, records, failures_by_key)
+    files: Dict[str, Any] = results.write_results(ds, out)
+    fpath = os.path.join(out, 'failures.json')
+    with open(fpath, 'w', encoding='utf-8') as fh:
+        json.dump(failures, fh, indent=1, sort_keys=True, default=str)
+    files['failures'] = fpath
+    if plots:
+        from ring_gyro_sim.analysis import plotting
+        files['plots'] = plotting.plot_sweep(ds, spec.plot_axes, spec.metrics, out)
+    outcome = SweepOutcome(dataset=ds, points=len(points), computed=computed, reused=reused,
+                           failures=failures, wall_time_s=time.perf_counter() - wall0,
+                           workers=n_workers, dashboard=dashboard, files=files)
+    log.write(f'[sweep] done in {outcome.wall_time_s:.1f} s: {computed} computed, {reused} '
+              f'stored before, {len(failures)} failed -> {out}\n')
+    return outcome
+
+
+def _run_pending(pending, store: PointStore, out: str, reused: int, total: int,
+                 scheduler: Optional[str], workers: Optional[int], dashboard_address,
+                 progress: bool, log: TextIO):
+    """Open the cluster, compute ``pending``; return (computed, workers, dashboard line)."""
+    with _client(scheduler, workers, dashboard_address) as (client, local):
+        n_workers = len(client.nthreads())
+        dashboard = _dashboard_line(client, local, dashboard_address is None)
+        if not n_workers:
+            log.write(f'[sweep] {scheduler} has no worker yet: the points wait for one\n')
+        log.write(f'[sweep] {len(pending)} of {total} points to compute ({reused} stored) '
+                  f'on {n_workers} workers ({"local cluster" if local else scheduler}); '
+                  f'{dashboard}\n')
+        log.flush()
+        computed = _compute(client, pending, store, out, reused, total, progress, log)
+    return computed, n_workers, dashboard
+
+
+def _compute(client, pending, store: PointStore, out: str, reused: int, total: int,
+             progress: bool, log: TextIO) -> int:
+    """Submit ``pending`` and store each record as it comes; return the number computed."""
+    from distributed import as_completed
+    futures = {}
+    for p in pending:
+        fut = client.submit(point_mod.compute, p, out, key=TASK_PREFIX + p.key, retries=0)
+        futures[fut] = p
+    bar = _bar(total, reused, progress)
+    computed = 0
+    try:
+        for fut in as_completed(list(futures)):
+            p = futures[fut]
+            try:
+                record = fut.result()
+            except Exception as exc:  # noqa: B902 - a lost task is one failed point
+                record = point_mod.failure_record(p, f'{type(exc).__name__}: {exc}')
+            if record.get('error') is None:
+                computed += 1
+                if not store.has(p.key):
+                    store.write(record)
+            else:
+                store.write(record)
+                bar.write(f'[sweep] point failed: {describe(p.coords) or p.key} '
+                          f'({p.key}): {record["error"]}', file=log)
+            bar.update(1)
+            fut.release()
+    finally:
+        bar.close()
+    return computed

@@ -1,0 +1,155 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+A sweep point: (parameter set) -> metrics, by one pure function.
+
+:func:`evaluate` runs the point as a paper case (:func:`~ring_gyro_sim.analysis.cases.run_case`:
+``Run(config, start_state=...)``, ``run.apply(Shock(...))``, ``run.advance(n)``)
+and keeps the numbers of :data:`METRICS`, which are the case's numbers (branch logic and
+all: cases.py's, not a copy). The result depends on the point only: not on the worker, the
+order or what ran before in the process. The one thing a worker keeps between points is the
+drive setup (branches and start state, ~1.5 s of shooting), cached per configuration: it is
+a pure function of the configuration, so the cache changes the cost only.
+
+:func:`compute` is the task a Dask worker runs: :func:`evaluate`, its wall time, an
+exception turned into a failure record (with the point's parameters), and the record stored
+at once in the sweep's point directory when the worker can see it (a worker of a cluster
+without the client's file system cannot: the client stores it on receipt).
+"""
+
+from collections import OrderedDict
+import json
+import math
+import os
+import socket
+import time
+import traceback
+from typing import Any, Dict, Optional
+
+from ring_gyro_sim import __version__
+from ring_gyro_sim.analysis import cases
+from ring_gyro_sim.core.params import SimConfig, to_flat
+from ring_gyro_sim.sweep.spec import Point
+from ring_gyro_sim.sweep.store import PointStore
+
+__all__ = ['METRICS', 'compute', 'evaluate', 'failure_record']
+
+METRICS: Dict[str, tuple] = OrderedDict([
+    ('final_branch', ('str', '', "branch q2 ends on: 'upper', 'lower', 'contact' ('none': "
+                                 'no drive)')),
+    ('final_q2_m', ('float', 'm', 'mean q2 envelope over the last 0.2 s')),
+    ('min_q2_m', ('float', 'm', 'smallest q2 envelope (1 ms windows)')),
+    ('min_q2_time_s', ('float', 's', 'time of the smallest q2 envelope')),
+    ('q2_after_shock_m', ('float', 'm', 'largest q2 envelope in the first 10 ms')),
+    ('min_gap_m', ('float', 'm', 'smallest outer gap over the run (0 at contact)')),
+    ('min_gap_fraction', ('float', '1', 'min_gap_m / d_g')),
+    ('contact', ('bool', '', 'the ring touched an electrode (the run stopped there)')),
+    ('contact_time_s', ('float', 's', 'time of the contact (nan: none)')),
+    ('contact_theta_deg', ('float', 'deg', 'where the ring touched, from x (nan: none)')),
+    ('return_time_s', ('float', 's', 'time q2 is back above the branch threshold for good '
+                                     '(nan: never left it, or ends lower)')),
+    ('settled', ('bool', '', 'q2 envelope within 5 % over the last 0.2 s (branch decided)')),
+    ('settle_time_s', ('float', 's', 'last time q2 was more than 5 % off its final value')),
+    ('peak_q1_m', ('float', 'm', 'largest q1 envelope')),
+    ('final_q1_m', ('float', 'm', 'mean q1 envelope over the last 0.2 s')),
+    ('status', ('str', '', "simulator status at the end ('running', 'contact', 'failed')")),
+])
+"""Metrics of a point: name -> (kind, unit, meaning); every record holds all of them."""
+
+SETUP_CACHE_SIZE = 32
+_SETUP_CACHE: 'OrderedDict[str, cases.DriveSetup]' = OrderedDict()
+
+
+def _setup(config: SimConfig) -> cases.DriveSetup:
+    """Return :func:`cases.drive_setup` of ``config``, from this process's cache if there."""
+    key = json.dumps(to_flat(config), sort_keys=True)
+    found = _SETUP_CACHE.get(key)
+    if found is None:
+        found = cases.drive_setup(config)
+        _SETUP_CACHE[key] = found
+        while len(_SETUP_CACHE) > SETUP_CACHE_SIZE:
+            _SETUP_CACHE.popitem(last=False)
+    else:
+        _SETUP_CACHE.move_to_end(key)
+    return found
+
+
+def evaluate(point: Point) -> Dict[str, Any]:
+    """
+    Run ``point`` and return its :data:`METRICS` (SI; nan where a metric does not apply).
+
+    Parameters
+    ----------
+    point : Point
+        The point (:meth:`ring_gyro_sim.sweep.spec.SweepSpec.points`).
+
+    Returns
+    -------
+    dict
+        ``{metric: value}`` for every name of :data:`METRICS`.
+
+    Raises
+    ------
+    Exception
+        Whatever the run raises (an invalid combination of parameters, a failed shooting):
+        contact is not an exception but a result.
+
+    """
+    spec = point.case_spec()
+    config = spec.config(None, point.output_rate_hz)
+    result = cases.run_case(spec, output_rate_hz=point.output_rate_hz,
+                            window_s=point.window_s, progress=False, setup=_setup(config))
+    numbers = result.numbers
+    out: Dict[str, Any] = {}
+    for name, (kind, _, _) in METRICS.items():
+        value = numbers.get(name)
+        if kind == 'float':
+            out[name] = math.nan if value is None else float(value)
+        elif kind == 'bool':
+            out[name] = bool(value)
+        else:
+            out[name] = 'none' if value is None else str(value)
+    return out
+
+
+def failure_record(point: Point, error: str, detail: str = '') -> Dict[str, Any]:
+    """Return the record of a point that raised (or whose worker died): no metrics."""
+    return {'key': point.key, 'coords': [[k, v] for k, v in point.coords],
+            'parameters': point.parameters(), 'metrics': None, 'error': error,
+            'traceback': detail, 'wall_time_s': math.nan, 'worker': '',
+            'version': __version__}
+
+
+def compute(point: Point, store_dir: Optional[str] = None) -> Dict[str, Any]:
+    """
+    Evaluate ``point`` on a worker: its record, stored under ``store_dir`` if it exists.
+
+    Never raises for a failing point: the record's ``error`` says what happened.
+    """
+    wall0 = time.perf_counter()
+    try:
+        metrics = evaluate(point)
+    except Exception as exc:  # noqa: B902 - any failure of one point is reported, not fatal
+        record = failure_record(point, f'{type(exc).__name__}: {exc}',
+                                traceback.format_exc())
+    else:
+        record = {'key': point.key, 'coords': [[k, v] for k, v in point.coords],
+                  'parameters': point.parameters(), 'metrics': metrics, 'error': None,
+                  'traceback': '', 'version': __version__}
+    record['wall_time_s'] = time.perf_counter() - wall0
+    record['worker'] = f'{socket.gethostname()}:{os.getpid()}'
+    if store_dir is not None and PointStore.reachable(store_dir):
+        PointStore(store_dir, create=False).write(record)
+    return record

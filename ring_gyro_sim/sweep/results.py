@@ -1,0 +1,177 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The results of a sweep as an ``xarray.Dataset``, netCDF4 and CSV.
+
+Dimensions are the sweep axes (named as in the spec, e.g. ``modes.quality_factors[0]``,
+``shock.peak_g``; coordinate attributes ``units`` and ``spacing``), one variable per metric
+of the spec (:data:`ring_gyro_sim.sweep.point.METRICS`, attributes ``units`` and
+``long_name``), and always:
+
+* ``branch_code`` (with ``final_branch``): int8, 0 lower, 1 upper, 2 contact, -1 no drive or
+  the point failed (CF ``flag_values`` / ``flag_meanings``): what the jump map draws;
+* ``error``: '' for a computed point, else the exception (type: message);
+* ``wall_time_s``: wall time of the point on its worker (the one value that is not
+  reproducible: it is left out of every comparison).
+
+Missing values (a failed point): nan for floats, -1 for the int8 flags (``contact``,
+``settled``: 0 / 1), '' for strings. Global attributes: ``package_version``,
+``base_parameters`` (JSON: the flat parameters of the base file), ``set`` and ``spec`` (JSON:
+the resolved spec), ``base_path``. ``DIR/results.csv`` has one row per point: the axes, then
+the variables.
+"""
+
+import json
+from typing import Any, Dict, List, Mapping, Optional, Sequence
+
+import numpy as np
+from ring_gyro_sim import __version__
+from ring_gyro_sim.sweep.point import METRICS
+from ring_gyro_sim.sweep.spec import Point, SweepSpec
+
+__all__ = ['BRANCH_CODES', 'REPRODUCIBLE_EXCLUDED', 'build_dataset', 'comparable',
+           'open_results', 'write_results']
+
+BRANCH_CODES = {'lower': 0, 'upper': 1, 'contact': 2}
+"""``branch_code`` of each final branch (-1: none)."""
+REPRODUCIBLE_EXCLUDED = ('wall_time_s',)
+"""Variables that differ between two runs of the same sweep."""
+NO_VALUE = '-1: no value (the point failed)'
+"""The int8 flags' missing value: not a CF ``missing_value`` attribute, which xarray would
+decode into a float array with nan."""
+
+
+def _json(value: Any) -> str:
+    return json.dumps(value, sort_keys=True, default=str)
+
+
+def build_dataset(spec: SweepSpec, points: Sequence[Point],
+                  records: Mapping[str, Optional[Dict[str, Any]]],
+                  failures: Mapping[str, Optional[Dict[str, Any]]]):
+    """
+    Assemble the Dataset of a sweep from its point records.
+
+    Parameters
+    ----------
+    spec : SweepSpec
+        The sweep.
+    points : sequence of Point
+        ``spec.points()`` (C order of the axes).
+    records : mapping
+        ``{key: computed record or None}``.
+    failures : mapping
+        ``{key: failure record or None}``, for the points without a computed record.
+
+    Returns
+    -------
+    xarray.Dataset
+
+    """
+    import xarray as xr
+    shape = spec.shape
+    dims = [a.name for a in spec.axes]
+    data: Dict[str, np.ndarray] = {}
+    for name in spec.metrics:
+        kind = METRICS[name][0]
+        if kind == 'float':
+            data[name] = np.full(shape, np.nan)
+        elif kind == 'bool':
+            data[name] = np.full(shape, -1, dtype=np.int8)
+        else:
+            data[name] = np.full(shape, '', dtype=object)
+    if 'final_branch' in spec.metrics:
+        data['branch_code'] = np.full(shape, -1, dtype=np.int8)
+    data['error'] = np.full(shape, '', dtype=object)
+    data['wall_time_s'] = np.full(shape, np.nan)
+    for flat_index, point in enumerate(points):
+        index = np.unravel_index(flat_index, shape)
+        record = records.get(point.key)
+        if record is None:
+            failure = failures.get(point.key) or {}
+            data['error'][index] = failure.get('error') or 'not computed'
+            continue
+        metrics = record['metrics']
+        for name in spec.metrics:
+            kind = METRICS[name][0]
+            value = metrics.get(name)
+            if kind == 'float':
+                data[name][index] = np.nan if value is None else float(value)
+            elif kind == 'bool':
+                data[name][index] = int(bool(value))
+            else:
+                data[name][index] = '' if value is None else str(value)
+        if 'branch_code' in data:
+            data['branch_code'][index] = BRANCH_CODES.get(metrics.get('final_branch'), -1)
+        wall = record.get('wall_time_s')
+        data['wall_time_s'][index] = np.nan if wall is None else float(wall)
+    coords = {}
+    for axis in spec.axes:
+        values = np.array(axis.values)
+        if values.dtype.kind in 'US':
+            values = values.astype(object)
+        coords[axis.name] = xr.Variable(axis.name, values,
+                                        attrs={'units': axis.unit, 'spacing': axis.spacing})
+    variables = {}
+    for name, values in data.items():
+        if values.dtype == object:
+            values = values.astype(str)
+        attrs: Dict[str, Any] = {}
+        if name in METRICS:
+            kind, unit, meaning = METRICS[name]
+            attrs = {'units': unit, 'long_name': meaning}
+            if kind == 'bool':
+                attrs.update(flag_values=np.array([0, 1], dtype=np.int8),
+                             flag_meanings='false true', comment=NO_VALUE)
+        elif name == 'branch_code':
+            attrs = {'long_name': 'final branch code (the jump map)',
+                     'flag_values': np.array([0, 1, 2], dtype=np.int8),
+                     'flag_meanings': 'lower upper contact',
+                     'comment': NO_VALUE + ' or no drive'}
+        elif name == 'error':
+            attrs = {'long_name': "'' or the exception of a failed point"}
+        else:
+            attrs = {'units': 's', 'long_name': 'wall time of the point (not reproducible)'}
+        variables[name] = (dims, values, attrs)
+    attrs = {'title': 'ring_gyro sweep', 'package_version': __version__,
+             'base_parameters': _json(spec.base), 'base_path': str(spec.base_path or ''),
+             'set': _json(spec.fixed), 'spec': _json(spec.describe()),
+             'points': int(spec.size)}
+    return xr.Dataset(variables, coords=coords, attrs=attrs)
+
+
+def write_results(ds, out_dir) -> Dict[str, str]:
+    """Write ``results.nc`` (netCDF4) and ``results.csv`` into ``out_dir``; their paths."""
+    from pathlib import Path
+    out = Path(out_dir)
+    nc = out / 'results.nc'
+    csv = out / 'results.csv'
+    tmp = out / '.results.nc.tmp'
+    ds.to_netcdf(tmp, engine='netcdf4')
+    tmp.replace(nc)
+    frame = ds.to_dataframe().reset_index()
+    frame.to_csv(csv, index=False)
+    return {'netcdf': str(nc), 'csv': str(csv)}
+
+
+def open_results(path):
+    """Open a ``results.nc`` fully into memory (file closed afterwards)."""
+    import xarray as xr
+    with xr.open_dataset(path, engine='netcdf4') as ds:
+        return ds.load()
+
+
+def comparable(ds) -> List[str]:
+    """Names of the variables that two runs of one sweep must give identically."""
+    return [n for n in ds.data_vars if n not in REPRODUCIBLE_EXCLUDED]

@@ -1,0 +1,131 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The point store of a sweep: one small JSON file per finished point, written atomically.
+
+``DIR/points/<key>.json`` holds a computed point (metrics, wall time, worker),
+``DIR/failed/<key>.json`` one that raised or whose worker died: failures are retried by
+``--resume``, computed points never are. A file is written to a temporary name in the same
+directory, flushed to disk (``fsync``) and renamed with ``os.replace``: a reader (or a
+resumed sweep) sees the whole record or none, whatever was killed when. Both the worker
+that computed a point (when it sees the directory) and the client (on receipt) store it;
+the two records are the same point, so whichever lands last is as good.
+
+Non-finite floats are written as ``null`` (strict JSON) and read back as nan.
+"""
+
+import json
+import math
+import os
+from pathlib import Path
+import tempfile
+from typing import Any, Dict, Iterator, Optional
+
+__all__ = ['PointStore']
+
+
+def _strict(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _strict(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_strict(v) for v in value]
+    return value
+
+
+class PointStore:
+    """
+    The ``points/`` and ``failed/`` directories of one sweep output directory.
+
+    Parameters
+    ----------
+    root : str or path-like
+        The sweep's ``--out`` directory.
+    create : bool
+        Create the directories (the client); False: use them only if they are there.
+
+    """
+
+    def __init__(self, root, create: bool = True) -> None:
+        self.root = Path(root)
+        self.points = self.root / 'points'
+        self.failed = self.root / 'failed'
+        if create:
+            self.points.mkdir(parents=True, exist_ok=True)
+            self.failed.mkdir(parents=True, exist_ok=True)
+
+    @staticmethod
+    def reachable(root) -> bool:
+        """Tell whether ``root`` holds a point store (a worker on another machine: no)."""
+        return os.path.isdir(os.path.join(root, 'points'))
+
+    def path(self, key: str, failed: bool = False) -> Path:
+        """Return the file of point ``key``."""
+        return (self.failed if failed else self.points) / f'{key}.json'
+
+    def write(self, record: Dict[str, Any]) -> Path:
+        """Store ``record`` atomically (a failure under ``failed/``); return its path."""
+        failed = record.get('error') is not None
+        target = self.path(record['key'], failed)
+        text = json.dumps(_strict(record), sort_keys=True, allow_nan=False)
+        fd, tmp = tempfile.mkstemp(prefix=f'.{record["key"]}.', suffix='.tmp',
+                                   dir=target.parent)
+        try:
+            with os.fdopen(fd, 'w', encoding='utf-8') as fh:
+                fh.write(text)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, target)
+        except BaseException:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+            raise
+        if not failed:
+            try:
+                self.path(record['key'], failed=True).unlink()
+            except FileNotFoundError:
+                pass
+        return target
+
+    def read(self, key: str) -> Optional[Dict[str, Any]]:
+        """Return the computed record of ``key`` (None: not computed, or unreadable)."""
+        try:
+            text = self.path(key).read_text(encoding='utf-8')
+            record = json.loads(text)
+        except (OSError, ValueError):
+            return None
+        if not isinstance(record, dict) or record.get('key') != key or \
+                record.get('metrics') is None:
+            return None
+        return record
+
+    def has(self, key: str) -> bool:
+        """Tell whether point ``key`` is computed (its file exists)."""
+        return self.path(key).is_file()
+
+    def keys(self) -> Iterator[str]:
+        """Yield the keys of the computed points."""
+        for p in self.points.glob('*.json'):
+            yield p.stem
+
+    def read_failure(self, key: str) -> Optional[Dict[str, Any]]:
+        """Return the failure record of ``key`` (None: none)."""
+        try:
+            return json.loads(self.path(key, failed=True).read_text(encoding='utf-8'))
+        except (OSError, ValueError):
+            return None

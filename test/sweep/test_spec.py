@@ -1,0 +1,138 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Tests of sweep/spec.py: the spec format, names with [i], ranges, keys, refusals."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.sweep import load_spec, parse_spec, SweepSpecError
+from sweep_harness import REPO, TINY, write_spec
+import yaml
+
+
+def spec_of(text, tmp_path=None):
+    return parse_spec(yaml.safe_load(text), directory=str(tmp_path or '.'))
+
+
+def test_tiny_spec_points_in_c_order_with_q1_by_index(tmp_path):
+    spec = load_spec(str(write_spec(tmp_path)))
+    assert spec.shape == (2, 2) and spec.size == 4
+    points = spec.points()
+    assert [p.coords for p in points] == [
+        (('shock.peak_g', 2000.0), ('shock.phase', 0.0)),
+        (('shock.peak_g', 2000.0), ('shock.phase', 0.5)),
+        (('shock.peak_g', 8000.0), ('shock.phase', 0.0)),
+        (('shock.peak_g', 8000.0), ('shock.phase', 0.5))]
+    cfg = points[0].case_spec().config(None, spec.output_rate_hz)
+    default = build_config({})
+    # modes.quality_factors[0] replaces Q_1 only, the other Q from the base
+    assert cfg.modes.quality_factors == (40000.0,) + default.modes.quality_factors[1:]
+    assert len({p.key for p in points}) == 4
+
+
+def test_linear_and_log_ranges_include_their_ends():
+    spec = spec_of("""
+duration: 1.0
+axes:
+  shock.peak_g: {linear: [1000, 12000, 8]}
+  modes.quality_factors[0]: {log: [5000, 180000, 8]}
+""")
+    g, q = spec.axes
+    np.testing.assert_allclose(g.values, np.linspace(1000.0, 12000.0, 8))
+    np.testing.assert_allclose(q.values, np.geomspace(5000.0, 180000.0, 8))
+    assert (g.spacing, q.spacing) == ('linear', 'log')
+    assert (g.unit, q.unit) == ('g', '-')
+    assert spec.plot_axes == ('shock.peak_g', 'modes.quality_factors[0]')
+
+
+def test_a_point_key_is_its_content_not_its_spelling():
+    a = spec_of('duration: 1.0\naxes:\n  modes.quality_factors[0]: [5000, 20000]\n')
+    b = spec_of('duration: 1.0\nset: {shock.peak_g: 0}\n'
+                'axes:\n  modes.quality_factors[0]: [20000.0, 5000.0]\n')
+    assert a.points()[0].key == b.points()[1].key
+    c = spec_of('duration: 2.0\naxes:\n  modes.quality_factors[0]: [5000, 20000]\n')
+    assert c.points()[0].key != a.points()[0].key     # the run length is part of the point
+
+
+def test_the_case4_example_is_the_papers_case4():
+    spec = load_spec(str(REPO / 'config' / 'sweep_case4.yaml'))
+    assert spec.base_path == str(REPO / 'config' / 'default.yaml')
+    assert spec.axes[0].name == 'modes.quality_factors[0]'
+    assert spec.axes[0].values == (5000.0, 20000.0, 40000.0, 80000.0, 120000.0, 180000.0)
+    assert spec.fixed['shock.peak_g'] == 10000.0 and spec.duration_s == 30.0
+
+
+@pytest.mark.parametrize('text, message', [
+    ('duration: 1\naxes:\n  modes.quality_factor[0]: [1.0]', 'unknown parameter'),
+    ('duration: 1\naxes: {modes.quality_factors: [1.0]}', 'sweep one element'),
+    ('duration: 1\naxes:\n  modes.quality_factors[3]: [1.0]', 'index 3 is beyond'),
+    ('duration: 1\naxes:\n  drive.frequency[0]: [1.0]', 'list parameters only'),
+    ('duration: 1\naxes: {shock.peak: [1.0]}', 'scenario inputs: shock.peak_g'),
+    ('duration: 1\naxes: {shock.phase: [1.0]}', 'must be in [0, 1)'),
+    ('duration: 1\naxes: {shock.angle_deg: [30.0]}', 'needs modes.companions'),
+    ('duration: 1\naxes: {electrodes.gap: [-1.0]}', 'electrodes.gap'),
+    ('duration: 1\naxes: {shock.peak_g: {log: [0, 10, 3]}}', 'must be > 0'),
+    ('duration: 1\naxes: {shock.peak_g: {linear: [1, 10]}}', '[start, stop, count]'),
+    ('duration: 1\naxes: {shock.peak_g: [1.0, 1.0]}', 'given twice'),
+    ('duration: 1\naxes: {duration: [1.0]}', 'spec keys duration'),
+    ('duration: 1\naxes: {shock.peak_g: [1.0]}\nmetrics: [final_brunch]', 'unknown'),
+    ('duration: 1\naxes: {shock.peak_g: [1.0]}\nplot: {x: drive.frequency}', 'not an axis'),
+    ('duration: 1\naxis: {shock.peak_g: [1.0]}', "unknown key(s) ['axis']"),
+    ('axes: {shock.peak_g: [1.0]}', 'give the simulated time'),
+    ('duration: 1\nset: {shock.peak_g: 1.0}\naxes: {shock.peak_g: [2.0]}', 'also under set'),
+])
+def test_bad_specs_are_refused_naming_the_key(text, message):
+    with pytest.raises(SweepSpecError, match=None) as info:
+        spec_of(text)
+    assert message in str(info.value), str(info.value)
+
+
+def test_duplicate_keys_and_base_shocks_are_refused(tmp_path):
+    path = write_spec(tmp_path, TINY + '  shock.phase: [0.25]\n', 'dup.yaml')
+    with pytest.raises(SweepSpecError, match="'shock.phase': given twice"):
+        load_spec(str(path))
+    base = tmp_path / 'base.yaml'
+    base.write_text('ring_gyro:\n  ros__parameters:\n    scenario:\n      shock_times: [0.1]\n'
+                    '      shock_peaks: [1000.0]\n', encoding='utf-8')
+    path = write_spec(tmp_path, f'base: {base.name}\n' + TINY, 'based.yaml')
+    with pytest.raises(SweepSpecError, match='schedules shocks'):
+        load_spec(str(path))
+
+
+def test_base_file_goes_through_the_params_file_check(tmp_path):
+    base = tmp_path / 'base.yaml'
+    base.write_text('ring_gyro:\n  ros__parameters:\n    drive:\n      frequncy: 1.0\n',
+                    encoding='utf-8')
+    path = write_spec(tmp_path, f'base: {base.name}\n' + TINY, 'based.yaml')
+    with pytest.raises(ValueError, match='drive.frequncy'):
+        load_spec(str(path))
+    assert Path(path).is_file()
+
+
+def test_the_sweep_verb_refuses_a_bad_spec_naming_the_key(tmp_path, capsys):
+    from ring_gyro_sim import cli
+    bad = write_spec(tmp_path, 'duration: 1\naxes:\n  modes.quality_factors[7]: [1.0]\n')
+    assert cli.main(['sweep', str(bad), '--out', str(tmp_path / 'o')]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith('ring_gyro sweep: error: sweep spec') and 'index 7' in err
+    good = write_spec(tmp_path)
+    assert cli.main(['sweep', str(good), '--out', str(tmp_path / 'o'), '--workers', '2',
+                     '--scheduler', 'tcp://127.0.0.1:1']) == 1
+    assert '--workers: applies to the local cluster only' in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(['--help'])
+    assert 'sweep' in capsys.readouterr().out
