@@ -84,7 +84,7 @@ import re
 import signal
 import sys
 import time
-from typing import Dict, Optional, Tuple
+from typing import Optional
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import AccelStamped, Vector3Stamped
@@ -104,6 +104,7 @@ from ring_gyro_sim.recording.errors import RecordingError
 from ring_gyro_sim.ros import conversions, EARLY_SIGNALS, parameters, qos
 from ring_gyro_sim.ros.recorder import RunRecorder
 from ring_gyro_sim.ros.sinks import Publishers, RosSink
+from ring_gyro_sim.ros.throttle import ThrottledWarnings
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
@@ -177,7 +178,8 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         self.block_samples = block_samples
         self.total_samples = (int(round(config.run.duration * config.run.output_rate))
                               if config.run.duration > 0.0 else 0)
-        self._reject_log: Dict[Tuple[str, str], Tuple[float, int]] = {}
+        self._reject_log = ThrottledWarnings(lambda text: self.get_logger().warn(text),
+                                             REJECT_LOG_PERIOD_S)
         self._ignored_z = set()
         self._contact_logged = False
         self._input_subs = [
@@ -342,16 +344,8 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         return True
 
     def _log_reject(self, topic: str, reason: str) -> None:
-        """Log a refused input, at most every few seconds per topic and kind."""
-        kind = (topic, _NUMBER.sub('#', reason))
-        now = time.monotonic()
-        last, suppressed = self._reject_log.get(kind, (-math.inf, 0))
-        if now - last < REJECT_LOG_PERIOD_S:
-            self._reject_log[kind] = (last, suppressed + 1)
-            return
-        more = f' ({suppressed} more like it since the last message)' if suppressed else ''
-        self.get_logger().warn(f'rejected ~/{topic}: {reason}{more}')
-        self._reject_log[kind] = (now, 0)
+        """Log a refused input, at most every few seconds per topic and kind of reason."""
+        self._reject_log((topic, _NUMBER.sub('#', reason)), f'rejected ~/{topic}: {reason}')
 
     def _warn_z(self, topic: str, z: float) -> None:
         if z != 0.0 and math.isfinite(z) and topic not in self._ignored_z:

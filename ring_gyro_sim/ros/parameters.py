@@ -46,7 +46,6 @@ Refusals rclpy makes itself
 """
 
 import math
-import time
 from typing import Any, Dict, Iterable, List, Mapping, Optional, Tuple
 
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
@@ -58,6 +57,7 @@ from ring_gyro_sim.core import params
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.paramfile import is_ros_parameter, ROS_OWN_PARAMETERS, \
     unknown_parameter_message
+from ring_gyro_sim.ros.throttle import ThrottledWarnings
 
 __all__ = ['CountedParameterRefusals', 'declare_parameters', 'descriptor', 'plain',
            'REFUSAL_KINDS', 'ROS_OWN_PARAMETERS', 'unknown_overrides', 'updated_config']
@@ -258,7 +258,8 @@ class CountedParameterRefusals:
 
     def __init__(self, *args, **kwargs) -> None:
         self.parameter_refusals: Dict[str, int] = {kind: 0 for kind in REFUSAL_KINDS}
-        self._refusal_log: Dict[Tuple[str, str], Tuple[float, int]] = {}
+        self._refusal_log = ThrottledWarnings(lambda text: self.get_logger().warn(text),
+                                              REFUSAL_LOG_PERIOD_S)
         super().__init__(*args, **kwargs)
 
     def set_parameters_atomically(self, parameter_list: List[Parameter]) -> SetParametersResult:
@@ -300,15 +301,7 @@ class CountedParameterRefusals:
 
     def on_parameter_refusal(self, kind: str, name: str, reason: str) -> None:
         """Log a refusal, at most every REFUSAL_LOG_PERIOD_S per kind and name."""
-        now = time.monotonic()
-        key = (kind, name)
-        last, suppressed = self._refusal_log.get(key, (-math.inf, 0))
-        if now - last < REFUSAL_LOG_PERIOD_S:
-            self._refusal_log[key] = (last, suppressed + 1)
-            return
-        more = f' ({suppressed} more like it since the last message)' if suppressed else ''
-        self.get_logger().warn(f'parameter change refused ({kind}): {reason}{more}')
-        self._refusal_log[key] = (now, 0)
+        self._refusal_log((kind, name), f'parameter change refused ({kind}): {reason}')
 
     def _refuse(self, kind: str, name: str, reason: str) -> SetParametersResult:
         self.parameter_refusals[kind] += 1
