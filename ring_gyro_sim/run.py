@@ -36,7 +36,8 @@ When inputs act (``apply``)
     A stamp more than ``inputs.horizon`` ahead of the simulation time is refused, so that one
     message stamped in 2038 cannot lock a topic or hold a constant force for decades. At most
     :data:`MAX_PENDING_SHOCKS` shocks that have not ended and
-    :data:`MAX_PENDING_BASE_ACCELERATION` future base-acceleration samples are held. Drive,
+    :data:`MAX_PENDING_BASE_ACCELERATION` future base-acceleration samples are held, and at
+    most :data:`MAX_SHOCKS_PER_BLOCK` shocks are accepted between two blocks. Drive,
     reset and parameter changes act at the current simulation time. A refused input changes
     nothing, is counted per topic (``rejected_<topic>`` on the diagnostics) and raises
     :class:`~ring_gyro_sim.core.errors.InputError` (or ``ParameterError``) with the reason.
@@ -67,13 +68,17 @@ from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.core.simulator import channel_names, Samples, Simulator, Status
 
 __all__ = ['BaseAcceleration', 'Block', 'Diagnostics', 'DriveAmplitude', 'DriveFrequency',
-           'Input', 'MAX_PENDING_BASE_ACCELERATION', 'MAX_PENDING_SHOCKS', 'NullSink',
+           'Input', 'MAX_PENDING_BASE_ACCELERATION', 'MAX_PENDING_SHOCKS',
+           'MAX_SHOCKS_PER_BLOCK', 'NullSink',
            'PARAMETER_REFUSAL_KINDS',
            'Pacing', 'ParameterChange', 'Reset', 'Run', 'RunStats', 'RunSummary', 'Shock',
            'Sink', 'channel_names', 'format_number']
 
 MAX_PENDING_SHOCKS = 1000
 """Shocks accepted and not over yet; beyond this a shock is refused."""
+MAX_SHOCKS_PER_BLOCK = 10
+"""Shocks accepted between two blocks; beyond this one is refused (each costs sub-steps:
+a 10 000 /s flood must not buy unbounded work per block, nor vanish uncounted)."""
 MAX_PENDING_BASE_ACCELERATION = 100_000
 """Base-acceleration samples stamped in the future; beyond this one is refused."""
 SUMMARY_WINDOW_S = 0.01
@@ -411,6 +416,7 @@ class Run:
         self._to_sink: List[Tuple[int, int, Input]] = []  # heap of (acting ns, seq, input)
         self._seq = 0
         self._shock_ends: List[int] = []  # heap of end times of accepted shocks, ns
+        self._shocks_this_block = 0
         self._future_profile: List[int] = []  # heap of future base-acceleration stamps, ns
         for at_ns, x, y in config.run.scheduled_shocks():
             # The Simulator scheduled these itself; recorded on ~/shock as if they had arrived.
@@ -539,7 +545,11 @@ class Run:
             at_ns = self.acting_time(event.at_ns)
             if len(self._shock_ends) >= MAX_PENDING_SHOCKS:
                 raise InputError(f'{MAX_PENDING_SHOCKS} shocks are already pending')
+            if self._shocks_this_block >= MAX_SHOCKS_PER_BLOCK:
+                raise InputError(f'{MAX_SHOCKS_PER_BLOCK} shocks were already accepted since '
+                                 f'the last block (a flood)')
             self.sim.shock(event.x, event.y, at_ns=at_ns)
+            self._shocks_this_block += 1
         else:
             at_ns = int(event.at_ns)
         heapq.heappush(self._shock_ends,
@@ -599,6 +609,7 @@ class Run:
             self._wall0 = self._clock()
         sim = self.sim
         first = sim.sample_index
+        self._shocks_this_block = 0
         samples = sim.advance_samples(int(n_samples))
         end_ns = sim.time_ns
         self._flush_inputs(end_ns)

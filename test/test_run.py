@@ -178,3 +178,14 @@ def test_a_huge_value_is_summarised_in_exponent_form():
     assert run_mod.format_number(1.7e308) == '1.7000e+308'
     assert run_mod.format_number(1.7e302, 1e6) == '1.7000e+308'
     assert run_mod.format_number(5.7465e-6, 1e6) == '5.7465'
+
+
+def test_at_most_max_shocks_per_block_are_accepted_between_blocks():
+    run = rest_run()
+    for k in range(run_mod.MAX_SHOCKS_PER_BLOCK):
+        run.apply(Shock(x=1.0, at_ns=(k + 1) * 100_000))
+    with pytest.raises(InputError, match='since the last block'):
+        run.apply(Shock(x=1.0, at_ns=5_000_000))
+    run.advance(BLOCK)
+    run.apply(Shock(x=1.0, at_ns=15_000_000))  # a new block: taken again
+    assert run.rejected['shock'] == 1 and run.accepted['shock'] == run_mod.MAX_SHOCKS_PER_BLOCK + 1

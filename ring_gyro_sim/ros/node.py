@@ -290,8 +290,8 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         drain at one message per tick, a later input would act seconds late, and the
         middleware would overwrite the oldest waiting messages, which nobody can count
         (no RMW reports a keep-last overwrite). Taken, every message is either applied or
-        refused and counted by the run (at most ``run.MAX_PENDING_SHOCKS`` shocks pending
-        bound the work a flood can buy). The queues hold 1000 shocks or samples: a flood
+        refused and counted by the run (``run.MAX_SHOCKS_PER_BLOCK`` shocks per block and
+        ``run.MAX_PENDING_SHOCKS`` pending bound the work a flood can buy). The queues hold 1000 shocks or samples: a flood
         loses messages in the middleware only beyond 1000 per tick (<= 20 ms), and those
         the RMW reports lost are counted (``lost_inputs``).
         """
