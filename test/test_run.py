@@ -188,4 +188,5 @@ def test_at_most_max_shocks_per_block_are_accepted_between_blocks():
         run.apply(Shock(x=1.0, at_ns=5_000_000))
     run.advance(BLOCK)
     run.apply(Shock(x=1.0, at_ns=15_000_000))  # a new block: taken again
-    assert run.rejected['shock'] == 1 and run.accepted['shock'] == run_mod.MAX_SHOCKS_PER_BLOCK + 1
+    assert run.rejected['shock'] == 1
+    assert run.accepted['shock'] == run_mod.MAX_SHOCKS_PER_BLOCK + 1
