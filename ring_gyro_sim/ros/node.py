@@ -291,9 +291,9 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         middleware would overwrite the oldest waiting messages, which nobody can count
         (no RMW reports a keep-last overwrite). Taken, every message is either applied or
         refused and counted by the run (``run.MAX_SHOCKS_PER_BLOCK`` shocks per block and
-        ``run.MAX_PENDING_SHOCKS`` pending bound the work a flood can buy). The queues hold 1000 shocks or samples: a flood
-        loses messages in the middleware only beyond 1000 per tick (<= 20 ms), and those
-        the RMW reports lost are counted (``lost_inputs``).
+        ``run.MAX_PENDING_SHOCKS`` pending bound the work a flood can buy). The queues hold
+        1000 shocks or samples: a flood loses messages in the middleware only beyond 1000 per
+        tick (<= 20 ms), and those the RMW reports lost are counted (``lost_inputs``).
         """
         for sub, handler, most in self._input_subs:
             for _ in range(most):
