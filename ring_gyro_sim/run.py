@@ -63,11 +63,12 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
+from ring_gyro_sim.core.electronics import DemodSamples, RateSamples
 from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.core.simulator import channel_names, Samples, Simulator, Status
 
-__all__ = ['BaseAcceleration', 'Block', 'Diagnostics', 'DriveAmplitude', 'DriveFrequency',
+__all__ = ['AngularRate', 'BaseAcceleration', 'Block', 'Diagnostics', 'DriveAmplitude', 'DriveFrequency',
            'Input', 'MAX_PENDING_BASE_ACCELERATION', 'MAX_PENDING_SHOCKS',
            'MAX_SHOCKS_PER_BLOCK', 'NullSink',
            'PARAMETER_REFUSAL_KINDS',
@@ -87,7 +88,7 @@ PARAMETER_REFUSAL_KINDS = ('undeclared', 'read_only', 'range', 'invalid')
 """Kinds of refused parameter changes: the first three are refused by ROS before the run
 sees them (``ros/parameters.py``), ``invalid`` by the run's validation."""
 INPUT_TOPICS = ('shock', 'base_acceleration', 'drive/amplitude', 'drive/frequency',
-                'events/reset', 'events/parameters')
+                'events/reset', 'events/parameters', 'angular_rate')
 """Input topics (relative names) in the order the diagnostics list their counts."""
 
 
@@ -153,7 +154,24 @@ class ParameterChange:
     topic = 'events/parameters'
 
 
-Input = Union[Shock, BaseAcceleration, DriveAmplitude, DriveFrequency, Reset, ParameterChange]
+@dataclass(frozen=True)
+class AngularRate:
+    """
+    Angular rate of the sensor frame about z (the ring's axis), rad/s, REP-103 sign.
+
+    It steps to ``z`` at ``at_ns`` and holds (needs ``gyro.enabled``). ``x`` and ``y`` (about
+    in-plane axes) are not modelled: they must be finite and are otherwise ignored.
+    """
+
+    z: float
+    at_ns: Optional[int] = None
+    x: float = 0.0
+    y: float = 0.0
+    topic = 'angular_rate'
+
+
+Input = Union[Shock, BaseAcceleration, DriveAmplitude, DriveFrequency, Reset, ParameterChange,
+              AngularRate]
 
 
 # ---------------------------------------------------------------------------------- outputs
@@ -170,12 +188,17 @@ class Block:
         Simulation time of the last sample, ns (the block's log time).
     first_index : int
         Global index of the first sample (sample ``i`` is at ``(i + 1) * period``).
+    rate, demod : RateSamples, DemodSamples or None
+        With ``gyro.enabled``: the rate output (``~/rate``, at ``gyro.output_rate``) and the
+        demodulator's channels at every sample (``~/demodulator``); None otherwise.
 
     """
 
     samples: Samples
     end_ns: int
     first_index: int
+    rate: Optional[RateSamples] = None
+    demod: Optional[DemodSamples] = None
 
     def __len__(self) -> int:
         return len(self.samples)

@@ -309,6 +309,48 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
     ParamSpec('scenario.shock_angles', 'run.shock_angles', 'float_list', [], 'deg',
               'direction of each scheduled shock, from x towards y (empty = all along x; '
               'else the same length as scenario.shock_times)'),
+    ParamSpec('scenario.rate_times', 'run.rate_times', 'float_list', [], 's',
+              'knots of the scheduled angular-rate profile (non-decreasing; a repeated time '
+              'is a step); the rate is linear between knots and held after the last',
+              **_TIME),
+    ParamSpec('scenario.rate_values', 'run.rate_values', 'float_list', [], 'rad/s',
+              'angular rate about z (REP-103: counter-clockwise seen from +z) at each knot '
+              '(same length as scenario.rate_times); needs gyro.enabled'),
+    ParamSpec('gyro.enabled', 'gyro.enabled', 'bool', False, '-',
+              'the gyroscope: rotation of the sensor frame (Coriolis coupling), sense '
+              'electronics, ~/rate and ~/demodulator; needs modes.companions (the sense mode '
+              'is the sin 2theta companion)'),
+    ParamSpec('gyro.frame_id', 'gyro.frame_id', 'str', 'ring_gyro', '-',
+              'header.frame_id of ~/rate (REP-105: the sensor frame, z along the ring axis)'),
+    ParamSpec('gyro.output_rate', 'gyro.output_rate', 'float', 1000.0, 'Hz',
+              'rate samples per second on ~/rate (output.rate must be a whole multiple)',
+              **_POSITIVE),
+    ParamSpec('gyro.filter_bandwidth', 'gyro.filter_bandwidth', 'float', 100.0, 'Hz',
+              '-3 dB cut-off of the demodulator low-pass (Butterworth); below half of '
+              'gyro.output_rate', **_POSITIVE),
+    ParamSpec('gyro.filter_order', 'gyro.filter_order', 'int', 4, '-',
+              'order of the demodulator low-pass', 1, 8,
+              range_note='a Butterworth of order 1-8 in second-order sections'),
+    ParamSpec('gyro.bias_voltage', 'gyro.bias_voltage', 'float', 0.0, 'V',
+              'bias of the sense electrodes seen by the charge amplifier '
+              '(0 = electrodes.outer_voltage)', **_NON_NEGATIVE),
+    ParamSpec('gyro.feedback_capacitance', 'gyro.feedback_capacitance', 'float', 1e-12, 'F',
+              'feedback capacitance C_f of the charge amplifier', **_POSITIVE),
+    ParamSpec('gyro.parasitic_capacitance', 'gyro.parasitic_capacitance', 'float', 1e-12,
+              'F', 'parasitic capacitance at the charge amplifier input (noise gain)',
+              **_NON_NEGATIVE),
+    ParamSpec('gyro.input_noise_density', 'gyro.input_noise_density', 'float', 10e-9,
+              'V/sqrt(Hz)', 'input-referred voltage noise density of the charge amplifier '
+              '(white; 0 = none)', **_NON_NEGATIVE),
+    ParamSpec('gyro.temperature', 'gyro.temperature', 'float', 300.0, 'K',
+              'temperature of the thermomechanical (Brownian) force noise of every mode '
+              '(0 = none)', **_NON_NEGATIVE),
+    ParamSpec('gyro.bias_instability', 'gyro.bias_instability', 'float', 0.0, 'deg/h',
+              'flicker (1/f) rate noise stated as the datasheet bias instability (0 = none)',
+              **_NON_NEGATIVE),
+    ParamSpec('gyro.noise_seed', 'gyro.noise_seed', 'int', 0, '-',
+              'seed of every random stream (recorded with the run; same seed, same noise)',
+              0, 2 ** 63 - 1, range_note='a 64-bit key of the counter-based generator'),
 )
 
 SPECS: Dict[str, ParamSpec] = {p.name: p for p in PARAMETERS}
@@ -559,6 +601,36 @@ class DriveParams:
     start_on: str
 
 
+@_parameter_group('gyro')
+class GyroParams:
+    """
+    The gyroscope: rotation input, sense electronics, rate output and noise (doc/gyroscope.md).
+
+    Off by default (the paper's resonator). On, the sensor frame rotates at the scheduled or
+    streamed rate, the Coriolis coupling acts between every q_n and q_n^s, and the sense
+    electronics turn the sense electrodes' capacitances into ``~/rate``.
+    """
+
+    enabled: bool
+    frame_id: str
+    output_rate: float
+    filter_bandwidth: float
+    filter_order: int
+    bias_voltage: float
+    feedback_capacitance: float
+    parasitic_capacitance: float
+    input_noise_density: float
+    temperature: float
+    bias_instability: float
+    noise_seed: int
+
+    def _check(self) -> None:
+        if self.filter_bandwidth >= 0.5 * self.output_rate:
+            raise _fail('gyro.filter_bandwidth',
+                        f'must be below half of gyro.output_rate ({self.output_rate:g} Hz): '
+                        f'the low-pass is the anti-alias filter of ~/rate')
+
+
 @_parameter_group('integrator')
 class IntegratorParams:
     """Choice of the splitting method and of the largest step, s."""
@@ -581,6 +653,8 @@ class RunParams:
     shock_times: Tuple[float, ...]
     shock_peaks: Tuple[float, ...]
     shock_angles: Tuple[float, ...]
+    rate_times: Tuple[float, ...]
+    rate_values: Tuple[float, ...]
     record_topics: Tuple[str, ...]
     record_decimation: int
     record_compression: str
@@ -598,6 +672,12 @@ class RunParams:
             raise _fail('scenario.shock_peaks',
                         f'has {len(self.shock_peaks)} values but scenario.shock_times has '
                         f'{len(self.shock_times)}')
+        if len(self.rate_values) != len(self.rate_times):
+            raise _fail('scenario.rate_values',
+                        f'has {len(self.rate_values)} values but scenario.rate_times has '
+                        f'{len(self.rate_times)}')
+        if any(b < a for a, b in zip(self.rate_times, self.rate_times[1:])):
+            raise _fail('scenario.rate_times', 'must not decrease (a repeated time is a step)')
         if self.shock_angles and len(self.shock_angles) != len(self.shock_times):
             raise _fail('scenario.shock_angles',
                         f'has {len(self.shock_angles)} values but scenario.shock_times has '
@@ -635,6 +715,7 @@ class SimConfig:
     modes: ModeParams = field(default_factory=ModeParams)
     electrodes: ElectrodeParams = field(default_factory=ElectrodeParams)
     drive: DriveParams = field(default_factory=DriveParams)
+    gyro: GyroParams = field(default_factory=GyroParams)
     integrator: IntegratorParams = field(default_factory=IntegratorParams)
     run: RunParams = field(default_factory=RunParams)
 
@@ -650,6 +731,20 @@ class SimConfig:
                 y != 0.0 for _, _, y in self.run.scheduled_shocks()):
             raise _fail('scenario.shock_angles',
                         'a shock off the x axis drives q1s: needs modes.companions')
+        if self.gyro.enabled and not self.modes.companions:
+            raise _fail('gyro.enabled', 'needs modes.companions: true (the sense mode is the '
+                        'sin 2theta companion q2s)')
+        if self.run.rate_values and not self.gyro.enabled:
+            raise _fail('scenario.rate_values', 'a rate acts on the gyroscope: needs '
+                        'gyro.enabled: true')
+        if self.gyro.enabled:
+            if self.modes.count < 2:
+                raise _fail('gyro.enabled', 'needs at least 2 modes (the 2theta pair)')
+            ratio = self.run.output_rate / self.gyro.output_rate
+            if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
+                raise _fail('gyro.output_rate',
+                            f'output.rate ({self.run.output_rate:g} Hz) must be a whole '
+                            f'multiple of it, got {self.gyro.output_rate:g} Hz')
         if self.drive.amplitude != 0.0 and self.modes.count < 2:
             raise _fail('drive.amplitude', 'drives the 2theta mode: needs at least 2 modes')
         self._check_voltages()
