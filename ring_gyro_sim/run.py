@@ -68,7 +68,8 @@ from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.core.simulator import channel_names, Samples, Simulator, Status
 
-__all__ = ['AngularRate', 'BaseAcceleration', 'Block', 'Diagnostics', 'DriveAmplitude', 'DriveFrequency',
+__all__ = ['AngularRate', 'BaseAcceleration', 'Block', 'Diagnostics', 'DriveAmplitude',
+           'DriveFrequency',
            'Input', 'MAX_PENDING_BASE_ACCELERATION', 'MAX_PENDING_SHOCKS',
            'MAX_SHOCKS_PER_BLOCK', 'NullSink',
            'PARAMETER_REFUSAL_KINDS',
@@ -444,6 +445,10 @@ class Run:
         for at_ns, x, y in config.run.scheduled_shocks():
             # The Simulator scheduled these itself; recorded on ~/shock as if they had arrived.
             self._accept_shock(Shock(x=x, y=y, at_ns=at_ns))
+        for t_s, rate in zip(config.run.rate_times, config.run.rate_values):
+            # The knots of the scheduled profile (the Simulator has them), recorded on
+            # ~/angular_rate at their times: a linear profile's knots, not steps.
+            self._accepted(AngularRate(z=float(rate), at_ns=int(round(t_s * 1e9))))
         self.sink.start(self.start_state)
 
     # ------------------------------------------------------------------ properties
@@ -500,6 +505,9 @@ class Run:
         if isinstance(event, (Shock, BaseAcceleration)) and not all(
                 math.isfinite(v) for v in (event.x, event.y, event.z)):
             raise InputError(f'not finite: x = {event.x!r}, y = {event.y!r}, z = {event.z!r}')
+        if isinstance(event, AngularRate) and not all(
+                math.isfinite(v) for v in (event.x, event.y, event.z)):
+            raise InputError(f'not finite: x = {event.x!r}, y = {event.y!r}, z = {event.z!r}')
         if isinstance(event, Shock):
             return self._accept_shock(event, schedule=True)
         if isinstance(event, BaseAcceleration):
@@ -509,6 +517,9 @@ class Run:
             sim.add_base_acceleration(at_ns, event.x, event.y)
             heapq.heappush(self._future_profile, at_ns)
             event = replace(event, z=0.0)
+        elif isinstance(event, AngularRate):
+            at_ns = self.acting_time(event.at_ns)
+            sim.set_rate(at_ns, float(event.z))
         elif isinstance(event, DriveAmplitude):
             at_ns = self._now_only(event.at_ns)
             sim.set_drive(amplitude=float(event.value), at_ns=at_ns)
@@ -661,8 +672,8 @@ class Run:
         gap since the last snapshot), ``min_gap_ratio_run``, ``contact``, ``status``,
         ``rejected_inputs`` and ``rejected_<topic>`` per input topic,
         ``rejected_parameter_changes`` and ``rejected_parameter_<kind>`` (kinds of
-        :data:`PARAMETER_REFUSAL_KINDS`), ``lost_inputs`` (messages the middleware reports
-        lost), ``pending_shocks``, ``pending_inputs``, ``accepted_shocks``,
+        :data:`PARAMETER_REFUSAL_KINDS`), ``rejected_angular_rate``, ``lost_inputs`` (messages
+        the middleware reports lost), ``pending_shocks``, ``pending_inputs``, ``accepted_shocks``,
         ``drive_amplitude``, ``drive_frequency_hz``, ``withheld_nonfinite_blocks``.
         """
         sim = self.sim
@@ -691,6 +702,7 @@ class Run:
         values['rejected_parameter_changes'] = self.rejected['events/parameters']
         for kind, count in self.parameter_refusals.items():
             values[f'rejected_parameter_{kind}'] = count
+        values['rejected_angular_rate'] = self.rejected['angular_rate']
         values['lost_inputs'] = sum(self.lost.values())
         values['pending_shocks'] = self.pending_shocks
         values['pending_inputs'] = self.pending_inputs

@@ -28,6 +28,11 @@ Inputs and when they act
   between samples; the steps it overlaps are sub-stepped (``core/kernels.py``);
 * base-acceleration samples (:meth:`Simulator.add_base_acceleration`): exact times, linear
   interpolation between consecutive samples, zero before the first and after the last;
+* the angular rate of the sensor frame (``gyro.enabled``; :meth:`Simulator.set_rate` and
+  ``scenario.rate_*``): a profile of knots, linear between them, 0 before the first and held
+  after the last; a streamed value steps the rate at its exact time and replaces the knots
+  after it. Each integration step uses the rate at its middle (so a step of the rate acts
+  from the first step whose middle is past it: within h/2 of its time);
 * drive changes, reset and parameter changes: at the first sample time at or after the
   requested time (the current time if none is given). Drive frequency changes keep the drive
   phase continuous.
@@ -53,14 +58,19 @@ from typing import Any, Callable, List, Mapping, Optional, Tuple
 
 import numpy as np
 
-from ring_gyro_sim.core import forces, kernels
+from ring_gyro_sim.core import forces, kernels, noise, structure
 from ring_gyro_sim.core.errors import InputError, SimulationError
 from ring_gyro_sim.core.params import build_config, EPSILON_0, SimConfig, to_flat
 
-__all__ = ['STEPS_PER_PERIOD', 'STEP_HARMONICS', 'PULSE_SUBSTEPS_PER_DURATION',
+_EMPTY = np.empty(0)
+_NO_NOISE = np.empty((0, 1))
+
+__all__ = ['BOLTZMANN', 'STEPS_PER_PERIOD', 'STEP_HARMONICS', 'PULSE_SUBSTEPS_PER_DURATION',
            'GAP_GRID_POINTS_PER_MODE', 'ELECTRODE_GAUSS_POINTS', 'GAP_FLOOR_RATIO', 'Status',
            'default_max_step', 'Samples', 'Simulator']
 
+BOLTZMANN = 1.380649e-23
+"""Boltzmann constant, J/K (exact, SI 2019)."""
 STEPS_PER_PERIOD = 8
 """Default steps per period of the fastest step-setting mode (see :func:`default_max_step`)."""
 STEP_HARMONICS = 3
@@ -174,6 +184,11 @@ class Samples:
         Smallest outer gap around the ring, m.
     capacitance : ndarray, shape (K, E)
         Capacitance of each outer electrode, F (untruncated parallel plate).
+    drive_phase : ndarray, shape (K,) or None
+        Phase of the drive force ``A cos(phase)`` at each sample time, rad (the reference of
+        the sense electronics); None when the gyroscope is off.
+    rate : ndarray, shape (K,) or None
+        Angular rate of the sensor frame at each sample time, rad/s (None: gyroscope off).
 
     """
 
@@ -183,6 +198,8 @@ class Samples:
     gap: np.ndarray
     min_gap: np.ndarray
     capacitance: np.ndarray
+    drive_phase: Optional[np.ndarray] = None
+    rate: Optional[np.ndarray] = None
 
     def __len__(self) -> int:
         return int(self.t.size)
@@ -226,6 +243,12 @@ class Simulator:
         self._profile_x: List[float] = []
         self._profile_y: List[float] = []
         self._profile_head = 0
+        # The angular-rate profile: knots (ns, non-decreasing) and rates (rad/s).
+        self._rate_t: List[int] = []
+        self._rate_w: List[float] = []
+        for t_s, w in zip(config.run.rate_times, config.run.rate_values):
+            self._rate_t.append(int(round(t_s * 1e9)))
+            self._rate_w.append(float(w))
         self._events: List[Tuple[int, int, Callable[[], None]]] = []
         self._event_seq = 0
         # The drive's amplitude and frequency are those of the configuration in force (the one
@@ -261,7 +284,33 @@ class Simulator:
         self.coordinates = coordinate_names(config)
         self._y_index = config.modes.count if config.modes.companions else -1
         self._drive_index = 1 if config.modes.count >= 2 else -1
+        self._build_rotation(config)
         self._build_outputs(config)
+
+    def _build_rotation(self, config: SimConfig) -> None:
+        """Gyroscopic pairs, their coefficients and the force-noise levels (gyro.enabled)."""
+        n_modes = config.modes.count
+        self.gyro = bool(config.gyro.enabled)
+        if self.gyro:
+            self._pair_c = np.arange(n_modes, dtype=np.int64)
+            self._pair_s = np.arange(n_modes, 2 * n_modes, dtype=np.int64)
+            self._kappa = np.array([structure.gyroscopic_coefficient(n)
+                                    for n in range(1, n_modes + 1)])
+        else:
+            self._pair_c = self._pair_s = np.empty(0, dtype=np.int64)
+            self._kappa = np.empty(0)
+        # Thermomechanical force noise (fluctuation-dissipation): one-sided force PSD
+        # 4 k_B T m omega / Q per coordinate, i.e. a two-sided acceleration PSD
+        # 2 k_B T omega / (m Q); a velocity impulse of that variance times h at the start
+        # of every step has exactly that (flat) spectrum, and the exact linear flow between
+        # impulses makes the sampled response that of white noise (equipartition:
+        # <q^2> = k_B T / (m omega^2), tested).
+        temp = config.gyro.temperature if self.gyro else 0.0
+        masses = np.asarray(config.modal_masses(), dtype=np.float64)
+        self._noise_sigma = np.sqrt(2.0 * BOLTZMANN * temp * self.omega * self.h
+                                    / (masses * np.asarray(
+                                        config.modes.coordinate_quality_factors())))
+        self._noise_seed = int(config.gyro.noise_seed)
 
     def _build_outputs(self, config: SimConfig) -> None:
         e = config.electrodes
@@ -440,6 +489,40 @@ class Simulator:
         self._profile_x.append(float(ax))
         self._profile_y.append(float(ay))
 
+    def set_rate(self, at_ns: int, rate: float) -> None:
+        """
+        Step the angular rate of the sensor frame to ``rate`` (rad/s about z) at ``at_ns``.
+
+        The rate holds from then on; knots of the profile after ``at_ns`` are discarded (a
+        streamed value takes over from the scheduled profile).
+        """
+        if not self.gyro:
+            raise InputError('angular_rate: needs gyro.enabled (the rotation acts on the '
+                             'gyroscope only)')
+        if not math.isfinite(rate):
+            raise InputError(f'angular_rate.z: must be finite, got {rate!r}')
+        at_ns = int(at_ns)
+        if at_ns < self.time_ns:
+            raise InputError(f'angular_rate: time {at_ns * 1e-9:.9f} s is in the past '
+                             f'(simulation time {self.time_s:.9f} s)')
+        before = self.rate_at(at_ns)
+        keep = bisect.bisect_right(self._rate_t, at_ns)
+        del self._rate_t[keep:]
+        del self._rate_w[keep:]
+        self._rate_t += [at_ns, at_ns]
+        self._rate_w += [before, float(rate)]
+
+    def rate_at(self, at_ns: int) -> float:
+        """Angular rate of the profile at ``at_ns`` (rad/s; after a step at that time: before)."""
+        times, rates = self._rate_t, self._rate_w
+        k = bisect.bisect_left(times, at_ns) - 1
+        if k < 0:
+            return 0.0
+        if k >= len(times) - 1:
+            return rates[-1]
+        t0, t1 = times[k], times[k + 1]
+        return rates[k] + (rates[k + 1] - rates[k]) * (at_ns - t0) / (t1 - t0)
+
     def set_drive(self, amplitude: Optional[float] = None, frequency_hz: Optional[float] = None,
                   at_ns: Optional[int] = None) -> None:
         """Change the drive amplitude (m/s^2) and/or frequency (Hz) at a sample time."""
@@ -484,7 +567,9 @@ class Simulator:
 
         Everything pending is discarded: shock pulses (over or to come), the base-acceleration
         profile (a new one may start at any stamp) and the drive / parameter changes
-        scheduled after it. The drive itself keeps its amplitude, frequency and phase.
+        scheduled after it. The drive itself keeps its amplitude, frequency and phase, and the
+        sensor frame keeps rotating (the angular-rate profile is the motion of the case, not
+        a state of the ring).
         """
         def apply() -> None:
             self.q[:] = 0.0
@@ -533,17 +618,25 @@ class Simulator:
         n = self.model.n_coordinates
         out_q = np.empty((n_samples, n))
         out_v = np.empty((n_samples, n))
+        phase = rate = None
+        if self.gyro:
+            phase = np.empty(n_samples)
+            rate = np.empty(n_samples)
         done = 0
         while done < n_samples:
             self._run_due_events()
             stop = n_samples - done
             if self._events:
                 stop = min(stop, self._events[0][0] - self.sample_index)
+            if self.gyro and stop > 0:
+                # The drive is constant over the stretch (events cut it).
+                self._reference(self.sample_index, stop, phase[done:done + stop],
+                                rate[done:done + stop])
             self._integrate(stop, out_q[done:done + stop], out_v[done:done + stop])
             done += stop
         self._run_due_events()
         t = (np.arange(self.sample_index - n_samples, self.sample_index) + 1) * self.period_s
-        return self._samples(t, out_q, out_v)
+        return self._samples(t, out_q, out_v, phase, rate)
 
     def _run_due_events(self) -> None:
         while self._events and self._events[0][0] <= self.sample_index:
@@ -575,9 +668,12 @@ class Simulator:
         pulse_max_sub = (float(np.min(pulse_arr[:, 1])) / PULSE_SUBSTEPS_PER_DURATION
                          if len(active) else self.h)
         prof_t, prof_x, prof_y = self._profile_arrays(t_start, t_end)
+        rate_t, rate_w = self._rate_arrays(t_start, t_end)
         forcing = kernels.Forcing(pulses=pulse_arr, pulse_max_sub=pulse_max_sub,
                                   profile_t=prof_t, profile_x=prof_x, profile_y=prof_y,
-                                  y_index=self._y_index)
+                                  y_index=self._y_index, rate_t=rate_t, rate_w=rate_w,
+                                  pair_c=self._pair_c, pair_s=self._pair_s, kappa=self._kappa,
+                                  noise=self._force_noise(count))
         scratch = self._scratch
         if scratch.cuts.size < 2 * len(active) + 2:
             scratch = self._scratch = scratch._replace(cuts=np.empty(2 * len(active) + 2))
@@ -602,6 +698,31 @@ class Simulator:
         if not np.all(np.isfinite(self.q)) or not np.all(np.isfinite(self.v)):
             self.q[:] = 0.0  # never expose NaN; the status says it failed
         self.v[:] = 0.0
+
+    def _rate_arrays(self, t_start: float, t_end: float):
+        """Knots of the angular-rate profile (s, rad/s) for a stretch; empty: no rotation."""
+        if not self._rate_t:
+            return _EMPTY, _EMPTY
+        times = self._rate_t
+        t0_ns = int(round(t_start * 1e9))
+        keep = max(0, bisect.bisect_right(times, t0_ns) - 1)
+        if keep > 64:  # knots before the last one at or before now are over
+            del self._rate_t[:keep]
+            del self._rate_w[:keep]
+            keep = 0
+        end = min(len(times), bisect.bisect_right(times, int(round(t_end * 1e9))) + 1)
+        return (np.array(times[keep:end], dtype=np.float64) * 1e-9,
+                np.array(self._rate_w[keep:end], dtype=np.float64))
+
+    def _force_noise(self, count: int) -> np.ndarray:
+        """Velocity impulses (m/s) of the thermomechanical noise for ``count`` samples."""
+        sigma = self._noise_sigma
+        if count <= 0 or not np.any(sigma > 0.0):
+            return _NO_NOISE
+        n = sigma.size
+        z = noise.normals(self._noise_seed, noise.STREAM_BROWNIAN, self.sample_index, count,
+                          self.n_sub * n)
+        return np.ascontiguousarray((z.reshape(count * self.n_sub, n) * sigma[None, :]))
 
     def _profile_arrays(self, t_start: float, t_end: float):
         """
@@ -632,7 +753,9 @@ class Simulator:
                 np.array(self._profile_y[keep:end], dtype=np.float64))
 
     # ------------------------------------------------------------------ outputs
-    def _samples(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> Samples:
+    def _samples(self, t: np.ndarray, q: np.ndarray, v: np.ndarray,
+                 drive_phase: Optional[np.ndarray] = None,
+                 rate: Optional[np.ndarray] = None) -> Samples:
         n_s = len(t)
         k = self._n_electrodes
         gap = np.empty((n_s, k))
@@ -644,7 +767,31 @@ class Simulator:
                                 self._fine_shapes, self._fine_weights, self._curvature,
                                 self._refine_coeff, self._cap_scale, GAP_FLOOR_RATIO * d, gap,
                                 min_gap, cap)
-        return Samples(t=t, q=q, v=v, gap=gap, min_gap=min_gap, capacitance=cap)
+        return Samples(t=t, q=q, v=v, gap=gap, min_gap=min_gap, capacitance=cap,
+                       drive_phase=drive_phase, rate=rate)
+
+    def _reference(self, first: int, count: int, phase_out: np.ndarray,
+                   rate_out: np.ndarray) -> None:
+        """Drive phase (rad) and angular rate (rad/s) at samples ``first .. first + count - 1``."""
+        t = (np.arange(first, first + count) + 1) * self.period_s
+        d = self._drive
+        phase_out[:] = d.omega * (t - d.t_ref) + d.phase
+        if not self._rate_t:
+            rate_out[:] = 0.0
+            return
+        times = np.asarray(self._rate_t, dtype=np.int64)
+        rates = np.asarray(self._rate_w, dtype=np.float64)
+        t_ns = (np.arange(first, first + count, dtype=np.int64) + 1) * self.period_ns
+        k = np.searchsorted(times, t_ns, side='right') - 1  # the value after a step at t
+        inside = (k >= 0) & (k < times.size - 1)
+        kk = np.clip(k, 0, max(0, times.size - 2))
+        if times.size > 1:
+            dt = (times[kk + 1] - times[kk]).astype(np.float64)
+            frac = np.where(inside, (t_ns - times[kk]) / np.where(dt > 0, dt, 1.0), 0.0)
+            value = rates[kk] + (rates[np.minimum(kk + 1, times.size - 1)] - rates[kk]) * frac
+        else:
+            value = np.full(count, rates[0])
+        rate_out[:] = np.where(k < 0, 0.0, np.where(k >= times.size - 1, rates[-1], value))
 
     def outputs_for(self, q: np.ndarray) -> Samples:
         """

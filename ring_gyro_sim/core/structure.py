@@ -53,7 +53,8 @@ import numpy as np
 from ring_gyro_sim.core.errors import ParameterError
 import scipy.linalg
 
-__all__ = ['ring_mass', 'second_moment_of_area', 'modal_mass_factor', 'mode_indices',
+__all__ = ['ring_mass', 'second_moment_of_area', 'modal_mass_factor', 'gyroscopic_coefficient',
+           'bryan_factor', 'mode_indices',
            'ring_mass_matrix', 'ring_stiffness_matrix', 'leg_stiffness_matrix',
            'leg_stiffness_matrix_closed_form', 'leg_mass_matrix', 'couples_different_modes',
            'coupling_pattern', 'natural_frequencies_hz']
@@ -182,6 +183,71 @@ def modal_mass_factor(n):
     """
     n = _check_positive_int(n, 'n')
     return (n * n + 1) / (2.0 * n * n)
+
+
+def gyroscopic_coefficient(n):
+    """
+    Coriolis coefficient kappa_n = 2 n / (n^2 + 1) of the n-theta pair of a thin ring.
+
+    Derivation (the rotating sensor frame, angular rate Omega(t) about the ring's axis z).
+    The velocity of a ring point in the inertial frame is ``r' + Omega e_z x r`` with
+    ``r = (R + w) e_r + u e_theta`` and ``r'`` its rate in the sensor frame, so the kinetic
+    energy per unit length ``rho A / 2 |r' + Omega e_z x r|^2`` holds, besides the relative
+    term of eq. (7),
+
+    (G1)  the gyroscopic term ``rho A Omega ((R + w) u' - u w')``, and
+    (G2)  the centrifugal term ``rho A Omega^2 / 2 ((R + w)^2 + u^2)``.
+
+    With eq. (3) (``w = q_c cos n theta + q_s sin n theta``,
+    ``u = -(q_c / n) sin n theta + (q_s / n) cos n theta``) and
+    ``int_0^{2 pi} R dtheta``: the terms linear in w and u vanish for n >= 1, and
+
+    (G3)  ``T_G = c_n Omega (q_c q_s' - q_s q_c')``, ``c_n = 2 pi rho A R / n``;
+    (G4)  ``T_C = (M_n / 2) Omega^2 (q_c^2 + q_s^2)``, ``M_n = pi rho A R (1 + 1/n^2)``
+          (the generalised mass of eq. 7: ``m_r (n^2 + 1) / (2 n^2)``).
+
+    Lagrange's equations of ``T_G + T_C`` add to the modal equations (per unit ``M_n``)
+
+    (G5)  ``q_c'' = ... + 2 kappa_n Omega q_s' + kappa_n Omega' q_s + Omega^2 q_c``
+    (G6)  ``q_s'' = ... - 2 kappa_n Omega q_c' - kappa_n Omega' q_c + Omega^2 q_s``
+
+    with ``kappa_n = c_n / M_n = 2 n / (n^2 + 1)``: 1 for the rigid 1theta translation, 0.8
+    for 2theta. The legs' point masses (eqs. 16-17) enter the modal masses smeared over the
+    ring (``SimConfig.modal_masses``: ``(m_r + N_l m_l)(n^2 + 1)/(2 n^2)``); a point mass
+    adds to (G3) and to ``M_n`` in the same ratio ``2 n / (n^2 + 1)`` (its u and w are
+    those of the ring point it sits on), so kappa_n holds with them. (Leg positions that
+    couple different pairs, ``(n +- p) / N_l`` integer, would add off-pair gyroscopic terms
+    of order ``m_l / m_r``; the modal model keeps the pairs uncoupled, as its masses do.)
+
+    A free vibration then precesses: in complex form ``z = q_c + i q_s``,
+    ``z'' + 2 i kappa Omega z' + omega^2 z = 0`` has the roots ``+-omega - kappa Omega``
+    (to first order), so a standing wave ``z = a e^{-i kappa Omega t} cos(omega t)`` has its
+    antinode at ``theta = -(kappa / n) Omega t``: it turns by :func:`bryan_factor` times the
+    sensor's rotation angle, backwards (in the inertial frame it lags the case by
+    ``1 - kappa / n``).
+
+    Parameters
+    ----------
+    n : int
+        Mode number, >= 1.
+
+    Returns
+    -------
+    float
+
+    """
+    n = _check_positive_int(n, 'n')
+    return 2.0 * n / (n * n + 1.0)
+
+
+def bryan_factor(n):
+    """
+    Angular gain of the n-theta standing wave, kappa_n / n = 2 / (n^2 + 1) (0.4 for n = 2).
+
+    In the sensor frame the pattern turns by ``-bryan_factor(n)`` times the sensor's rotation
+    angle (:func:`gyroscopic_coefficient`).
+    """
+    return gyroscopic_coefficient(n) / _check_positive_int(n, 'n')
 
 
 def mode_indices(n_modes, n):
