@@ -13,8 +13,9 @@
 # limitations under the License.
 
 """
-Tests of the gyroscope's topics in the sink and the recorder: ``~/rate``, ``~/demodulator``,
-``~/angular_rate``.
+Tests of the gyroscope's topics in the sink and the recorder.
+
+``~/rate``, ``~/demodulator`` and ``~/angular_rate``.
 
 The blocks carry synthetic :class:`RateSamples` / :class:`DemodSamples` built here (the
 electronics that produce them are tested elsewhere), so what is tested is the plumbing: the
