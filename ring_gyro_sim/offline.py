@@ -19,8 +19,10 @@ Offline runs: a scenario file in, samples (and optionally a recording) out, no R
 loop, in the node's blocks (``output.block_duration``), as fast as possible, and returns a
 :class:`~ring_gyro_sim.run.RunSummary`. With an output path it records exactly what the node
 would (the same topic names, scheduled shocks on ``<ns>/shock`` at their times, the same
-diagnostics keys about once per simulated second). :func:`resimulate` re-runs a recording
-from its metadata and recorded inputs and reproduces its output blocks bit for bit.
+diagnostics keys about once per simulated second; with ``gyro.enabled`` also ``<ns>/rate``,
+``<ns>/demodulator`` and the rates that acted on ``<ns>/angular_rate``). :func:`resimulate`
+re-runs a recording from its metadata and recorded inputs (angular rates included) and
+reproduces its outputs bit for bit.
 """
 
 from dataclasses import replace
@@ -41,9 +43,9 @@ from ring_gyro_sim.recording.reader import (block_sample_counts, decode, read_me
 from ring_gyro_sim.ros import conversions
 from ring_gyro_sim.ros.recorder import INPUT_TOPICS, METADATA_NAME, RunRecorder
 from ring_gyro_sim.ros.sinks import RosSink
-from ring_gyro_sim.run import (BaseAcceleration, DriveAmplitude, DriveFrequency, Input,
-                               NullSink, Pacing, ParameterChange, Reset, Run, RunSummary,
-                               Shock, Sink)
+from ring_gyro_sim.run import (AngularRate, BaseAcceleration, DriveAmplitude, DriveFrequency,
+                               Input, NullSink, Pacing, ParameterChange, Reset, Run,
+                               RunSummary, Shock, Sink)
 
 __all__ = ['DIAGNOSTICS_PERIOD_NS', 'RunSummary', 'load_recording', 'resimulate',
            'run_offline']
@@ -97,7 +99,8 @@ def run_offline(config: SimConfig, duration_s: Optional[float] = None,
     if output:
         names = channel_names(config)
         sink = RosSink(names, namespace, recorder=RunRecorder(
-            output, config, names, namespace, publish_clock=config.run.publish_clock))
+            output, config, names, namespace, publish_clock=config.run.publish_clock),
+            frame_id=config.gyro.frame_id)
     try:
         state = drive_initial_state(config) if start_state is None else start_state
         run = Run(config, start_state=state, sink=sink)
@@ -148,6 +151,10 @@ def load_recording(path: str):
     sizes = block_sample_counts(path)
     wanted = {f'{namespace}/{name}': name for name in INPUT_TOPICS}
     scheduled = set(config.run.scheduled_shocks())
+    # Knots of scenario.rate_*, should the run record them on angular_rate as it records the
+    # scheduled shocks: the configuration schedules them again.
+    knots = [(int(round(t_s * 1e9)), float(z))
+             for t_s, z in zip(config.run.rate_times, config.run.rate_values)]
     for m in read_messages(path, topics=list(wanted)):
         kind = wanted[m.topic]
         msg = decode(m)
@@ -169,6 +176,12 @@ def load_recording(path: str):
             inputs.append(Reset(at_ns=t_ns))
         elif kind == 'events/parameters':
             inputs.append(ParameterChange(load_text(msg.data), at_ns=t_ns))
+        elif kind == conversions.ANGULAR_RATE_TOPIC:
+            r = conversions.angular_rate_input(msg)
+            if (t_ns, r.z) in knots:
+                knots.remove((t_ns, r.z))
+                continue
+            inputs.append(AngularRate(z=r.z, x=r.x, y=r.y, at_ns=t_ns))
     return config, start, inputs, sizes, namespace
 
 

@@ -29,6 +29,10 @@ naming the file and the reason; nothing else escapes the reader.
 :func:`block_end_times_ns` returns where the blocks of a run recorded by
 :class:`ring_gyro_sim.ros.recorder.RunRecorder` ended, which a re-simulation needs to cut the
 run the same way (the block messages of a decimated recording hold fewer samples).
+
+Series of a run, as arrays: :func:`read_block_topic` (any block topic, e.g. ``demodulator``:
+the blocks stacked), :func:`read_rate` (the gyroscope's ``rate``: stamps, rate about z,
+frame) and :func:`read_angular_rate` (the rotation inputs as they acted).
 """
 
 import dataclasses
@@ -43,6 +47,7 @@ from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
+import numpy as np
 from rclpy.serialization import deserialize_message
 
 from ring_gyro_sim.recording._filelock import is_being_written
@@ -442,3 +447,130 @@ def block_sample_counts(path):
         counts.append(samples)
         previous = end
     return counts
+
+
+def _run_topic(path, name):
+    """Full topic name of a node-relative ``name`` in a run recording (its namespace)."""
+    if name.startswith('/'):
+        return name
+    namespace = _run_metadata(path).get('namespace', '/ring_gyro').rstrip('/')
+    return f'{namespace}/{name}'
+
+
+@dataclasses.dataclass(frozen=True)
+class BlockSeries:
+    """
+    The blocks of one block topic, stacked.
+
+    Attributes
+    ----------
+    labels : list of str
+        Channel names, ``t`` first (from the layout).
+    data : ndarray, shape (K, C)
+        Every recorded sample (of a decimated recording: the kept ones), in order.
+    end_ns : list of int
+        Log time of each block message (the block's last sample time).
+
+    """
+
+    labels: list
+    data: np.ndarray
+    end_ns: list
+
+
+def read_block_topic(path, name):
+    """
+    Return the :class:`BlockSeries` of a block topic of a run recording.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A run recording (with the ``ring_gyro_sim`` metadata record).
+    name : str
+        Relative to the run's namespace (``demodulator``, ``modal_displacement``...) or a full
+        topic name.
+
+    Raises
+    ------
+    RecordingError
+        The file is not a run recording or has no message on that topic.
+
+    """
+    topic = _run_topic(path, name)
+    labels, rows, ends = None, [], []
+    for message in read_messages(path, topics=[topic]):
+        msg = decode(message)
+        shape = (msg.layout.dim[0].size, msg.layout.dim[1].size)
+        labels = msg.layout.dim[1].label.split(',')
+        rows.append(np.asarray(msg.data, dtype=np.float64).reshape(shape))
+        ends.append(message.log_time_ns)
+    if labels is None:
+        raise RecordingError(f'recording {str(path)!r} has no message on {topic}')
+    return BlockSeries(labels=labels, data=np.concatenate(rows), end_ns=ends)
+
+
+@dataclasses.dataclass(frozen=True)
+class RateSeries:
+    """
+    The gyroscope's rate output of a recording (``<ns>/rate``, sensor_msgs/Imu).
+
+    Attributes
+    ----------
+    t_ns : ndarray of int64, shape (M,)
+        Header stamps (the sample times), ns.
+    rate : ndarray, shape (M,)
+        ``angular_velocity.z``, rad/s.
+    frame_id : str
+        ``header.frame_id`` ('' when there is no sample).
+    covariance : ndarray, shape (M, 9)
+        ``angular_velocity_covariance`` of each sample.
+
+    """
+
+    t_ns: np.ndarray
+    rate: np.ndarray
+    frame_id: str
+    covariance: np.ndarray
+
+
+def read_rate(path, name='rate'):
+    """
+    Return the :class:`RateSeries` of a run recording (empty arrays if it holds none).
+
+    Raises
+    ------
+    RecordingError
+        The file is not a run recording.
+
+    """
+    topic = _run_topic(path, name)
+    t, rate, cov, frame = [], [], [], ''
+    for message in read_messages(path, topics=[topic]):
+        msg = decode(message)
+        t.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+        rate.append(msg.angular_velocity.z)
+        cov.append(np.asarray(msg.angular_velocity_covariance, dtype=np.float64))
+        frame = frame or msg.header.frame_id
+    return RateSeries(t_ns=np.array(t, dtype=np.int64), rate=np.array(rate, dtype=np.float64),
+                      frame_id=frame,
+                      covariance=np.array(cov, dtype=np.float64).reshape(len(cov), 9))
+
+
+def read_angular_rate(path, name='angular_rate'):
+    """
+    Return the angular rates that acted in a run: ``(t_ns, z)`` arrays (int64 ns, rad/s).
+
+    Each is the time the rate acted from (the log time and stamp) and the rate about z.
+
+    Raises
+    ------
+    RecordingError
+        The file is not a run recording.
+
+    """
+    topic = _run_topic(path, name)
+    t, z = [], []
+    for message in read_messages(path, topics=[topic]):
+        t.append(message.log_time_ns)
+        z.append(decode(message).vector.z)
+    return np.array(t, dtype=np.int64), np.array(z, dtype=np.float64)

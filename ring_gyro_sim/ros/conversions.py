@@ -21,6 +21,20 @@ the offline recorder and the tests share them. Times are integer ns (``*_ns``) e
 
 Block layout (interface.md): ``layout.dim[0] = {label: 'sample', size: K, stride: K * C}``,
 ``layout.dim[1] = {label: 't,<channels>', size: C, stride: C}``, ``data`` row-major.
+
+The gyroscope's rate output ``~/rate`` is one ``sensor_msgs/msg/Imu`` per rate sample
+(:func:`imu_message`), filled as REP-145 and the Imu message's own comments say:
+
+* ``header.stamp``: the sample time (simulation time), ``header.frame_id``: ``gyro.frame_id``;
+* ``angular_velocity.z``: the measured rate about the ring axis, rad/s (REP-103 sign);
+  ``angular_velocity.x`` and ``.y``: 0.0, not measured (a z-axis gyroscope);
+* ``angular_velocity_covariance``: with the rate variance unknown (0, the default) all nine
+  elements are 0, REP-145's "covariance unknown"; with a known variance ``v`` (rad/s)^2 the
+  diagonal is ``(inf, inf, v)``: no information about x and y (a filter that fuses them by
+  mistake gives them no weight), ``v`` about z. Element 0 cannot be -1 ("no estimate") here:
+  that would tell readers to disregard z as well;
+* ``orientation`` (identity quaternion) and ``linear_acceleration`` (zero) are not
+  estimated: element 0 of their covariances is -1, the rest 0.
 """
 
 import array
@@ -32,11 +46,19 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import AccelStamped, Vector3Stamped
 import numpy as np
+from ring_gyro_sim.core.electronics import DEMOD_CHANNELS
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
 
 OUTPUT_TOPICS = ('modal_displacement', 'radial_gap', 'sense_electrodes')
 """Block topics, relative to the node's private namespace (``~/``)."""
+DEMODULATOR_TOPIC = 'demodulator'
+"""The gyroscope's block topic (``gyro.enabled``): ``t`` and the demodulator channels."""
+RATE_TOPIC = 'rate'
+"""The gyroscope's rate output (``gyro.enabled``): sensor_msgs/Imu, one per rate sample."""
+ANGULAR_RATE_TOPIC = 'angular_rate'
+"""The rotation input (geometry_msgs/Vector3Stamped, ``vector.z`` rad/s)."""
 
 
 def ns_to_stamp(t_ns: int) -> Time:
@@ -86,6 +108,69 @@ def output_blocks(samples, channel_names: Dict[str, List[str]]) -> Dict[str, Flo
     }
 
 
+def demodulator_block(demod) -> Float64MultiArray:
+    """Build the ``~/demodulator`` block of a ``core.electronics.DemodSamples``."""
+    values = np.asarray(demod.values, dtype=np.float64)
+    if values.shape != (len(demod.t), len(DEMOD_CHANNELS)):
+        raise ValueError(f'demodulator values have shape {values.shape}, expected '
+                         f'({len(demod.t)}, {len(DEMOD_CHANNELS)})')
+    return block_message([demod.t, values], ('t',) + DEMOD_CHANNELS)
+
+
+#: Covariance element 0 of an estimate the message does not carry (sensor_msgs/Imu comments).
+NOT_ESTIMATED = -1.0
+_NOT_ESTIMATED_COVARIANCE = np.array([NOT_ESTIMATED] + [0.0] * 8)
+
+
+def rate_covariance(rate_variance: float) -> np.ndarray:
+    """
+    Return ``angular_velocity_covariance`` of ``~/rate`` (row-major 3x3, see the module doc).
+
+    Raises
+    ------
+    ValueError
+        If ``rate_variance`` is negative or not finite.
+
+    """
+    v = float(rate_variance)
+    if not (math.isfinite(v) and v >= 0.0):
+        raise ValueError(f'rate_variance: must be finite and >= 0 (rad/s)^2, got {v!r}')
+    if v == 0.0:
+        return np.zeros(9)
+    return np.diag([math.inf, math.inf, v]).ravel()
+
+
+def imu_message(t_ns: int, rate_z: float, frame_id: str,
+                covariance: Optional[np.ndarray] = None) -> Imu:
+    """Build one ``~/rate`` message (see the module doc); ``covariance`` from rate_covariance."""
+    msg = Imu()
+    msg.header.stamp = ns_to_stamp(t_ns)
+    msg.header.frame_id = frame_id
+    msg.orientation_covariance = _NOT_ESTIMATED_COVARIANCE
+    msg.angular_velocity.z = float(rate_z)
+    if covariance is not None:
+        msg.angular_velocity_covariance = covariance
+    msg.linear_acceleration_covariance = _NOT_ESTIMATED_COVARIANCE
+    return msg
+
+
+def sample_times_ns(t_s: np.ndarray) -> List[int]:
+    """
+    Return the integer ns of simulation times in s (on the output grid).
+
+    Exact for any run shorter than about 50 days: a sample time (i + 1) * period is within
+    1e-16 relative of its ns value, far below half a ns.
+    """
+    return [int(t) for t in np.rint(np.asarray(t_s, dtype=np.float64) * 1e9)]
+
+
+def rate_messages(rate, frame_id: str,
+                  covariance: Optional[np.ndarray] = None) -> List[Tuple[int, Imu]]:
+    """Return ``[(t_ns, Imu)]`` of a ``core.electronics.RateSamples`` (``~/rate``)."""
+    return [(t_ns, imu_message(t_ns, z, frame_id, covariance))
+            for t_ns, z in zip(sample_times_ns(rate.t), np.asarray(rate.rate).tolist())]
+
+
 @dataclass(frozen=True)
 class AccelerationInput:
     """
@@ -125,6 +210,48 @@ def base_acceleration_input(msg: AccelStamped) -> AccelerationInput:
     t = stamp_to_ns(msg.header.stamp)
     a = msg.accel.linear
     return AccelerationInput(at_ns=t or None, x=float(a.x), y=float(a.y), z=float(a.z))
+
+
+@dataclass(frozen=True)
+class AngularRateInput:
+    """
+    An angular rate from a ``~/angular_rate`` message.
+
+    Attributes
+    ----------
+    at_ns : int or None
+        Stamp, ns (None when the stamp is zero: "now"), as ``~/shock``.
+    z : float
+        Rate about the ring axis, rad/s (REP-103 sign).
+    x, y : float
+        Rates about the in-plane axes, rad/s: not modelled, reported so that the node can say
+        they were ignored.
+
+    """
+
+    at_ns: Optional[int]
+    z: float
+    x: float
+    y: float
+
+
+def angular_rate_input(msg: Vector3Stamped) -> AngularRateInput:
+    """Return the angular rate of the sensor frame in a ``~/angular_rate`` message."""
+    t = stamp_to_ns(msg.header.stamp)
+    v = msg.vector
+    return AngularRateInput(at_ns=t or None, z=float(v.z), x=float(v.x), y=float(v.y))
+
+
+def angular_rate_message(at_ns: int, z: float, x: float = 0.0, y: float = 0.0,
+                         frame_id: str = '') -> Vector3Stamped:
+    """Build a ``~/angular_rate`` message (recording a rate as it acted)."""
+    msg = Vector3Stamped()
+    msg.header.stamp = ns_to_stamp(at_ns)
+    msg.header.frame_id = frame_id
+    msg.vector.x = float(x)
+    msg.vector.y = float(y)
+    msg.vector.z = float(z)
+    return msg
 
 
 def shock_message(at_ns: int, x: float, y: float = 0.0, frame_id: str = '') -> Vector3Stamped:

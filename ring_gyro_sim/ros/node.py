@@ -53,9 +53,12 @@ Parameter handling
 
 Inputs and the simulation time they act at
     See :mod:`ring_gyro_sim.run`: the current simulation time is the end of the last
-    published block; ``~/shock`` and ``~/base_acceleration`` act at their stamp (a zero stamp:
-    now; up to one block late: now; older: refused; beyond ``inputs.horizon`` ahead:
-    refused), ``~/drive/*``, ``~/reset`` and parameter changes now. Every refusal changes
+    published block; ``~/shock``, ``~/base_acceleration`` and ``~/angular_rate`` act at their
+    stamp (a zero stamp: now; up to one block late: now; older: refused; beyond
+    ``inputs.horizon`` ahead: refused), ``~/drive/*``, ``~/reset`` and parameter changes now.
+    ``~/angular_rate`` is always subscribed; without ``gyro.enabled`` the run refuses it
+    (counted, and logged with the reason). Its ``vector.x`` and ``.y`` are not modelled: a
+    non-zero value is ignored with one warning, as the z of ``~/shock``. Every refusal changes
     nothing, is counted on ``/diagnostics`` and logged with its reason (at most every 5 s per
     topic and kind). ``~/reset`` also discards everything pending.
 
@@ -67,7 +70,10 @@ QoS
     but may lose blocks. Inputs: reliable, keep last 1000 (``~/shock``,
     ``~/base_acceleration``) and 10 (drive), drained completely before every block: a flood
     is refused and counted by the run (pending limits), never stored without bound.
-    ``/diagnostics`` and ``/clock``: reliable, keep last 10.
+    ``/diagnostics`` and ``/clock``: reliable, keep last 10. The gyroscope (``gyro.enabled``;
+    the publishers exist only then): ``~/demodulator`` as the block topics, ``~/rate``
+    (sensor_msgs/Imu, one message per rate sample, published with its block) reliable, keep
+    last 500; ``~/angular_rate`` reliable, keep last 1000 (:mod:`ring_gyro_sim.ros.qos`).
 
 Diagnostics (about 1 Hz)
     One status named ``<node>: simulator``, ``hardware_id`` ``ring_gyro_sim:<fully
@@ -106,6 +112,7 @@ from ring_gyro_sim.ros.recorder import RunRecorder
 from ring_gyro_sim.ros.sinks import Publishers, RosSink
 from ring_gyro_sim.ros.throttle import ThrottledWarnings
 from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 # isort: on
@@ -150,6 +157,12 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         self.block_pubs = {name: self.create_publisher(Float64MultiArray, f'~/{name}',
                                                        qos.BLOCK_QOS)
                            for name in conversions.OUTPUT_TOPICS}
+        rate_pub = None
+        if config.gyro.enabled:
+            name = conversions.DEMODULATOR_TOPIC
+            self.block_pubs[name] = self.create_publisher(Float64MultiArray, f'~/{name}',
+                                                          qos.BLOCK_QOS)
+            rate_pub = self.create_publisher(Imu, f'~/{conversions.RATE_TOPIC}', qos.RATE_QOS)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics',
                                               qos.DIAGNOSTICS_QOS)
         clock_pub = (self.create_publisher(ClockMsg, '/clock', qos.CLOCK_QOS)
@@ -164,8 +177,10 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
             except OSError as exc:  # RingGyroErrors name the parameter themselves
                 raise ParameterError(f'record.path: {exc}') from None
         self.sink = RosSink(names, fqn, recorder=recorder,
-                            publishers=Publishers(self.block_pubs, self.diag_pub, clock_pub),
-                            stamp_ns=lambda: self.get_clock().now().nanoseconds)
+                            publishers=Publishers(self.block_pubs, self.diag_pub, clock_pub,
+                                                  rate_pub),
+                            stamp_ns=lambda: self.get_clock().now().nanoseconds,
+                            frame_id=config.gyro.frame_id)
         state = None
         if config.drive.start_on != 'rest':
             log.info(f'computing the start state ({config.drive.start_on} of the drive at '
@@ -188,6 +203,8 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
                         qos.BASE_ACCELERATION_QOS),
             self._input(Float64, 'drive/amplitude', self._on_drive_amplitude, qos.DRIVE_QOS),
             self._input(Float64, 'drive/frequency', self._on_drive_frequency, qos.DRIVE_QOS),
+            self._input(Vector3Stamped, conversions.ANGULAR_RATE_TOPIC, self._on_angular_rate,
+                        qos.ANGULAR_RATE_QOS),
         ]
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -352,6 +369,12 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
             self._ignored_z.add(topic)
             self.get_logger().warn(f'~/{topic}: the z component is ignored (in-plane ring)')
 
+    def _warn_xy(self, topic: str, x: float, y: float) -> None:
+        if (x != 0.0 or y != 0.0) and topic not in self._ignored_z:
+            self._ignored_z.add(topic)
+            self.get_logger().warn(f'~/{topic}: the x and y components are ignored (rotation '
+                                   f'about the ring axis z only)')
+
     def _on_shock(self, msg: Vector3Stamped) -> None:
         s = conversions.shock_input(msg)
         if self._apply(run_mod.Shock(x=s.x, y=s.y, z=s.z, at_ns=s.at_ns)):
@@ -361,6 +384,11 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         a = conversions.base_acceleration_input(msg)
         if self._apply(run_mod.BaseAcceleration(x=a.x, y=a.y, z=a.z, at_ns=a.at_ns)):
             self._warn_z('base_acceleration', a.z)
+
+    def _on_angular_rate(self, msg: Vector3Stamped) -> None:
+        r = conversions.angular_rate_input(msg)
+        if self._apply(run_mod.AngularRate(z=r.z, x=r.x, y=r.y, at_ns=r.at_ns)):
+            self._warn_xy(conversions.ANGULAR_RATE_TOPIC, r.x, r.y)
 
     def _on_drive_amplitude(self, msg: Float64) -> None:
         self._apply(run_mod.DriveAmplitude(float(msg.data)))

@@ -35,6 +35,14 @@ topic (relative to the node)  QoS
 ``events/reset``,             :data:`EVENTS_QOS`: reliable, volatile, keep last 10 (topics
 ``events/parameters``         of recordings only: a service call and parameter changes
                               live, recorded so that a run can be re-simulated)
+``demodulator``               :data:`BLOCK_QOS` (a block topic; with ``gyro.enabled``)
+``rate``                      :data:`RATE_QOS`: reliable, volatile, keep last 500 (one
+                              sensor_msgs/Imu per rate sample: the same 50 blocks as
+                              :data:`BLOCK_QOS` at the default 10 rate samples per block;
+                              with ``gyro.enabled``)
+``angular_rate``              :data:`ANGULAR_RATE_QOS`: reliable, volatile, keep last 1000
+                              (a streamed rate profile comes in bursts, as
+                              ``base_acceleration``)
 ============================  ==========================================================
 
 The inputs are subscriptions in the node; their recorded profile is the subscription's (a
@@ -46,8 +54,8 @@ from typing import Dict
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 __all__ = [
-    'BASE_ACCELERATION_QOS', 'BLOCK_QOS', 'CLOCK_QOS', 'DIAGNOSTICS_QOS', 'DRIVE_QOS',
-    'EVENTS_QOS', 'SHOCK_QOS', 'TOPIC_QOS', 'recorded_qos',
+    'ANGULAR_RATE_QOS', 'BASE_ACCELERATION_QOS', 'BLOCK_QOS', 'CLOCK_QOS', 'DIAGNOSTICS_QOS',
+    'DRIVE_QOS', 'EVENTS_QOS', 'RATE_QOS', 'SHOCK_QOS', 'TOPIC_QOS', 'recorded_qos',
 ]
 
 
@@ -71,6 +79,10 @@ BASE_ACCELERATION_QOS = _reliable_keep_last(1000)
 DRIVE_QOS = _reliable_keep_last(10)
 #: ``~/events/reset`` and ``~/events/parameters`` (recordings only).
 EVENTS_QOS = _reliable_keep_last(10)
+#: ``~/rate`` (sensor_msgs/Imu, one message per rate sample, published block by block).
+RATE_QOS = _reliable_keep_last(500)
+#: ``~/angular_rate`` subscription (a streamed profile comes in bursts).
+ANGULAR_RATE_QOS = _reliable_keep_last(1000)
 
 #: QoS of every topic, by the name the node uses (relative to its namespace, or absolute).
 TOPIC_QOS: Dict[str, QoSProfile] = {
@@ -85,6 +97,9 @@ TOPIC_QOS: Dict[str, QoSProfile] = {
     'drive/frequency': DRIVE_QOS,
     'events/reset': EVENTS_QOS,
     'events/parameters': EVENTS_QOS,
+    'demodulator': BLOCK_QOS,
+    'rate': RATE_QOS,
+    'angular_rate': ANGULAR_RATE_QOS,
 }
 
 

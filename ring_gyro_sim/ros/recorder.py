@@ -25,6 +25,11 @@ What a recording holds (interface.md, Recording):
   ``<ns>/drive/amplitude``, ``<ns>/drive/frequency``; and, so that a run can be re-simulated,
   ``<ns>/events/reset`` (std_msgs/Empty) and ``<ns>/events/parameters`` (std_msgs/String: a
   YAML mapping of the parameters changed at run time);
+* with ``gyro.enabled`` (and only then: the node has these topics only then): the rate output
+  ``<ns>/rate`` (sensor_msgs/Imu, one message per rate sample, log time = its sample time =
+  its header stamp, so ``ring_gyro replay`` publishes them at their rate), the block topic
+  ``<ns>/demodulator`` (as the other block topics), and the rotation input
+  ``<ns>/angular_rate`` (Vector3Stamped, stamped and logged at the time it acted);
 * a metadata record ``ring_gyro_sim`` with the full resolved parameters (YAML), the package
   version, the git revision, the namespace, the exact initial state (JSON, repr floats), and
   how the recording was cut: ``output_period_ns``, ``block_samples`` (samples per block of
@@ -39,19 +44,26 @@ Controls (parameters ``record.*``, read from the configuration):
 
 ``record.topics``
     The topics to record, as the node names them: ``modal_displacement``, ``radial_gap``,
-    ``sense_electrodes``, ``/diagnostics``, ``/clock``, and the inputs ``shock``,
-    ``base_acceleration``, ``drive/amplitude``, ``drive/frequency``, ``events/reset``,
-    ``events/parameters`` (fully qualified names ``<ns>/modal_displacement`` work too).
-    Empty = all. The inputs and events, and the metadata record, are always recorded whatever
-    the list says: they are what a re-simulation needs (:data:`ALWAYS_RECORDED`). An unknown
-    name is refused (``ParameterError`` naming ``record.topics``).
+    ``sense_electrodes``, ``demodulator``, ``rate``, ``/diagnostics``, ``/clock``, and the
+    inputs ``shock``, ``base_acceleration``, ``drive/amplitude``, ``drive/frequency``,
+    ``events/reset``, ``events/parameters``, ``angular_rate`` (fully qualified names
+    ``<ns>/modal_displacement`` work too). Empty = all. The inputs and events, and the
+    metadata record, are always recorded whatever the list says: they are what a
+    re-simulation needs (:data:`ALWAYS_RECORDED`). An unknown name is refused
+    (``ParameterError`` naming ``record.topics``). The gyroscope's topics (:data:`GYRO_TOPICS`)
+    are left out of a run without ``gyro.enabled``, as ``/clock`` is without
+    ``publish_clock``, whatever the list says (one list serves both kinds of run).
 ``record.decimation``
     N >= 1: the block topics keep the samples whose global sample index is a multiple of N
     (sample i is at t = i * output period, i = 1 for the first sample after the start), so
     what is kept does not depend on how the run is cut into blocks; every block message is
     still written, at the block's end time, with the same layout and fewer rows (possibly
-    none). ``/diagnostics``, ``/clock`` and the inputs are not decimated. The metadata says N;
-    :func:`ring_gyro_sim.recording.reader.block_end_times_ns` returns the original block ends.
+    none). This holds for ``demodulator`` too (a block topic, at every output sample).
+    ``rate`` is never decimated: it is already the gyroscope's own, slower output
+    (``gyro.output_rate``) and what an estimator consumes; to record less of it, leave it out
+    of ``record.topics``. ``/diagnostics``, ``/clock`` and the inputs are not decimated. The
+    metadata says N; :func:`ring_gyro_sim.recording.reader.block_end_times_ns` returns the
+    original block ends.
 ``record.compression``
     ``zstd`` (default), ``lz4`` (needs the ``lz4`` package) or ``none``: the MCAP chunk
     compression, as rosbag2's MCAP storage offers.
@@ -106,25 +118,34 @@ INPUT_TOPICS = {
     'drive/frequency': 'std_msgs/msg/Float64',
     'events/reset': 'std_msgs/msg/Empty',
     'events/parameters': 'std_msgs/msg/String',
+    conversions.ANGULAR_RATE_TOPIC: 'geometry_msgs/msg/Vector3Stamped',
 }
+RATE_TYPE = 'sensor_msgs/msg/Imu'
+#: Block topics, by the name ``record.topics`` takes (decimated by ``record.decimation``).
+BLOCK_TOPICS = conversions.OUTPUT_TOPICS + (conversions.DEMODULATOR_TOPIC,)
 OTHER_TOPICS = {
+    conversions.RATE_TOPIC: RATE_TYPE,
     '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
     '/clock': 'rosgraph_msgs/msg/Clock',
 }
 #: Every topic a recording can hold, by the name ``record.topics`` takes, with its type.
-RECORDABLE_TOPICS = {**{name: BLOCK_TYPE for name in conversions.OUTPUT_TOPICS},
+RECORDABLE_TOPICS = {**{name: BLOCK_TYPE for name in BLOCK_TOPICS},
                      **OTHER_TOPICS, **INPUT_TOPICS}
 #: Recorded whatever ``record.topics`` says: what a re-simulation needs.
 ALWAYS_RECORDED = tuple(INPUT_TOPICS)
+#: The topics of the gyroscope: recorded only with ``gyro.enabled``.
+GYRO_TOPICS = (conversions.DEMODULATOR_TOPIC, conversions.RATE_TOPIC,
+               conversions.ANGULAR_RATE_TOPIC)
 
 
 def recorded_topic_names(record_topics: Iterable[str], namespace: str = '/ring_gyro',
-                         publish_clock: bool = True) -> list:
+                         publish_clock: bool = True, gyro: bool = False) -> list:
     """
     Return the names (as ``record.topics`` takes them) that a recording holds.
 
     ``record_topics`` empty means every topic; the inputs and events are always added.
-    ``/clock`` is recorded only when it is published.
+    ``/clock`` is recorded only when it is published, the :data:`GYRO_TOPICS` only with
+    ``gyro`` (``gyro.enabled``).
 
     Raises
     ------
@@ -152,6 +173,8 @@ def recorded_topic_names(record_topics: Iterable[str], namespace: str = '/ring_g
     wanted.update(ALWAYS_RECORDED)
     if not publish_clock:
         wanted.discard('/clock')
+    if not gyro:
+        wanted.difference_update(GYRO_TOPICS)
     return [name for name in RECORDABLE_TOPICS if name in wanted]
 
 
@@ -286,7 +309,7 @@ class RunRecorder:
         self.config = config
         self.publish_clock = publish_clock
         self.names = recorded_topic_names(run.record_topics, self.namespace or '/',
-                                          publish_clock)
+                                          publish_clock, config.gyro.enabled)
         self.decimation = int(run.record_decimation)
         self.period_ns = run.output_period_ns
         self.block_samples = max(1, int(round(run.block_duration / (self.period_ns * 1e-9))))
@@ -305,7 +328,7 @@ class RunRecorder:
         except BaseException:
             self.writer.finish()
             raise
-        self._blocks = [name for name in conversions.OUTPUT_TOPICS if name in self._topics]
+        self._blocks = [name for name in BLOCK_TOPICS if name in self._topics]
         self._initial_state = initial_state
         self._started = False
         self._now_ns = 0  # log time of the latest output written: inputs after it wait
@@ -512,6 +535,19 @@ class RunRecorder:
                 msg = self._decimated(msg, t_ns)
             self._put(self._topics[name], msg, t_ns)
 
+    def rate(self, messages) -> None:
+        """
+        Record the ``~/rate`` messages ``[(t_ns, Imu)]`` of one block, each at its sample time.
+
+        Call it before :meth:`outputs` of the same block: the inputs held back are written
+        between the samples, so that the file stays in log-time order.
+        """
+        topic = self._topics.get(conversions.RATE_TOPIC)
+        for t_ns, msg in messages:
+            self._advance(t_ns)
+            if topic is not None:
+                self._put(topic, msg, t_ns)
+
     def diagnostics(self, msg, t_ns: int) -> None:
         """Record a /diagnostics message."""
         self._advance(t_ns)
@@ -532,6 +568,23 @@ class RunRecorder:
         """Record a base-acceleration sample applied at ``at_ns``."""
         self._input('base_acceleration', at_ns, conversions.base_acceleration_message,
                     at_ns, x, y)
+
+    def angular_rate(self, at_ns: int, z: float, x: float = 0.0, y: float = 0.0) -> None:
+        """
+        Record an angular rate that acts from ``at_ns`` on.
+
+        Raises
+        ------
+        RecordingError
+            If the recording has no ``angular_rate`` topic (the run is not a gyroscope: the
+            rate cannot have acted).
+
+        """
+        if conversions.ANGULAR_RATE_TOPIC not in self._topics:
+            raise RecordingError(f'{str(self.path)!r}: an angular rate acted in a run without '
+                                 f'gyro.enabled (not recorded)')
+        self._input(conversions.ANGULAR_RATE_TOPIC, at_ns, conversions.angular_rate_message,
+                    at_ns, z, x, y)
 
     def drive(self, at_ns: int, amplitude: Optional[float] = None,
               frequency_hz: Optional[float] = None) -> None:

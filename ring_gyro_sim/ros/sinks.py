@@ -18,7 +18,14 @@ Sinks of a :class:`~ring_gyro_sim.run.Run` that speak ROS messages: publish and/
 :class:`RosSink` turns each block into its three ``Float64MultiArray`` messages once and
 hands them to the node's publishers and to the recorder (either may be absent: a null
 target stands in, so no caller tests for ``None``). Inputs are recorded as they act, under
-the node's input topics (``<ns>/shock`` ...), diagnostics as ``/diagnostics``.
+the node's input topics (``<ns>/shock`` ... ``<ns>/angular_rate``), diagnostics as
+``/diagnostics``.
+
+The gyroscope (a block with ``rate`` / ``demod``, i.e. ``gyro.enabled``): the block's rate
+samples become one ``sensor_msgs/Imu`` each on ``~/rate`` (:func:`conversions.imu_message`:
+stamp = sample time, ``frame_id``, covariance from :attr:`RosSink.rate_variance`), published
+before the block messages and recorded at their sample times; the demodulator channels become
+the block topic ``~/demodulator`` next to the other three.
 
 Diagnostics: one status named ``<node>: simulator`` (the node's fully qualified name without
 the leading slash, e.g. ``ring_gyro: simulator`` or ``left/gyro: simulator``) and
@@ -59,6 +66,12 @@ class NullRecorder:
     def base_acceleration(self, at_ns: int, x: float, y: float = 0.0) -> None:
         """Do nothing."""
 
+    def angular_rate(self, at_ns: int, z: float, x: float = 0.0, y: float = 0.0) -> None:
+        """Do nothing."""
+
+    def rate(self, messages) -> None:
+        """Do nothing."""
+
     def drive(self, at_ns: int, amplitude=None, frequency_hz=None) -> None:
         """Do nothing."""
 
@@ -79,12 +92,21 @@ class NullRecorder:
 
 
 class Publishers:
-    """The node's output publishers (block topics, ``/clock`` if any, ``/diagnostics``)."""
+    """The node's output publishers: block topics, ``/clock``, ``/diagnostics``, ``~/rate``."""
 
-    def __init__(self, blocks: Mapping[str, object], diagnostics, clock=None) -> None:
+    def __init__(self, blocks: Mapping[str, object], diagnostics, clock=None,
+                 rate=None) -> None:
         self._blocks = dict(blocks)
         self._diagnostics = diagnostics
         self._clock = clock
+        self._rate = rate
+
+    def rate(self, messages) -> None:
+        """Publish the ``~/rate`` messages ``[(t_ns, Imu)]`` of one block (gyroscope only)."""
+        if self._rate is None:
+            return
+        for _, msg in messages:
+            self._rate.publish(msg)
 
     def blocks(self, msgs: Mapping[str, object]) -> None:
         """Publish the block messages of one block."""
@@ -105,6 +127,9 @@ class NullPublishers:
     """Stands in for :class:`Publishers` offline."""
 
     def blocks(self, msgs) -> None:
+        """Do nothing."""
+
+    def rate(self, messages) -> None:
         """Do nothing."""
 
     def clock(self, msg) -> None:
@@ -130,17 +155,36 @@ class RosSink(run_mod.Sink):
         Publishes blocks, ``/clock`` and ``/diagnostics`` (default: nothing).
     stamp_ns : callable, optional
         Header stamp of the diagnostics, ns (default: the simulation time).
+    frame_id : str
+        ``header.frame_id`` of ``~/rate`` (``gyro.frame_id``).
+    rate_variance : float
+        Variance of one ``~/rate`` sample, (rad/s)^2, for its covariance; 0 = unknown
+        (REP-145: all-zero covariance). An attribute: it may be set later, e.g. once the
+        electronics know their noise.
 
     """
 
     def __init__(self, channel_names: Dict[str, List[str]], fully_qualified_name: str,
                  recorder=None, publishers=None,
-                 stamp_ns: Optional[Callable[[], int]] = None) -> None:
+                 stamp_ns: Optional[Callable[[], int]] = None, frame_id: str = '',
+                 rate_variance: float = 0.0) -> None:
         self.channel_names = channel_names
         self.recorder = recorder if recorder is not None else NullRecorder()
         self.publishers = publishers if publishers is not None else NullPublishers()
         self.stamp_ns = stamp_ns
+        self.frame_id = frame_id
+        self.rate_variance = rate_variance
         self.status_name, self.hardware_id = diagnostics_names(fully_qualified_name)
+
+    @property
+    def rate_variance(self) -> float:
+        """Return the variance of one ``~/rate`` sample, (rad/s)^2 (0 = unknown)."""
+        return self._rate_variance
+
+    @rate_variance.setter
+    def rate_variance(self, value: float) -> None:
+        self._rate_covariance = conversions.rate_covariance(value)  # checks the value
+        self._rate_variance = float(value)
 
     def start(self, state) -> None:
         """Write the recording's metadata with the start state."""
@@ -162,10 +206,22 @@ class RosSink(run_mod.Sink):
             rec.reset(t)
         elif isinstance(event, run_mod.ParameterChange):
             rec.parameters(t, event.changes)
+        elif isinstance(event, run_mod.AngularRate):
+            rec.angular_rate(t, event.z, event.x, event.y)
+
+    def rate_messages(self, rate):
+        """Return ``[(t_ns, Imu)]`` of a block's rate samples (``~/rate``)."""
+        return conversions.rate_messages(rate, self.frame_id, self._rate_covariance)
 
     def block(self, block) -> None:
         """Convert a block to messages once; publish and record them, and ``/clock``."""
         msgs = conversions.output_blocks(block.samples, self.channel_names)
+        if block.rate is not None:
+            rate = self.rate_messages(block.rate)
+            self.publishers.rate(rate)
+            self.recorder.rate(rate)
+        if block.demod is not None:
+            msgs[conversions.DEMODULATOR_TOPIC] = conversions.demodulator_block(block.demod)
         self.publishers.blocks(msgs)
         clock = conversions.clock_message(block.end_ns)
         self.publishers.clock(clock)

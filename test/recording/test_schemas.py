@@ -168,3 +168,41 @@ def test_message_type_name_and_class_round_trip():
         message_type_name(3.0)
     with pytest.raises(RecordingError, match='cannot import'):
         message_class('no_such_pkg/msg/Thing')
+
+
+def test_imu_schema_is_rosbag2s_with_every_dependency():
+    """~/rate (sensor_msgs/Imu): Quaternion, Vector3 (once, used twice), Header, Time."""
+    definition = message_definition('sensor_msgs/msg/Imu')
+    # rosbag2 sorts the direct dependencies (geometry_msgs/* before std_msgs/Header) and walks
+    # them depth first, each once (Imu uses Vector3 twice).
+    expected = (msg_text('sensor_msgs', 'Imu')
+                + SEPARATOR + 'MSG: geometry_msgs/Quaternion\n'
+                + msg_text('geometry_msgs', 'Quaternion')
+                + SEPARATOR + 'MSG: geometry_msgs/Vector3\n'
+                + msg_text('geometry_msgs', 'Vector3')
+                + SEPARATOR + 'MSG: std_msgs/Header\n'
+                + msg_text('std_msgs', 'Header')
+                + SEPARATOR + 'MSG: builtin_interfaces/Time\n'
+                + msg_text('builtin_interfaces', 'Time'))
+    assert definition == expected
+    factory = mcap_ros2.decoder.DecoderFactory()
+    schema = mcap.records.Schema(id=1, name='sensor_msgs/msg/Imu', encoding='ros2msg',
+                                 data=definition.encode())
+    assert callable(factory.decoder_for('cdr', schema))
+    assert re.fullmatch(r'RIHS01_[0-9a-f]{64}', type_description_hash('sensor_msgs/msg/Imu'))
+    assert message_type_name(message_class('sensor_msgs/msg/Imu')) == 'sensor_msgs/msg/Imu'
+
+
+def test_imu_type_hash_matches_what_rclpy_discovers():
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        node = rclpy.create_node('imu_hash_probe', context=context)
+        try:
+            node.create_publisher(message_class('sensor_msgs/msg/Imu'), '/imu_hash_probe', 10)
+            (info,) = node.get_publishers_info_by_topic('/imu_hash_probe')
+            assert str(info.topic_type_hash) == type_description_hash('sensor_msgs/msg/Imu')
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)

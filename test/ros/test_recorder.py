@@ -58,6 +58,8 @@ REPO_ROOT = pathlib.Path(__file__).resolve().parents[2]
 # 100 kHz output (10 us period) in blocks of 1 ms = 100 samples: small, fast recordings.
 FAST = {'drive.start_on': 'rest', 'output.rate': 100000.0, 'output.block_duration': 0.001}
 PERIOD_NS = 10_000
+#: The inputs a run without gyro.enabled records (~/angular_rate cannot act there).
+RESONATOR_INPUTS = [name for name in ALWAYS_RECORDED if name != 'angular_rate']
 
 
 def record(path, threaded):
@@ -182,8 +184,12 @@ def qos_of_channel(channel):
     return profiles[0]['depth'], profiles[0]['reliability'], profiles[0]['durability']
 
 
+# The gyroscope's topics exist only with gyro.enabled (which needs the companions).
+GYRO = {'gyro.enabled': True, 'modes.companions': True}
+
+
 def test_recorded_qos_is_the_qos_module(tmp_path):
-    config = build_config({**FAST, 'publish_clock': True})
+    config = build_config({**FAST, **GYRO, 'publish_clock': True})
     path = tmp_path / 'qos.mcap'
     with RunRecorder(str(path), config, Simulator(config).channel_names, NS,
                      publish_clock=True):
@@ -196,7 +202,11 @@ def test_recorded_qos_is_the_qos_module(tmp_path):
     expected_depths = {'modal_displacement': 50, 'radial_gap': 50, 'sense_electrodes': 50,
                        '/diagnostics': 10, '/clock': 10, 'shock': 1000,
                        'base_acceleration': 1000, 'drive/amplitude': 10,
-                       'drive/frequency': 10, 'events/reset': 10, 'events/parameters': 10}
+                       'drive/frequency': 10, 'events/reset': 10, 'events/parameters': 10,
+                       # Gyroscope: a block topic; 50 blocks of 10 rate samples (1 kHz rate
+                       # output in 10 ms blocks); a rate profile streamed like base_acceleration.
+                       'demodulator': 50, 'rate': 500, 'angular_rate': 1000}
+    assert sorted(expected_depths) == sorted(RECORDABLE_TOPICS)
     for name, depth in expected_depths.items():
         topic = name if name.startswith('/') else f'{NS}/{name}'
         assert qos_of_channel(recorded[topic]) == (depth, 'reliable', 'volatile'), name
@@ -209,7 +219,7 @@ def test_recorded_qos_is_what_the_live_node_offers(tmp_path, ros):
     # (today: all of them) makes this fail; the depth is checked by the two tests above.
     path = tmp_path / 'live.mcap'
     params = tmp_path / 'live.yaml'
-    params.write_text(params_yaml({'drive.start_on': 'rest', 'duration': 0.0,
+    params.write_text(params_yaml({'drive.start_on': 'rest', 'duration': 0.0, **GYRO,
                                    'publish_clock': True, 'record.path': str(path)}))
     node = NodeProcess(params, tmp_path)
     probe = Probe()
@@ -254,7 +264,7 @@ def test_record_topics_selects_topics_and_keeps_the_inputs(tmp_path, shocked_sam
                                                      f'{NS}/shock']})
     path = record_cut(tmp_path / 'some.mcap', config, shocked_samples, [100, 100, 100],
                       diagnostics=True, namespace=NS, publish_clock=True)
-    kept = ['radial_gap', '/diagnostics', *ALWAYS_RECORDED]
+    kept = ['radial_gap', '/diagnostics', *RESONATOR_INPUTS]
     topics = sorted(n if n.startswith('/') else f'{NS}/{n}' for n in kept)
     assert sorted(channels(path)) == topics
     meta = read_metadata(path, METADATA_NAME)
@@ -270,9 +280,14 @@ def test_record_topics_selects_topics_and_keeps_the_inputs(tmp_path, shocked_sam
 
 
 def test_empty_record_topics_means_every_topic():
-    assert recorded_topic_names([], NS) == list(RECORDABLE_TOPICS)
+    assert recorded_topic_names([], NS, gyro=True) == list(RECORDABLE_TOPICS)
     assert '/clock' not in recorded_topic_names([], NS, publish_clock=False)
+    # Without gyro.enabled the node has no gyroscope topics, so no recording holds them.
+    assert recorded_topic_names([], NS) == [n for n in RECORDABLE_TOPICS
+                                            if n not in ('demodulator', 'rate', 'angular_rate')]
     assert recorded_topic_names(['~/sense_electrodes'], NS) == [
+        'sense_electrodes', *RESONATOR_INPUTS]
+    assert recorded_topic_names(['~/sense_electrodes'], NS, gyro=True) == [
         'sense_electrodes', *ALWAYS_RECORDED]
 
 

@@ -1,0 +1,193 @@
+# Copyright 2025 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Node tests of the gyroscope's ROS plumbing.
+
+``~/angular_rate`` in, ``~/rate`` (sensor_msgs/Imu) and ``~/demodulator`` out, all recorded.
+Real rclpy across processes (``node_harness``).
+
+Until the physics and the sense electronics are merged the blocks carry no rate samples, so
+the tests here check what holds either way (topics, types, QoS, the input accepted or refused
+and counted, the recording's channels); :func:`test_rate_output_end_to_end` checks the
+contents of ``~/rate`` and skips, saying why, while the blocks carry no rate.
+"""
+
+# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# isort: off
+import math
+import signal
+
+from geometry_msgs.msg import Vector3Stamped
+from mcap.reader import make_reader
+from node_harness import Probe, start_node
+import numpy as np
+import pytest
+from rclpy.qos import ReliabilityPolicy
+from ring_gyro_sim import run as run_mod
+from ring_gyro_sim.core.errors import InputError
+from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.recording.reader import decode, read_messages, read_rate
+from ring_gyro_sim.ros import conversions
+from sensor_msgs.msg import Imu
+from std_msgs.msg import Float64MultiArray
+# isort: on
+
+NS = '/ring_gyro'
+# 20 kHz output (a whole multiple of the 1 kHz rate output), paced, from rest.
+GYRO = {'drive.start_on': 'rest', 'modes.companions': True, 'gyro.enabled': True,
+        'output.rate': 20000.0, 'gyro.frame_id': 'gyro_link', 'duration': 0.0}
+TEN_DEG_S = math.radians(10.0)  # 0.174533 rad/s: the issue's test rate
+
+
+class GyroProbe(Probe):
+    """The harness probe, also on ``~/rate``, ``~/demodulator`` and ``~/angular_rate``."""
+
+    def __init__(self):
+        super().__init__()
+        self.rate = []
+        self.demod = []
+        self.create_subscription(Imu, f'{NS}/rate', self.rate.append, 1000)
+        self.create_subscription(Float64MultiArray, f'{NS}/demodulator', self.demod.append,
+                                 200)
+        self.angular_rate_pub = self.create_publisher(Vector3Stamped, f'{NS}/angular_rate', 10)
+
+    def angular_rate(self, z, at_ns=0, x=0.0):
+        msg = conversions.angular_rate_message(at_ns, z, x=x)
+        self.angular_rate_pub.publish(msg)
+
+
+def counted(probe, key, value, timeout=30.0):
+    """Wait until a diagnostics snapshot says ``key == value``."""
+    probe.spin_until(lambda: (probe.latest_diagnostics() or {}).get(key) == str(value),
+                     timeout, f'{key} = {value} on /diagnostics')
+
+
+def stop(node):
+    node.signal(signal.SIGINT)
+    assert node.wait(30.0) == 0, node.output()[-3000:]
+
+
+def test_gyro_node_offers_the_gyro_topics_and_records_them(ros, tmp_path):
+    path = tmp_path / 'gyro.mcap'
+    node = start_node(tmp_path, {**GYRO, 'record.path': str(path)})
+    probe = None
+    try:
+        probe = GyroProbe()
+        probe.wait_connected()
+        probe.spin_until(lambda: probe.angular_rate_pub.get_subscription_count() > 0, 20.0,
+                         'the ~/angular_rate subscription')
+        types = dict(probe.get_topic_names_and_types())
+        assert types[f'{NS}/rate'] == ['sensor_msgs/msg/Imu']
+        assert types[f'{NS}/demodulator'] == ['std_msgs/msg/Float64MultiArray']
+        (rate_info,) = probe.get_publishers_info_by_topic(f'{NS}/rate')
+        assert rate_info.qos_profile.reliability == ReliabilityPolicy.RELIABLE
+        probe.angular_rate(TEN_DEG_S, x=0.5)
+        # Accepted (the physics merged) or refused (not yet): either way once, and counted.
+        probe.spin_for(1.0)
+        stop(node)
+    finally:
+        if probe is not None:
+            probe.destroy_node()
+        node.stop()
+    log = node.output()
+    acted = list(read_messages(path, f'{NS}/angular_rate'))
+    diagnostics = [decode(m) for m in read_messages(path, '/diagnostics')]
+    rejected = {kv.key: kv.value for kv in diagnostics[-1].status[0].values}['rejected_inputs']
+    assert len(acted) + int(rejected) == 1, log[-3000:]
+    if acted:
+        assert decode(acted[0]).vector.z == TEN_DEG_S
+        assert 'the x and y components are ignored' in log
+    else:
+        assert 'rejected ~/angular_rate' in log
+    with open(path, 'rb') as stream:
+        summary = make_reader(stream).get_summary()
+    types = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
+    assert types[f'{NS}/rate'] == 'sensor_msgs/msg/Imu'
+    assert types[f'{NS}/demodulator'] == 'std_msgs/msg/Float64MultiArray'
+    assert types[f'{NS}/angular_rate'] == 'geometry_msgs/msg/Vector3Stamped'
+
+
+def test_a_resonator_node_refuses_angular_rates_and_has_no_rate_output(ros, tmp_path):
+    node = start_node(tmp_path, {**GYRO, 'gyro.enabled': False})
+    probe = None
+    try:
+        probe = GyroProbe()
+        probe.wait_connected()
+        probe.spin_until(lambda: probe.angular_rate_pub.get_subscription_count() > 0, 20.0,
+                         'the ~/angular_rate subscription')
+        # The probe subscribes to both, so the topics exist; nobody publishes them.
+        assert not probe.get_publishers_info_by_topic(f'{NS}/rate')
+        assert not probe.get_publishers_info_by_topic(f'{NS}/demodulator')
+        for _ in range(3):
+            probe.angular_rate(TEN_DEG_S)
+        counted(probe, 'rejected_inputs', 3)
+        stop(node)
+    finally:
+        if probe is not None:
+            probe.destroy_node()
+        node.stop()
+    log = node.output()
+    # One warning for the three (throttled per topic and kind of reason).
+    assert log.count('rejected ~/angular_rate') == 1, log[-3000:]
+    assert not probe.rate and not probe.demod
+
+
+def gyro_physics_reason():
+    """Return why ``~/rate`` cannot be checked end to end yet, or None."""
+    r = run_mod.Run(build_config(GYRO))
+    try:
+        r.apply(run_mod.AngularRate(z=TEN_DEG_S))
+    except InputError as exc:
+        return f'Run does not take AngularRate yet ({exc})'
+    if r.advance(20).rate is None:
+        return 'the blocks carry no RateSamples yet (no sense electronics)'
+    return None
+
+
+def test_rate_output_end_to_end(ros, tmp_path):
+    """
+    ``~/rate`` of a node turning at 10 deg/s: stamps, frame, REP-145 fields, value within 1 %.
+
+    Skipped until the physics and electronics are merged (the reason says which is missing).
+    The settling time allowed (the first 1.0 s is discarded) is to be confirmed then.
+    """
+    reason = gyro_physics_reason()
+    if reason is not None:
+        pytest.skip(f'gyroscope end to end: {reason}')
+    path = tmp_path / 'rate.mcap'
+    node = start_node(tmp_path, {**GYRO, 'scenario.rate_times': [0.0],
+                                 'scenario.rate_values': [TEN_DEG_S], 'duration': 1.5,
+                                 'record.path': str(path)})
+    probe = None
+    try:
+        probe = GyroProbe()
+        probe.wait_connected()
+        assert node.wait(120.0) == 0, node.output()[-3000:]
+        probe.spin_for(0.5)
+    finally:
+        if probe is not None:
+            probe.destroy_node()
+        node.stop()
+    stamps = [m.header.stamp.sec * 10 ** 9 + m.header.stamp.nanosec for m in probe.rate]
+    # 1 kHz on the simulation clock: consecutive stamps 1 ms apart, none lost or repeated.
+    assert np.all(np.diff(stamps) == 1_000_000)
+    for m in probe.rate:
+        assert m.header.frame_id == 'gyro_link'
+        assert m.orientation_covariance[0] == -1.0
+        assert m.linear_acceleration_covariance[0] == -1.0
+    series = read_rate(path)
+    assert len(series.t_ns) == 1500  # 1.5 s at 1 kHz, recorded whole
+    settled = series.rate[series.t_ns > 1_000_000_000]
+    assert np.mean(settled) == pytest.approx(TEN_DEG_S, rel=0.01)
