@@ -85,6 +85,7 @@ CASES = (
     ('paper.yaml', 'paper N_R=3, drive + 10 000 g', 10.0),
     ('nr3_companions.yaml', 'N_R=3 + companions, 45 deg', 6.0),
     ('nr5_companions.yaml', 'N_R=5 + companions, 45 deg', 3.0),
+    ('gyro.yaml', 'gyroscope: N_R=3 + companions, electronics, noise', 2.0),
 )
 TARGET_SPEEDUP = 200.0
 TARGET_RTF_RECORDING = 1.0

@@ -67,6 +67,7 @@ from ring_gyro_sim.core.electronics import DemodSamples, RateSamples
 from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.core.simulator import channel_names, Samples, Simulator, Status
+from ring_gyro_sim.rate import GyroChannel, RateStats
 
 __all__ = ['AngularRate', 'BaseAcceleration', 'Block', 'Diagnostics', 'DriveAmplitude',
            'DriveFrequency',
@@ -374,11 +375,17 @@ class RunSummary:
     samples: int
     steps: int
     output: Optional[str] = None
-    extra: Dict[str, float] = field(default_factory=dict)
+    extra: Dict[str, Any] = field(default_factory=dict)
 
     def to_json(self) -> str:
-        """Return one JSON object (a non-finite number, e.g. no gap seen yet, is null)."""
-        return json.dumps(_finite_or_none(asdict(self)), sort_keys=True, allow_nan=False)
+        """
+        Return one JSON object (a non-finite number, e.g. no gap seen yet, is null).
+
+        The ``extra`` figures (the rate channel's, ``rate.RateStats``) are top-level keys.
+        """
+        values = asdict(self)
+        values.update(values.pop('extra'))
+        return json.dumps(_finite_or_none(values), sort_keys=True, allow_nan=False)
 
 
 def _finite_or_none(value):
@@ -426,6 +433,11 @@ class Run:
                                 np.array(start_state[1], dtype=np.float64))
         else:
             self.start_state = (np.zeros(n), np.zeros(n))
+        self.gyro: Optional[GyroChannel] = None
+        self.rate_stats: Optional[RateStats] = None
+        if config.gyro.enabled:
+            self.gyro = GyroChannel(config, self.sim, start_state)
+            self.rate_stats = RateStats(config.gyro.output_rate)
         self.sink: Sink = sink if sink is not None else NullSink()
         self.late_tolerance_ns = int(late_tolerance_ns)
         self.stats = RunStats(self.sim.coordinates, self.sim.period_ns, self.sim.model.gap)
@@ -589,6 +601,8 @@ class Run:
         heapq.heappush(self._shock_ends,
                        at_ns + int(round(self.config.shock_duration_s * 1e9)))
         self.stats.shock_at(at_ns)
+        if self.rate_stats is not None:
+            self.rate_stats.shock_at(at_ns * 1e-9)
         self._accepted(replace(event, at_ns=at_ns, z=0.0))
         return at_ns
 
@@ -651,12 +665,22 @@ class Run:
             heapq.heappop(self._shock_ends)
         while self._future_profile and self._future_profile[0] <= end_ns:
             heapq.heappop(self._future_profile)
+        rate = demod = None
+        if self.gyro is not None:
+            demod, rate = self.gyro.process(first, samples)
         if not all(np.all(np.isfinite(a)) for a in
-                   (samples.q, samples.gap, samples.min_gap, samples.capacitance)):
+                   (samples.q, samples.gap, samples.min_gap, samples.capacitance)) or (
+                rate is not None and not (np.all(np.isfinite(rate.rate))
+                                          and np.all(np.isfinite(rate.quadrature))
+                                          and np.all(np.isfinite(demod.values)))):
             self.withheld_blocks += 1
             return None
         self.stats.add(samples, sim.sample_index)
-        block = Block(samples=samples, end_ns=end_ns, first_index=first)
+        if rate is not None and self.rate_stats is not None and samples.rate is not None:
+            at = np.clip(np.searchsorted(samples.t, rate.t), 0, max(0, len(samples) - 1))
+            self.rate_stats.add(rate, samples.rate[at])
+        block = Block(samples=samples, end_ns=end_ns, first_index=first, rate=rate,
+                      demod=demod)
         self.blocks += 1
         self.sink.block(block)
         return block
@@ -711,8 +735,18 @@ class Run:
         values['drive_amplitude'] = drive.amplitude
         values['drive_frequency_hz'] = drive.frequency
         values['withheld_nonfinite_blocks'] = self.withheld_blocks
+        gyro_warning = ''
+        if self.gyro is not None:
+            gyro = self.gyro.diagnostics_values()
+            values.update(gyro)
+            if not gyro.get('scale_factor_valid', True):
+                gyro_warning = (f'scale factor collapsed: drive pick-off at '
+                                f'{gyro.get("drive_amplitude_ratio", math.nan):.3g} of its '
+                                f'value at the operating point (~/rate is not a measurement)')
         if not self.running:
             level, message = 'ERROR', f'{sim.status}: {sim.message} (~/reset recovers)'
+        elif gyro_warning:
+            level, message = 'WARN', gyro_warning
         elif pacing.lag_warn:
             level = 'WARN'
             message = f'falling behind real time by {pacing.lag_s / pacing.target:.2f} s'
@@ -736,7 +770,20 @@ class Run:
             peak_abs_m={n: float(v) for n, v in zip(sim.coordinates, self.stats.peak)},
             final_abs_m=self.stats.final(), min_gap_m=self.stats.min_gap,
             contact=not self.running, status=str(sim.status), message=sim.message,
-            samples=self.stats.samples, steps=sim.steps_taken, output=output)
+            samples=self.stats.samples, steps=sim.steps_taken, output=output,
+            extra=self.gyro_figures())
+
+    def gyro_figures(self) -> Dict[str, Any]:
+        """Return the rate channel's figures (``rate.RateStats``), {} with the gyroscope off."""
+        if self.gyro is None or self.rate_stats is None:
+            return {}
+        out = self.rate_stats.figures()
+        diag = self.gyro.diagnostics_values()
+        for key in ('rate_scale_factor_v_per_rad_s', 'scale_factor_valid',
+                    'drive_amplitude_ratio', 'predicted_arw_deg_per_sqrt_h', 'bandwidth_hz'):
+            if key in diag:
+                out[key if key.startswith('rate_') else f'rate_{key}'] = diag[key]
+        return out
 
     def summary_text(self) -> str:
         """Return the run's numbers in one line (the node's log)."""

@@ -539,3 +539,41 @@ def plot_sweep(ds, plot_axes: Sequence[str], metrics: Sequence[str], out_dir) ->
         written += plot_sweep_jump_map(ds, plot_axes, Path(out_dir) / 'jump_map.png')
     written += plot_sweep_metric_maps(ds, plot_axes, metrics, out_dir)
     return written
+
+
+def plot_rate(traces, path, title='Rate output', shock_s=None) -> bool:
+    """
+    Save the rate output against the applied rate, and its error (deg/s against time).
+
+    Parameters
+    ----------
+    traces : sequence of (label, t, rate, applied)
+        One or more rate records: times (s), the rate output and the applied rate (rad/s),
+        e.g. open and closed loop, or before and after a jump of the drive.
+    path : str or Path
+        PNG file to write.
+    title : str
+        Title of the figure.
+    shock_s : float, optional
+        Start of the shock, s (marked).
+
+    """
+    plt = _pyplot()
+    if plt is None:
+        return False
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8.0, 6.0), sharex=True)
+    for label, t, rate, applied in traces:
+        top.plot(t, np.degrees(rate), lw=0.8, label=f'{label}: ~/rate')
+        top.plot(t, np.degrees(applied), lw=0.8, ls='--', label=f'{label}: applied')
+        bottom.plot(t, np.degrees(np.asarray(rate) - np.asarray(applied)), lw=0.8, label=label)
+    for ax in (top, bottom):
+        if shock_s is not None:
+            ax.axvline(shock_s, color='k', lw=0.6, ls=':')
+        ax.grid(True, lw=0.3)
+    top.set_ylabel('rate (deg/s)')
+    bottom.set_ylabel('rate error (deg/s)')
+    bottom.set_xlabel('t (s)')
+    top.legend(fontsize=7)
+    top.set_title(title)
+    _save(plt, fig, path)
+    return True

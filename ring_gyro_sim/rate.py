@@ -1,0 +1,172 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The gyroscope's rate channel inside a :class:`~ring_gyro_sim.run.Run`: electronics and figures.
+
+:class:`GyroChannel` builds the sense electronics (``core/electronics.py``) at the drive's
+operating point and turns each block's samples into the demodulator's channels and the rate
+output. :class:`RateStats` keeps the figures ``ring_gyro run --json`` reports (issue 12):
+
+``rate_mean_rad_s``
+    Mean of the rate output over the last second of the run (all of it if shorter).
+``rate_true_mean_rad_s``
+    Mean of the applied rate over the same samples (what ``rate_mean_rad_s`` should be).
+``rate_error_peak_rad_s``
+    After the first shock: the largest ``|rate output - applied rate|`` from the shock on.
+``rate_recovery_s``
+    After the first shock: the time from the shock's start to the last rate sample outside
+    the band ``max(1 % of |applied rate|, RECOVERY_NOISE_SIGMAS x the standard deviation of
+    the output's error before the shock)``; None when the output is still outside the band in the last
+    :data:`RECOVERY_HOLD_S` of the run (not recovered, or too short a run to tell:
+    ``rate_recovered`` says which it is not).
+``rate_scale_factor_valid`` / ``drive_amplitude_ratio``
+    At the end of the run: the drive pick-off against its value at the operating point. When
+    the drive has jumped to its lower branch (the paper's Case 3) the ratio falls to ~0.1:
+    the scale factor has collapsed and the rate output is not a measurement.
+"""
+
+from collections import deque
+import math
+from typing import Any, Deque, Dict, Optional, Tuple
+
+import numpy as np
+
+from ring_gyro_sim.core import structure
+from ring_gyro_sim.core.electronics import DemodSamples, RateSamples, SenseElectronics
+from ring_gyro_sim.core.params import SimConfig
+from ring_gyro_sim.core.simulator import Samples, Simulator
+
+__all__ = ['GyroChannel', 'RateStats', 'drive_operating_point', 'RECOVERY_BAND',
+           'RECOVERY_HOLD_S', 'RECOVERY_NOISE_SIGMAS']
+
+RECOVERY_BAND = 0.01
+"""Relative band of the recovery time: within 1 % of the applied rate (issue 12)."""
+RECOVERY_NOISE_SIGMAS = 4.0
+"""The band is at least this many standard deviations of the error before the shock."""
+RECOVERY_HOLD_S = 0.1
+"""A recovery counts when the output stayed in the band for at least this long at the end."""
+MEAN_WINDOW_S = 1.0
+"""Window of ``rate_mean_rad_s``, s."""
+
+
+def drive_operating_point(config: SimConfig, start_state) -> Tuple[float, float]:
+    """
+    Return ``(A, p)``: q2 = A cos(phi_drive(t) + p) at the start (m, rad).
+
+    From the start state when q2 moves (the ``drive.start_on`` orbit: its softening
+    included; the drive's phase is 0 at t = 0), else the linear response of the 2theta mode
+    ``F / (omega_2^2 - omega^2 + i omega omega_2 / Q_2)`` it will settle to from rest.
+    """
+    w = 2.0 * math.pi * config.drive.frequency
+    if start_state is not None and w > 0.0:
+        q, v = start_state
+        c = complex(float(q[1]), -float(v[1]) / w)
+        if abs(c) > 0.0:
+            return abs(c), math.atan2(c.imag, c.real)
+    f2 = 2.0 * math.pi * config.modes.frequencies[1]
+    q2 = config.modes.quality_factors[1]
+    c = config.drive.amplitude / complex(f2 * f2 - w * w, w * f2 / q2)
+    return abs(c), math.atan2(c.imag, c.real)
+
+
+class GyroChannel:
+    """The sense electronics of a run at its operating point (``gyro.enabled``)."""
+
+    def __init__(self, config: SimConfig, sim: Simulator, start_state) -> None:
+        amp, phase = drive_operating_point(config, start_state)
+        self.drive_amplitude_m = amp
+        self.drive_phase_rad = phase
+        self.electronics = SenseElectronics(config, sim, amp, phase)
+        self.kappa = structure.gyroscopic_coefficient(2)
+
+    def process(self, first_index: int, samples: Samples) -> Tuple[DemodSamples, RateSamples]:
+        """Return the demodulator's channels and the rate output of one block."""
+        return self.electronics.process(first_index, samples.t, samples.capacitance,
+                                        samples.drive_phase)
+
+    def diagnostics_values(self) -> Dict[str, Any]:
+        """Return the rate channel's state for ``/diagnostics``."""
+        return self.electronics.diagnostics_values()
+
+
+class RateStats:
+    """Figures of the rate output over a run (module docstring)."""
+
+    def __init__(self, output_rate_hz: float) -> None:
+        self.keep = max(1, int(round(MEAN_WINDOW_S * output_rate_hz)))
+        self.recent: Deque[Tuple[float, float]] = deque(maxlen=self.keep)
+        self._pre = [0, 0.0, 0.0]  # count, sum and sum of squares of the error before a shock
+        self.shock_s: Optional[float] = None
+        self.error_peak = 0.0
+        self.last_outside_s: Optional[float] = None
+        self.last_t = math.nan
+        self.samples = 0
+
+    def shock_at(self, t_s: float) -> None:
+        """Note the first shock's start time, s."""
+        if self.shock_s is None or t_s < self.shock_s:
+            self.shock_s = float(t_s)
+
+    def add(self, rate: RateSamples, applied: np.ndarray) -> None:
+        """Add a block's rate samples and the applied rate at the same times (rad/s)."""
+        if len(rate) == 0:
+            return
+        self.samples += len(rate)
+        for pair in zip(rate.rate.tolist(), applied.tolist()):
+            self.recent.append(pair)
+        self.last_t = float(rate.t[-1])
+        before = rate.t < self.shock_s if self.shock_s is not None else np.ones(len(rate), bool)
+        if np.any(before):
+            e = rate.rate[before] - applied[before]
+            self._pre[0] += int(e.size)
+            self._pre[1] += float(np.sum(e))
+            self._pre[2] += float(np.sum(e * e))
+        if self.shock_s is None:
+            return
+        after = ~before
+        if not np.any(after):
+            return
+        err = np.abs(rate.rate[after] - applied[after])
+        self.error_peak = max(self.error_peak, float(np.max(err)))
+        band = np.maximum(RECOVERY_BAND * np.abs(applied[after]),
+                          RECOVERY_NOISE_SIGMAS * self.noise_sigma)
+        outside = np.nonzero(err > band)[0]
+        if outside.size:
+            self.last_outside_s = float(rate.t[after][outside[-1]])
+
+    @property
+    def noise_sigma(self) -> float:
+        """Standard deviation of the output's error before the first shock, rad/s."""
+        n, total, squares = self._pre
+        if n < 2:
+            return 0.0
+        mean = total / n
+        return math.sqrt(max(0.0, squares / n - mean * mean))
+
+    def figures(self) -> Dict[str, Any]:
+        """Return the ``rate_*`` figures (module docstring)."""
+        out: Dict[str, Any] = {}
+        if self.recent:
+            arr = np.array(self.recent)
+            out['rate_mean_rad_s'] = float(np.mean(arr[:, 0]))
+            out['rate_true_mean_rad_s'] = float(np.mean(arr[:, 1]))
+        if self.shock_s is not None and self.samples:
+            out['rate_error_peak_rad_s'] = self.error_peak
+            last = self.last_outside_s
+            recovered = last is None or self.last_t - last >= RECOVERY_HOLD_S
+            out['rate_recovered'] = bool(recovered)
+            out['rate_recovery_s'] = (0.0 if last is None else last - self.shock_s) \
+                if recovered else None
+        return out
