@@ -30,7 +30,7 @@ setup(
         ('share/' + package_name + '/config', glob('config/*.yaml')),
     ],
     install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'mcap', 'PyYAML', 'zstandard',
-                      'lz4', 'tqdm'],
+                      'lz4', 'tqdm', 'allantools'],
     # `ring_gyro sweep` (ring_gyro_sim/sweep): imported only when a sweep runs.
     extras_require={'plots': ['matplotlib'],
                     'sweep': ['dask[distributed]', 'xarray', 'netCDF4', 'matplotlib']},

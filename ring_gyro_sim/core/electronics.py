@@ -12,20 +12,191 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
+r"""
 Sense electronics of the gyroscope: pick-off, charge amplifier, demodulator, low-pass, rate.
 
-(Skeleton: the signal chain is being written; the output types are fixed.)
+The chain runs at the internal sample rate ``f_s = output.rate`` on the capacitances of the
+``E = electrodes.count`` outer electrodes (centres ``theta_e = 2 pi e / E``) that the simulator
+publishes, and is chunk-invariant: its filter states are carried from one call to the next and
+its noise is addressed by sample index (:mod:`ring_gyro_sim.core.noise`), so a run cut into
+blocks of any length gives the same outputs bit for bit.
+
+Pick-off and charge amplifier (E1)
+    Two amplifiers. The sense one reads the electrodes at the nodes of the drive (cos 2theta)
+    mode with the differential weights ``w_e = sin(2 theta_e)`` (the sin 2theta companion
+    ``q2s``, the sense mode); the drive one reads the antinodes with ``cos(2 theta_e)``
+    (weights below 1e-12 in magnitude are set to 0: they are round-off of a node)::
+
+        V = -(V_b / C_f) sum_e w_e (C_e - C_e0)                                      (E1)
+
+    ``C_e0`` the rest capacitances (``Simulator.outputs_for(0)``), ``V_b`` = ``gyro.bias_voltage``
+    or ``electrodes.outer_voltage`` when 0, ``C_f`` = ``gyro.feedback_capacitance``. With
+    the default 8 electrodes the sense amplifier sees e1, e3, e5, e7 with weights +1, -1, +1,
+    -1 and the drive one e0, e2, e4, e6.
+
+Electronic noise (E2)
+    Input-referred white voltage density ``e_n`` (``gyro.input_noise_density``, V/sqrt(Hz),
+    one-sided), output-referred through the noise gain of a charge amplifier::
+
+        e_o = e_n (1 + C_in / C_f),  C_in = sum_{w_e != 0} C_e0 + gyro.parasitic_capacitance (E2)
+
+    Sampled at ``f_s`` as white noise of standard deviation ``e_o sqrt(f_s / 2)`` (one-sided
+    density over 0 .. f_s / 2), from ``noise.normals(gyro.noise_seed, STREAM_PICKOFF, k, ., 2)``
+    (column 0 sense, 1 drive), added when ``e_n > 0``.
+
+Demodulation and low-pass (E3)
+    Reference: the drive displacement's phase ``phi_ref = phi_drive + drive_phase_rad``
+    (``q2 ~ A cos(phi_ref)``)::
+
+        I = LP[2 V cos(phi_ref)],  Q = LP[2 V sin(phi_ref)]                              (E3)
+
+    so ``V = a cos(phi_ref) + b sin(phi_ref)`` gives ``I = a``, ``Q = b``. ``LP`` is
+    ``scipy.signal.butter(gyro.filter_order, gyro.filter_bandwidth, fs=f_s, output='sos')``
+    run by ``sosfilt`` with its state carried. The filter starts in the steady state of the
+    operating point: ``sense_i = sense_q = drive_q = 0``, ``drive_i = G_d A`` (no start
+    transient on the drive pick-off). The 2 omega products are attenuated by
+    ``(f_bw / 2 f_drive)^order`` (1e-10 for 100 Hz, order 4, 15.8 kHz).
+
+Rate output (E4)
+    ``D = output.rate / gyro.output_rate``; the rate samples are the internal samples of
+    global index ``k`` with ``(k + 1) % D == 0`` (sample ``k`` is at ``(k + 1) P``), rate
+    sample ``m = (k + 1) / D - 1``::
+
+        rate = sense_i / SF + flicker_m,  quadrature = sense_q / SF                        (E4)
+
+    When ``SF = 0`` (drive off, or no bias voltage) there is no rate: both are 0 and
+    :meth:`SenseElectronics.diagnostics_values` says ``scale_factor_valid: False``.
+
+Scale factor (E5-E8)
+    The sense coordinate ``q2s`` (index ``N + 1``) obeys, in the rotating frame (the
+    integrator's sign: ``q_ns'' = -2 kappa_n Omega q_n' + ...``)::
+
+        q2s'' + (w_s / Q_s) q2s' + w_s^2 q2s = -2 kappa Omega q2',  kappa = 2n/(n^2+1) = 0.8 (E5)
+
+    ``w_s^2 = (2 pi f_s2)^2 - J_ss`` with ``J = forces.jacobian(0)`` (the linear electrostatic
+    stiffness at rest; 0 with ``fold_linear_stiffness``, the default, where the k <= 2 terms
+    are folded into the frequencies). With ``q2 = A cos(w t + p)``,
+    ``q2' = Re(i w A e^{i(w t + p)})`` and the steady response is
+    ``q2s = Re(X Omega e^{i phi_ref})`` with ``X = -2 i kappa w A H_s(w)``,
+    ``H_s(w) = 1 / (w_s^2 - w^2 + i w w_s / Q_s)``. Its part in phase with ``q2`` (what ``I``
+    reads) per unit rate is the mechanical scale factor, m per rad/s::
+
+        S_m = A Re(-2 i kappa w H_s(w))       (at match w = w_s: -2 kappa Q_s A / w)      (E6)
+
+    The electronic gain ``G = dV_sense / dq2s`` (V/m) is the central difference of (E1)
+    through ``Simulator.outputs_for`` at ``q2s = +-h``, ``h = 1e-5 d_g``: the published
+    capacitances themselves, not a separate formula. Its error: the truncation term
+    ``(h / d_g)^2 = 1e-10`` relative (the capacitance's cubic term; the quadratic one cancels
+    in a central difference) plus round-off ``eps C_e0 / (2 h dC/dq) ~ eps d_g / (2 h) = 1e-11``
+    (``test_electronics.py`` compares it with the closed form
+    ``dC_e/dq2s = eps eps_0 l r_o / d_g^2 int_e sin 2theta dtheta``). ``G_d`` likewise for
+    ``q2`` and the drive amplifier. Then::
+
+        SF = G S_m  (V per rad/s),  rate = I / SF                                          (E7)
+
+    and the drive pick-off's nominal amplitude is ``|G_d A|`` (E8); the ratio of the measured
+    ``sqrt(drive_i^2 + drive_q^2)`` to it tells whether the drive still holds the operating
+    point the scale factor was computed for (within 10 %: ``scale_factor_valid``; when the
+    drive falls to its lower branch, the paper's Case 3, it drops to ~0.1).
+
+Bandwidth (E9)
+    Of the whole rate path: the envelope of the sense mode responds to a rate change as a
+    first-order low-pass of pole ``w_s / (2 Q_s)`` (rad/s; the resonator's half-power
+    half-width), followed by the Butterworth; ``bandwidth_hz`` solves
+    ``|H_m(f)|^2 |B(f)|^2 = 1/2`` numerically (``brentq``; ``B`` from ``sosfreqz``). Default
+    device: ``f_s2 / (2 Q_s) = 15800 / 129400 = 0.122 Hz`` (the open-loop, mode-matched
+    ring is slow), the 100 Hz filter changes it by 1e-6.
+
+Angle random walk (E10-E12)
+    Allan variance of white rate noise of one-sided density ``S`` ((rad/s)^2/Hz):
+    ``sigma^2(tau) = S / (2 tau)`` = ``N^2 / tau`` (IEEE 952: ``N^2`` is the two-sided
+    density, ``S / 2``).
+
+    * Thermomechanical: one-sided force density ``4 k_B T m w_s / Q_s`` on ``q2s``
+      (fluctuation-dissipation for the damping ``m w_s / Q_s``), acceleration
+      ``S_a = 4 k_B T w_s / (m Q_s)``. The Coriolis acceleration is
+      ``2 kappa Omega A w sin(phi_ref)``; a narrow-band noise
+      ``x cos(phi_ref) - y sin(phi_ref)`` has quadratures of one-sided density ``2 S_a``, so the
+      equivalent rate has ``S = 2 S_a / (2 kappa A w)^2`` and (both pass the same mechanical
+      response ``H_s``, so this holds at any detuning)::
+
+          N_th = sqrt(S / 2) = sqrt(k_B T w_s / (m Q_s)) / (kappa A w)
+               = sqrt(k_B T / (m w Q_s)) / (kappa A)   at match                          (E10)
+
+      ``m`` = the modal mass of ``q2s`` (``config.modal_masses()``), ``T`` = ``gyro.temperature``.
+    * Electronic: ``2 n(t) cos(phi_ref)`` of a white ``n`` of one-sided density ``e_o^2`` has
+      the autocorrelation ``2 R_n(tau) cos(w tau)``, i.e. one-sided density ``2 e_o^2`` at
+      low frequency (the demodulator's factor 2 squared, times the mean of cos^2)::
+
+          N_el = sqrt(2 e_o^2 / SF^2 / 2) = e_o / |SF|                                      (E11)
+
+    * Combined in quadrature: ``N = sqrt(N_th^2 + N_el^2)`` rad/sqrt(s);
+      ``N [deg/sqrt(h)] = N (180 / pi) 60``.                                                 (E12)
+
+Flicker (bias instability, E13)
+    ``gyro.bias_instability`` ``B`` (deg/h) is the datasheet figure of IEEE 952: one-sided
+    rate density ``S(f) = h_{-1} / f`` with ``h_{-1} = B^2 / pi`` (IEEE 952's two-sided
+    ``B^2 / (2 pi f)``), whose Allan deviation has the floor
+    ``sqrt(2 ln 2 h_{-1}) = sqrt(2 ln 2 / pi) B = 0.6643 B``. Generated at the rate samples
+    (rate ``f_r = gyro.output_rate``) by :class:`FlickerNoise`: a bank of first-order
+    (AR(1)) processes with corner frequencies ``f_j`` log-spaced by ``r = 10^(1/3)`` from
+    :data:`FLICKER_LOWEST_HZ` to ``f_r / 2``; a Lorentzian of one-sided density
+    ``a_j / (1 + (f/f_j)^2)`` per corner and ``1/ln r`` corners per unit ``ln f`` sum to
+    ``(pi/2) a_j f_j / (f ln r)``, so ``a_j = (2 / pi) h_{-1} ln(r) / f_j`` and every process
+    has the same variance ``sigma_j^2 = a_j f_j pi / 2 = h_{-1} ln r``. Process ``j`` is
+    ``x_m = rho_j x_{m-1} + sqrt(1 - rho_j^2) sigma_j eps_{m+1, j}``,
+    ``rho_j = exp(-2 pi f_j / f_r)``, started stationary from row 0 of
+    ``noise.normals(seed, STREAM_FLICKER, ., ., J)``; rate sample ``m`` uses row ``m + 1``.
+    The Allan deviation of the bank, computed exactly from its autocovariance
+    (``test_electronics.py``), is within 1.5 % of ``0.6643 B`` from ``tau = 10 / f_r`` to
+    ``tau = 0.01 / FLICKER_LOWEST_HZ``.
 """
 
 from dataclasses import dataclass
+import math
+import numbers
+from typing import Dict, Tuple, Union
 
 import numpy as np
+from ring_gyro_sim.core import forces, noise
+from ring_gyro_sim.core.errors import InputError
+from ring_gyro_sim.core.params import SimConfig
+from scipy import optimize, signal
 
-__all__ = ['DEMOD_CHANNELS', 'DemodSamples', 'RateSamples']
+__all__ = ['DEMOD_CHANNELS', 'DemodSamples', 'RateSamples', 'BOLTZMANN',
+           'CORIOLIS_KAPPA_N2', 'SCALE_FACTOR_TOLERANCE', 'GAIN_STEP_RATIO',
+           'FLICKER_LOWEST_HZ', 'FLICKER_POLES_PER_DECADE', 'FLICKER_FLOOR_RATIO',
+           'deg_per_h_to_rad_per_s', 'rad_per_sqrt_s_to_deg_per_sqrt_h', 'FlickerNoise',
+           'SenseElectronics']
 
 DEMOD_CHANNELS = ('sense_i', 'sense_q', 'drive_i', 'drive_q')
 """Channels of ``~/demodulator`` after ``t`` (V, low-passed, at every internal sample)."""
+
+BOLTZMANN = 1.380649e-23
+"""Boltzmann constant, J/K (SI 2019, exact)."""
+CORIOLIS_KAPPA_N2 = 0.8
+"""Coriolis coefficient 2n/(n^2 + 1) of the n = 2 pair (E5)."""
+SCALE_FACTOR_TOLERANCE = 0.1
+"""Largest relative deviation of the drive pick-off from its nominal for a valid scale factor."""
+GAIN_STEP_RATIO = 1e-5
+"""Step of the central difference of the electronic gain, in units of d_g (E7)."""
+FLICKER_LOWEST_HZ = 1e-5
+"""Lowest corner of the flicker bank, Hz: the Allan floor holds up to ~1e3 s (E13)."""
+FLICKER_POLES_PER_DECADE = 3
+"""Corners per decade of the flicker bank (ripple of the Allan floor below 1.5 %)."""
+FLICKER_FLOOR_RATIO = math.sqrt(2.0 * math.log(2.0) / math.pi)
+"""Allan floor / bias instability B of IEEE 952, 0.6643 (E13)."""
+_ZERO_WEIGHT = 1e-12
+
+
+def deg_per_h_to_rad_per_s(value: float) -> float:
+    """Convert deg/h to rad/s."""
+    return value * math.pi / 180.0 / 3600.0
+
+
+def rad_per_sqrt_s_to_deg_per_sqrt_h(value: float) -> float:
+    """Convert an angle random walk from rad/sqrt(s) to deg/sqrt(h) (E12)."""
+    return value * 180.0 / math.pi * 60.0
 
 
 @dataclass(frozen=True)
@@ -71,3 +242,334 @@ class DemodSamples:
 
     def __len__(self) -> int:
         return int(self.t.size)
+
+
+def _check_index(name: str, value) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
+        raise InputError(f'{name}: expected an integer >= 0, got {value!r}')
+    return int(value)
+
+
+def _check_array(name: str, value, shape) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f'{name}: expected numbers, got {type(value).__name__}') from None
+    if arr.shape != shape:
+        raise InputError(f'{name}: expected shape {shape}, got {arr.shape}')
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        first = np.argwhere(bad)[0]
+        raise InputError(f'{name}: must be finite, got {arr[tuple(first)]!r} at index '
+                         f'{tuple(int(i) for i in first)}')
+    return arr
+
+
+class FlickerNoise:
+    """
+    Flicker (1/f) rate noise of a given IEEE 952 bias instability, chunk-invariant (E13).
+
+    Parameters
+    ----------
+    bias_instability_rad_s : float
+        B, rad/s (>= 0; 0 gives zeros).
+    sample_rate_hz : float
+        Rate of the samples, Hz (``gyro.output_rate``).
+    seed : int
+        ``gyro.noise_seed``.
+
+    """
+
+    def __init__(self, bias_instability_rad_s: float, sample_rate_hz: float, seed: int) -> None:
+        if not (math.isfinite(bias_instability_rad_s) and bias_instability_rad_s >= 0.0):
+            raise InputError(f'bias_instability: must be finite and >= 0, got '
+                             f'{bias_instability_rad_s!r}')
+        if not (math.isfinite(sample_rate_hz) and sample_rate_hz > 0.0):
+            raise InputError(f'sample_rate_hz: must be finite and > 0, got {sample_rate_hz!r}')
+        self.seed = int(seed)
+        self.bias_instability_rad_s = float(bias_instability_rad_s)
+        self.sample_rate_hz = float(sample_rate_hz)
+        self.h_minus1 = self.bias_instability_rad_s ** 2 / math.pi
+        ratio = 10.0 ** (1.0 / FLICKER_POLES_PER_DECADE)
+        top = 0.5 * sample_rate_hz
+        decades = math.log(top / FLICKER_LOWEST_HZ) / math.log(ratio)
+        count = max(1, int(math.floor(decades + 1e-9)) + 1)
+        self.corners_hz = FLICKER_LOWEST_HZ * ratio ** np.arange(count)
+        self.rho = np.exp(-2.0 * math.pi * self.corners_hz / sample_rate_hz)
+        self.sigma = math.sqrt(self.h_minus1 * math.log(ratio))
+        self._gain = self.sigma * np.sqrt(1.0 - self.rho ** 2)
+        self._next = None
+        if self.sigma > 0.0:
+            self._state = self.sigma * noise.normals(self.seed, noise.STREAM_FLICKER, 0, 1,
+                                                     count)[0]
+        else:
+            self._state = np.zeros(count)
+
+    @property
+    def next_index(self):
+        """Index of the next sample :meth:`samples` expects (None before the first call)."""
+        return self._next
+
+    def samples(self, first_index: int, count: int) -> np.ndarray:
+        """
+        Return samples ``first_index .. first_index + count - 1``, rad/s.
+
+        The first call may start at any index (the bank is stationary from its start); each
+        further call continues where the previous one ended.
+
+        Raises
+        ------
+        InputError
+            ``first_index`` is negative or does not continue the previous call.
+
+        """
+        first_index = _check_index('first_index', first_index)
+        count = _check_index('count', count)
+        if self._next is not None and first_index != self._next:
+            raise InputError(f'first_index: the flicker noise continues at sample {self._next}, '
+                             f'got {first_index}')
+        self._next = first_index + count
+        if self.sigma == 0.0 or count == 0:
+            return np.zeros(count)
+        eps = noise.normals(self.seed, noise.STREAM_FLICKER, first_index + 1, count,
+                            self.rho.size)
+        out = np.zeros(count)
+        for j, (rho, gain) in enumerate(zip(self.rho, self._gain)):
+            # y[n] = gain e[n] + rho y[n-1]: direct form II transposed, zi = rho y[-1]
+            x, _ = signal.lfilter([gain], [1.0, -rho], eps[:, j], zi=[rho * self._state[j]])
+            self._state[j] = x[-1]
+            out += x
+        return out
+
+
+class SenseElectronics:
+    """
+    Pick-off, demodulation, low-pass and rate output of the sense chain (module docstring).
+
+    Parameters
+    ----------
+    config : SimConfig
+        The run's configuration (``gyro.*``, ``electrodes.*``, ``drive.frequency``, modes).
+    sim : Simulator
+        Its simulator (rest capacitances, the electronic gains and the linear stiffness).
+    drive_amplitude_m : float
+        A, m: the drive mode's operating point ``q2 ~ A cos(phi_drive + drive_phase_rad)``.
+    drive_phase_rad : float
+        Phase of ``q2`` relative to the drive force's phase ``phi_drive``, rad.
+
+    """
+
+    def __init__(self, config: SimConfig, sim, drive_amplitude_m: float,
+                 drive_phase_rad: float) -> None:
+        for name, val in (('drive_amplitude_m', drive_amplitude_m),
+                          ('drive_phase_rad', drive_phase_rad)):
+            if not (isinstance(val, numbers.Real) and math.isfinite(val)):
+                raise InputError(f'{name}: must be a finite number, got {val!r}')
+        n_modes = config.modes.count
+        if not config.modes.companions or n_modes < 2:
+            raise InputError('config: the sense electronics need the 2theta pair and its '
+                             'companion (modes.companions, at least 2 modes)')
+        g = config.gyro
+        self.config = config
+        self.drive_amplitude_m = float(drive_amplitude_m)
+        self.drive_phase_rad = float(drive_phase_rad)
+        self.sample_rate_hz = float(config.run.output_rate)
+        self.decimation = int(round(config.run.output_rate / g.output_rate))
+        self.noise_seed = int(g.noise_seed)
+        self.sense_index = n_modes + 1
+        self.drive_index = 1
+        n_coord = sim.model.n_coordinates
+        k = config.electrodes.count
+        self.n_electrodes = k
+        theta = 2.0 * math.pi * np.arange(k) / k
+        weights = np.stack([np.sin(2.0 * theta), np.cos(2.0 * theta)], axis=1)
+        weights[np.abs(weights) < _ZERO_WEIGHT] = 0.0
+        self.weights = weights
+        self.bias_voltage = float(g.bias_voltage or config.electrodes.outer_voltage)
+        self.feedback_capacitance = float(g.feedback_capacitance)
+        self._volts = -(self.bias_voltage / self.feedback_capacitance) * weights  # (E1)
+        zero = np.zeros(n_coord)
+        self.rest_capacitance = sim.outputs_for(zero).capacitance[0].copy()
+        # (E2) noise gain of each amplifier
+        c_in = np.array([self.rest_capacitance[weights[:, j] != 0.0].sum()
+                         for j in range(2)]) + g.parasitic_capacitance
+        self.input_capacitance = c_in
+        self.output_noise_density = g.input_noise_density * (1.0 + c_in / g.feedback_capacitance)
+        self._noise_std = self.output_noise_density * math.sqrt(0.5 * self.sample_rate_hz)
+        self._noisy = g.input_noise_density > 0.0
+        # (E7) gains by central differences through the published capacitances
+        step = GAIN_STEP_RATIO * config.electrodes.gap
+        self.electronic_gain = self._gain(sim, n_coord, self.sense_index, 0, step)
+        self.drive_gain = self._gain(sim, n_coord, self.drive_index, 1, step)
+        # (E5, E6) the sense mode's response
+        f_s = config.modes.coordinate_frequencies()[self.sense_index]
+        self.sense_quality_factor = float(
+            config.modes.coordinate_quality_factors()[self.sense_index])
+        jac = forces.jacobian(zero, sim.model)
+        self.sense_omega = math.sqrt((2.0 * math.pi * f_s) ** 2
+                                     - jac[self.sense_index, self.sense_index])
+        self.drive_omega = 2.0 * math.pi * float(config.drive.frequency)
+        self.sense_mass = float(config.modal_masses()[self.sense_index])
+        w, ws, qs = self.drive_omega, self.sense_omega, self.sense_quality_factor
+        self.sense_response = 1.0 / complex(ws * ws - w * w, w * ws / qs)
+        self.mechanical_scale_factor = self.drive_amplitude_m * (
+            -2j * CORIOLIS_KAPPA_N2 * w * self.sense_response).real
+        self.scale_factor = self.electronic_gain * self.mechanical_scale_factor
+        self.drive_pickoff_nominal_v = abs(self.drive_gain * self.drive_amplitude_m)
+        # (E3) filter, started at the operating point's steady state
+        self._sos = signal.butter(g.filter_order, g.filter_bandwidth, fs=self.sample_rate_hz,
+                                  output='sos')
+        steady = np.array([0.0, 0.0, self.drive_gain * self.drive_amplitude_m, 0.0])
+        self._zi = signal.sosfilt_zi(self._sos)[:, :, None] * steady[None, None, :]
+        self._latest = steady.copy()
+        self._latest_quadrature = 0.0
+        self._next_index = None
+        self.flicker = FlickerNoise(deg_per_h_to_rad_per_s(g.bias_instability),
+                                    g.output_rate, self.noise_seed)
+        self.bandwidth_hz = self._bandwidth()
+
+    def _gain(self, sim, n_coord: int, index: int, amp: int, step: float) -> float:
+        q = np.zeros((2, n_coord))
+        q[0, index] = step
+        q[1, index] = -step
+        cap = sim.outputs_for(q).capacitance
+        return float((cap[0] - cap[1]) @ self._volts[:, amp] / (2.0 * step))
+
+    def _bandwidth(self) -> float:
+        """(E9): -3 dB frequency of the sense envelope's pole times the Butterworth, Hz."""
+        f_m = self.sense_omega / (2.0 * self.sense_quality_factor) / (2.0 * math.pi)
+        fs = self.sample_rate_hz
+
+        def excess(f):
+            _, b = signal.sosfreqz(self._sos, worN=[f], fs=fs)
+            return math.log(abs(b[0]) ** 2 / (1.0 + (f / f_m) ** 2)) + math.log(2.0)
+        top = min(f_m, self.config.gyro.filter_bandwidth)
+        if excess(top) >= 0.0:
+            return top
+        return float(optimize.brentq(excess, 1e-9 * top, top, xtol=1e-12 * top))
+
+    @property
+    def has_scale_factor(self) -> bool:
+        """Whether a rate can be measured at all (drive on and a bias voltage)."""
+        return self.scale_factor != 0.0 and math.isfinite(self.scale_factor)
+
+    @property
+    def next_index(self):
+        """Global index of the sample :meth:`process` expects next (None before the first)."""
+        return self._next_index
+
+    def predicted_arw(self) -> Tuple[float, float, float]:
+        """
+        Return the predicted angle random walk, rad/sqrt(s) (E10-E12).
+
+        ``(total, thermomechanical, electronic)``; ``inf`` where the scale factor is 0.
+        """
+        g = self.config.gyro
+        if not self.has_scale_factor:
+            return math.inf, math.inf, math.inf
+        w, ws = self.drive_omega, self.sense_omega
+        amp = abs(self.drive_amplitude_m)
+        thermo = (math.sqrt(BOLTZMANN * g.temperature * ws
+                            / (self.sense_mass * self.sense_quality_factor))
+                  / (CORIOLIS_KAPPA_N2 * amp * w))
+        electronic = (self.output_noise_density[0] / abs(self.scale_factor)
+                      if g.input_noise_density > 0.0 else 0.0)
+        return math.hypot(thermo, electronic), thermo, electronic
+
+    def predicted_arw_deg_per_sqrt_h(self) -> float:
+        """Return the total predicted angle random walk, deg/sqrt(h) (E12)."""
+        return rad_per_sqrt_s_to_deg_per_sqrt_h(self.predicted_arw()[0])
+
+    def process(self, first_index: int, t: np.ndarray, capacitance: np.ndarray,
+                drive_phase: np.ndarray) -> Tuple[DemodSamples, RateSamples]:
+        """
+        Run the chain over consecutive samples of one block.
+
+        Parameters
+        ----------
+        first_index : int
+            Global index of the first sample (sample ``k`` is at ``(k + 1) P``), >= 0; after
+            the first call, the sample following the last one processed.
+        t : ndarray, shape (K,)
+            Sample times, s.
+        capacitance : ndarray, shape (K, E)
+            Outer electrode capacitances, F (``Samples.capacitance``).
+        drive_phase : ndarray, shape (K,)
+            Phase ``phi_drive`` of the drive force at each sample, rad.
+
+        Returns
+        -------
+        (DemodSamples, RateSamples)
+
+        Raises
+        ------
+        InputError
+            A wrong shape, a non-finite value, or a sample index that does not continue the
+            previous call (the message names the argument).
+
+        """
+        first_index = _check_index('first_index', first_index)
+        if self._next_index is not None and first_index != self._next_index:
+            raise InputError(f'first_index: the electronics continue at sample '
+                             f'{self._next_index}, got {first_index} (blocks must follow '
+                             f'each other)')
+        count = np.shape(t)[0] if np.ndim(t) == 1 else -1
+        t = _check_array('t', t, (count,))
+        capacitance = _check_array('capacitance', capacitance, (count, self.n_electrodes))
+        drive_phase = _check_array('drive_phase', drive_phase, (count,))
+        volts = (capacitance - self.rest_capacitance) @ self._volts  # (E1), (K, 2)
+        if self._noisy and count:
+            volts += noise.normals(self.noise_seed, noise.STREAM_PICKOFF, first_index, count,
+                                   2) * self._noise_std  # (E2)
+        phi = drive_phase + self.drive_phase_rad
+        two_cos = 2.0 * np.cos(phi)
+        two_sin = 2.0 * np.sin(phi)
+        mixed = np.empty((count, 4))
+        np.multiply(volts[:, 0], two_cos, out=mixed[:, 0])
+        np.multiply(volts[:, 0], two_sin, out=mixed[:, 1])
+        np.multiply(volts[:, 1], two_cos, out=mixed[:, 2])
+        np.multiply(volts[:, 1], two_sin, out=mixed[:, 3])
+        if count:
+            values, self._zi = signal.sosfilt(self._sos, mixed, axis=0, zi=self._zi)  # (E3)
+        else:
+            values = mixed
+        d = self.decimation
+        start = (d - (first_index + 1) % d) % d
+        picks = np.arange(start, count, d)
+        if self.has_scale_factor:
+            rate = values[picks, 0] / self.scale_factor  # (E4)
+            quadrature = values[picks, 1] / self.scale_factor
+        else:
+            rate = np.zeros(picks.size)
+            quadrature = np.zeros(picks.size)
+        if picks.size:
+            rate += self.flicker.samples((first_index + start + 1) // d - 1, picks.size)
+        self._next_index = first_index + count
+        if count:
+            self._latest = values[-1].copy()
+            if self.has_scale_factor:
+                self._latest_quadrature = float(values[-1, 1] / self.scale_factor)
+        return (DemodSamples(t=t, values=values),
+                RateSamples(t=t[picks], rate=rate, quadrature=quadrature))
+
+    def diagnostics_values(self) -> Dict[str, Union[float, bool, int]]:
+        """Return the rate channel's state for ``/diagnostics`` (latest processed sample)."""
+        g = self.config.gyro
+        pickoff = math.hypot(self._latest[2], self._latest[3])
+        nominal = self.drive_pickoff_nominal_v
+        ratio = pickoff / nominal if nominal > 0.0 else 0.0
+        return {
+            'rate_scale_factor_v_per_rad_s': float(self.scale_factor),
+            'rate_quadrature_rad_s': float(self._latest_quadrature),
+            'drive_pickoff_v': float(pickoff),
+            'drive_pickoff_nominal_v': float(nominal),
+            'drive_amplitude_ratio': float(ratio),
+            'scale_factor_valid': bool(self.has_scale_factor
+                                       and abs(ratio - 1.0) <= SCALE_FACTOR_TOLERANCE),
+            'noise_seed': int(self.noise_seed),
+            'input_noise_density_v_per_sqrt_hz': float(g.input_noise_density),
+            'temperature_k': float(g.temperature),
+            'bias_instability_deg_per_h': float(g.bias_instability),
+            'predicted_arw_deg_per_sqrt_h': float(self.predicted_arw_deg_per_sqrt_h()),
+            'bandwidth_hz': float(self.bandwidth_hz),
+        }

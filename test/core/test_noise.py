@@ -26,10 +26,9 @@ import math
 from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
-from scipy import stats
-
 from ring_gyro_sim.core import noise
 from ring_gyro_sim.core.errors import InputError
+from scipy import stats
 
 
 @settings(max_examples=60, deadline=None)
