@@ -28,8 +28,8 @@ output. :class:`RateStats` keeps the figures ``ring_gyro run --json`` reports (i
 ``rate_recovery_s``
     After the first shock: the time from the shock's start to the last rate sample outside
     the band ``max(1 % of |applied rate|, RECOVERY_NOISE_SIGMAS x the standard deviation of
-    the output's error before the shock)``; None when the output is still outside the band in the last
-    :data:`RECOVERY_HOLD_S` of the run (not recovered, or too short a run to tell:
+    the output's error before the shock)``; None when the output is still outside the band in
+    the last :data:`RECOVERY_HOLD_S` of the run (not recovered, or too short a run to tell:
     ``rate_recovered`` says which it is not).
 ``rate_scale_factor_valid`` / ``drive_amplitude_ratio``
     At the end of the run: the drive pick-off against its value at the operating point. When
@@ -148,7 +148,7 @@ class RateStats:
 
     @property
     def noise_sigma(self) -> float:
-        """Standard deviation of the output's error before the first shock, rad/s."""
+        """Return the standard deviation of the output's error before the first shock, rad/s."""
         n, total, squares = self._pre
         if n < 2:
             return 0.0
@@ -156,7 +156,7 @@ class RateStats:
         return math.sqrt(max(0.0, squares / n - mean * mean))
 
     def figures(self) -> Dict[str, Any]:
-        """Return the ``rate_*`` figures (module docstring)."""
+        """Return the rate output's figures, ``rate_*`` (see the module docstring)."""
         out: Dict[str, Any] = {}
         if self.recent:
             arr = np.array(self.recent)

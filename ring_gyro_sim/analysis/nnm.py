@@ -35,7 +35,7 @@ from typing import List, Sequence
 import warnings
 
 import numpy as np
-from ring_gyro_sim.core import forces, structure
+from ring_gyro_sim.core import electronics, forces, structure
 from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.params import SimConfig
 from scipy.integrate import solve_ivp
@@ -399,6 +399,8 @@ def _add_sense_response(config: SimConfig, x: np.ndarray, v: np.ndarray) -> None
 
     (matched modes at resonance: ``S / C = -2 kappa Omega_0 Q / w`` and the drive amplitude
     falls by ``1 / (1 + (2 kappa Omega_0 Q / w)^2)``: 3.2 % at 10 deg/s for the default Q).
+    S itself is taken about the drive orbit (``core.electronics.orbit_sense_response``: the
+    linear S above with the sense mode softened and pumped by the drive's amplitude).
     The other coordinates keep the orbit's values; what remains is a transient of the order
     of the pair's nonlinearity (doc/gyroscope.md).
     """
@@ -418,7 +420,11 @@ def _add_sense_response(config: SimConfig, x: np.ndarray, v: np.ndarray) -> None
     d_s = ws * ws - w * w + 1j * w * ws / qs
     g = 2.0 * structure.gyroscopic_coefficient(2) * rate0 * w
     c = config.drive.amplitude / (d - g * g / d_s)
-    s = -1j * g * c / d_s
+    # The sense response about the drive orbit (electronics.orbit_sense_response: the sense
+    # mode softened and pumped by the drive's amplitude), per unit rate and drive phase.
+    per_rate = electronics.orbit_sense_response(config, forces.build_force_model(config),
+                                                abs(c))
+    s = rate0 * per_rate * c / abs(c)
     x[1] += (c - c0).real
     v[1] += (1j * w * (c - c0)).real
     x[m + 1] += s.real

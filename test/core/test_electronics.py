@@ -28,7 +28,7 @@ import allantools
 import numpy as np
 import pytest
 from ring_gyro_sim.core import electronics
-from ring_gyro_sim.core.electronics import FlickerNoise, SenseElectronics
+from ring_gyro_sim.core.electronics import FlickerNoise, orbit_sense_response, SenseElectronics
 from ring_gyro_sim.core.errors import InputError
 from ring_gyro_sim.core.params import build_config, EPSILON_0
 from ring_gyro_sim.core.simulator import Simulator
@@ -109,11 +109,27 @@ def test_scale_factor_closed_form_at_match():
     q_s = config.modes.quality_factors[1]
     # folded linear stiffness: jacobian(0) = 0, w_s = the table's 15 800 Hz (E5)
     assert el.sense_omega == pytest.approx(w, rel=1e-15, abs=0)
-    assert el.mechanical_scale_factor == pytest.approx(-2.0 * 0.8 * q_s * amplitude / w,
-                                                       rel=1e-12, abs=0)
+    assert el.linear_mechanical_scale_factor == pytest.approx(-2.0 * 0.8 * q_s * amplitude / w,
+                                                              rel=1e-12, abs=0)
+    # (E6b) about the drive orbit: the force's cubic term detunes the sense mode by
+    # delta ~ A^2, which turns the response by ~delta / (w_s / 2 Q_s) into quadrature (first
+    # order: ~A^2) and lowers the in-phase part by its square (~A^4); and (E6) itself for a
+    # small drive.
+    change = 1.0 - el.mechanical_scale_factor / el.linear_mechanical_scale_factor
+    half = orbit_sense_response(config, sim.model, 0.5 * amplitude)
+    change_half = 1.0 - half.real / (0.5 * el.linear_mechanical_scale_factor)
+    assert 1e-3 < change < 2e-2
+    assert change / change_half == pytest.approx(16.0, rel=0.05)
+    quadrature_half = -half.imag / half.real
+    assert el.rate_quadrature_per_rate / quadrature_half == pytest.approx(4.0, rel=0.05)
+    small = orbit_sense_response(config, sim.model, 0.01 * amplitude)
+    linear = -2.0 * 0.8 * q_s * 0.01 * amplitude / w
+    assert small.real == pytest.approx(linear, rel=1e-6, abs=0)
+    assert abs(small.imag / small.real) < 2e-5
     assert el.scale_factor == el.electronic_gain * el.mechanical_scale_factor
     # the closed form: q2s / q2 = 0.182 at 10 deg/s
-    assert abs(el.mechanical_scale_factor * RATE / amplitude) == pytest.approx(0.182, abs=5e-4)
+    assert abs(el.linear_mechanical_scale_factor * RATE / amplitude) == pytest.approx(
+        0.182, abs=5e-4)
 
 
 def test_unfolded_stiffness_enters_the_sense_frequency():
@@ -148,9 +164,13 @@ def test_rate_and_quadrature_are_measured(a_rate, b_rate):
     q = np.zeros((64, sim.model.n_coordinates))
     q[:, el.drive_index] = amplitude * np.cos(phases)
     q[:, el.sense_index] = a * np.cos(phases) + b * np.sin(phases)
-    volts = (sim.outputs_for(q).capacitance - el.rest_capacitance) @ el._volts[:, 0]
-    i_true = 2.0 * np.mean(volts * np.cos(phases)) / el.scale_factor
-    q_true = 2.0 * np.mean(volts * np.sin(phases)) / el.scale_factor
+    both = (sim.outputs_for(q).capacitance - el.rest_capacitance) @ el._volts
+    volts = both[:, 0]
+    # the ratiometric readout (E4): divided by the drive pick-off's amplitude over nominal
+    rho = math.hypot(2.0 * np.mean(both[:, 1] * np.cos(phases)),
+                     2.0 * np.mean(both[:, 1] * np.sin(phases))) / el.drive_pickoff_nominal_v
+    i_true = 2.0 * np.mean(volts * np.cos(phases)) / (el.scale_factor * rho)
+    q_true = 2.0 * np.mean(volts * np.sin(phases)) / (el.scale_factor * rho)
     # left: the 2 omega ripple through the filter, (100 / 31 600)^4 = 1e-10 of the signal
     np.testing.assert_allclose(rate[settled], i_true, rtol=0, atol=1e-9 * scale)
     np.testing.assert_allclose(quad[settled], q_true, rtol=0, atol=1e-9 * scale)
@@ -205,11 +225,11 @@ def test_electronic_noise_gives_the_predicted_angle_random_walk():
     assert n_el == pytest.approx(e_o / abs(el.scale_factor), rel=1e-12, abs=0)
     seconds = 30.0
     n = int(seconds * config.run.output_rate)
-    cap = np.tile(el.rest_capacitance, (BLOCK, 1))  # the ring at rest: noise only
     rate = []
     for first in range(0, n, BLOCK):
-        t = (np.arange(first, first + BLOCK) + 1) * sim.period_s
-        phi = 2.0 * math.pi * 15800.0 * t
+        # the drive at its operating point (the ratiometric readout divides by its pick-off),
+        # the sense mode at rest: the rate is noise only
+        t, cap, phi = trajectory(sim, el, amplitude, first, BLOCK)
         rate.append(el.process(first, t, cap, phi)[1].rate)
     rate = np.concatenate(rate)[100:]  # 0.1 s: the filter's start
     fs_rate = config.gyro.output_rate
@@ -314,8 +334,9 @@ def test_diagnostics_and_the_collapsed_drive():
                      'drive_pickoff_nominal_v', 'drive_amplitude_ratio', 'scale_factor_valid',
                      'noise_seed', 'input_noise_density_v_per_sqrt_hz', 'temperature_k',
                      'bias_instability_deg_per_h', 'predicted_arw_deg_per_sqrt_h',
-                     'bandwidth_hz'}
+                     'bandwidth_hz', 'drive_amplitude_ratio_expected'}
     assert set(values) == expected_keys
+    assert values['drive_amplitude_ratio_expected'] == pytest.approx(1.0, abs=1e-12)
     run(el, sim, amplitude, [20 * BLOCK], b=0.5 * RATE * el.mechanical_scale_factor)
     values = el.diagnostics_values()
     assert values['scale_factor_valid'] is True
