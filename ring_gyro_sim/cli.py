@@ -76,6 +76,11 @@ def _parser() -> argparse.ArgumentParser:
     cal.add_argument('--low', type=float, default=40.0, help='voltage bracket low, V')
     cal.add_argument('--high', type=float, default=120.0, help='voltage bracket high, V')
     _add_harmonic_balance_verbs(sub)
+    rt = sub.add_parser('rate', help='the rate output of a gyroscope recording against the '
+                        'applied rate: rate.png, rate.csv and its figures (JSON)')
+    rt.add_argument('recording', help='MCAP of a run with gyro.enabled')
+    rt.add_argument('--out', required=True, help='directory for rate.png and rate.csv')
+
     rpt = sub.add_parser('report', help='regenerate the paper figures (PNG) and summary.json '
                                         "/ summary.md with our numbers beside the paper's")
     rpt.add_argument('--out', required=True, help='output directory')
@@ -267,6 +272,13 @@ def cmd_frf(args) -> int:
     return 0
 
 
+def cmd_rate(args) -> int:
+    """``ring_gyro rate``."""
+    from ring_gyro_sim.rate_record import rate_report
+    print(json.dumps(rate_report(args.recording, args.out), sort_keys=True))
+    return 0
+
+
 def cmd_report(args) -> int:
     """``ring_gyro report``."""
     from ring_gyro_sim.analysis.report import build_report
@@ -299,7 +311,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     if not args.verb:
         parser.print_help()
         return 2
-    handler = {'run': cmd_run, 'replay': cmd_replay, 'recover': cmd_recover,
+    handler = {'run': cmd_run, 'replay': cmd_replay, 'recover': cmd_recover, 'rate': cmd_rate,
                'calibrate': cmd_calibrate,
                'backbone': cmd_backbone, 'frf': cmd_frf,
                'report': cmd_report, 'sweep': cmd_sweep}[args.verb]

@@ -242,6 +242,9 @@ class Sink:
     def start(self, state: Tuple[np.ndarray, np.ndarray]) -> None:
         """Take the start ``state`` = (q, v) (m, m/s): called once by :class:`Run`."""
 
+    def set_rate_variance(self, variance: float) -> None:
+        """Take the predicted variance of the rate output, (rad/s)^2 (``gyro.enabled``)."""
+
     def input(self, event: Input) -> None:
         """Take an accepted event; it acts now (``event.at_ns``: its acting time, ns)."""
 
@@ -439,6 +442,8 @@ class Run:
             self.gyro = GyroChannel(config, self.sim, start_state)
             self.rate_stats = RateStats(config.gyro.output_rate)
         self.sink: Sink = sink if sink is not None else NullSink()
+        if self.gyro is not None:
+            self.sink.set_rate_variance(self.gyro.electronics.rate_variance())
         self.late_tolerance_ns = int(late_tolerance_ns)
         self.stats = RunStats(self.sim.coordinates, self.sim.period_ns, self.sim.model.gap)
         self.rejected: Dict[str, int] = {topic: 0 for topic in INPUT_TOPICS}

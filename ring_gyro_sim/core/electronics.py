@@ -568,6 +568,24 @@ class SenseElectronics:
                       if g.input_noise_density > 0.0 else 0.0)
         return math.hypot(thermo, electronic), thermo, electronic
 
+    def rate_variance(self) -> float:
+        """
+        Return the predicted variance of the rate output, (rad/s)^2 (0 without a scale factor).
+
+        White rate noise of one-sided density ``2 N^2`` (E10) through the path's noise
+        bandwidth: the thermomechanical part through the sense mode's first-order pole
+        (``pi / 2`` times its -3 dB frequency ``f_s / (2 Q_s)``), the electronic part through
+        the Butterworth (its noise bandwidth, from ``sosfreqz``). The flicker term, whose
+        variance grows with the record, is left out.
+        """
+        if not self.has_scale_factor:
+            return 0.0
+        _, thermo, electronic = self.predicted_arw()
+        pole_hz = self.sense_omega / (2.0 * self.sense_quality_factor) / (2.0 * math.pi)
+        f, h = signal.sosfreqz(self._sos, worN=1 << 16, fs=self.sample_rate_hz)
+        enbw = float(np.sum(np.abs(h) ** 2) * (f[1] - f[0]))
+        return 2.0 * thermo ** 2 * 0.5 * math.pi * pole_hz + 2.0 * electronic ** 2 * enbw
+
     def predicted_arw_deg_per_sqrt_h(self) -> float:
         """Return the total predicted angle random walk, deg/sqrt(h) (E12)."""
         return rad_per_sqrt_s_to_deg_per_sqrt_h(self.predicted_arw()[0])

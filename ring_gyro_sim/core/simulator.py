@@ -776,12 +776,20 @@ class Simulator:
         t = (np.arange(first, first + count) + 1) * self.period_s
         d = self._drive
         phase_out[:] = d.omega * (t - d.t_ref) + d.phase
+        t_ns = (np.arange(first, first + count, dtype=np.int64) + 1) * self.period_ns
+        rate_out[:] = self.rates_at(t_ns)
+
+    def rates_at(self, t_ns: np.ndarray) -> np.ndarray:
+        """
+        Angular rate of the profile (rad/s) at the times ``t_ns`` (ns; after a step there).
+
+        ``Samples.rate`` holds these values at the sample times.
+        """
+        t_ns = np.asarray(t_ns, dtype=np.int64)
         if not self._rate_t:
-            rate_out[:] = 0.0
-            return
+            return np.zeros(t_ns.shape)
         times = np.asarray(self._rate_t, dtype=np.int64)
         rates = np.asarray(self._rate_w, dtype=np.float64)
-        t_ns = (np.arange(first, first + count, dtype=np.int64) + 1) * self.period_ns
         k = np.searchsorted(times, t_ns, side='right') - 1  # the value after a step at t
         inside = (k >= 0) & (k < times.size - 1)
         kk = np.clip(k, 0, max(0, times.size - 2))
@@ -790,8 +798,8 @@ class Simulator:
             frac = np.where(inside, (t_ns - times[kk]) / np.where(dt > 0, dt, 1.0), 0.0)
             value = rates[kk] + (rates[np.minimum(kk + 1, times.size - 1)] - rates[kk]) * frac
         else:
-            value = np.full(count, rates[0])
-        rate_out[:] = np.where(k < 0, 0.0, np.where(k >= times.size - 1, rates[-1], value))
+            value = np.full(t_ns.shape, rates[0])
+        return np.where(k < 0, 0.0, np.where(k >= times.size - 1, rates[-1], value))
 
     def outputs_for(self, q: np.ndarray) -> Samples:
         """

@@ -186,6 +186,10 @@ class RosSink(run_mod.Sink):
         self._rate_covariance = conversions.rate_covariance(value)  # checks the value
         self._rate_variance = float(value)
 
+    def set_rate_variance(self, variance: float) -> None:
+        """Take the electronics' predicted variance of ``~/rate`` (``Run`` calls it)."""
+        self.rate_variance = variance
+
     def start(self, state) -> None:
         """Write the recording's metadata with the start state."""
         self.recorder.start(state)

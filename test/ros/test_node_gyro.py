@@ -167,14 +167,21 @@ def test_rate_output_end_to_end(ros, tmp_path):
     if reason is not None:
         pytest.skip(f'gyroscope end to end: {reason}')
     path = tmp_path / 'rate.mcap'
+    # config/gyro.yaml's operating point (a tenth of the paper's drive at 15 800 Hz, started
+    # on its orbit with the sense mode's steady response to the rate: doc/gyroscope.md).
     node = start_node(tmp_path, {**GYRO, 'scenario.rate_times': [0.0],
+                                 'drive.amplitude': 0.0065, 'drive.frequency': 15800.0,
+                                 'drive.start_on': 'upper_branch',
                                  'scenario.rate_values': [TEN_DEG_S], 'duration': 1.5,
                                  'record.path': str(path)})
     probe = None
     try:
         probe = GyroProbe()
         probe.wait_connected()
-        assert node.wait(120.0) == 0, node.output()[-3000:]
+        # Spin while the node runs: the 1 500 rate messages must not wait in the reader's
+        # history (1 000 deep) while nobody takes them.
+        probe.spin_until(lambda: node.proc.poll() is not None, 120.0, 'the node to finish')
+        assert node.wait(10.0) == 0, node.output()[-3000:]
         probe.spin_for(0.5)
     finally:
         if probe is not None:
@@ -191,3 +198,8 @@ def test_rate_output_end_to_end(ros, tmp_path):
     assert len(series.t_ns) == 1500  # 1.5 s at 1 kHz, recorded whole
     settled = series.rate[series.t_ns > 1_000_000_000]
     assert np.mean(settled) == pytest.approx(TEN_DEG_S, rel=0.01)
+    # and what subscribers got live, with the electronics' predicted variance on z (REP-145)
+    live = np.array([m.angular_velocity.z for m in probe.rate])
+    assert np.array_equal(live, series.rate)
+    cov = probe.rate[-1].angular_velocity_covariance
+    assert cov[8] > 0.0 and math.isinf(cov[0]) and math.isinf(cov[4])

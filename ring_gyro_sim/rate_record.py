@@ -1,0 +1,85 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+``ring_gyro rate``: the rate output of a recording against the applied rate (PNG, CSV, JSON).
+
+Reads ``/ring_gyro/rate`` (``recording.reader.read_rate``), the parameters and the inputs as
+they acted (``offline.load_recording``), rebuilds the applied rate at every rate sample with
+the simulator's own rules (the ``scenario.rate_*`` knots, linear between them, and each
+streamed ``~/angular_rate`` a step that replaces the knots after it:
+``Simulator.set_rate``), and writes
+
+* ``DIR/rate.png``: the rate output and the applied rate, and their difference, in deg/s,
+  the first shock marked (``analysis.plotting.plot_rate``);
+* ``DIR/rate.csv``: ``t_s, rate_rad_s, applied_rad_s, error_rad_s``;
+* the figures of ``ring_gyro run --json`` over the record (``rate.RateStats``), returned and
+  printed as one JSON object.
+"""
+
+import csv
+import json
+from pathlib import Path
+from typing import Any, Dict
+
+import numpy as np
+
+from ring_gyro_sim.core.electronics import RateSamples
+from ring_gyro_sim.core.simulator import Simulator
+from ring_gyro_sim.rate import RateStats
+from ring_gyro_sim.run import AngularRate, Shock
+
+__all__ = ['applied_rate', 'rate_report']
+
+
+def applied_rate(config, inputs, t_ns: np.ndarray) -> np.ndarray:
+    """Return the applied rate (rad/s) at the times ``t_ns``: configuration and inputs."""
+    sim = Simulator(config)
+    for event in sorted((e for e in inputs if isinstance(e, AngularRate)),
+                        key=lambda e: e.at_ns):
+        sim.set_rate(int(event.at_ns), float(event.z))
+    return sim.rates_at(np.asarray(t_ns, dtype=np.int64))  # as Samples.rate has them
+
+
+def rate_report(path: str, out_dir: str) -> Dict[str, Any]:
+    """Write ``rate.png`` and ``rate.csv`` of a gyroscope recording; return its figures."""
+    from ring_gyro_sim.analysis import plotting
+    from ring_gyro_sim.offline import load_recording
+    from ring_gyro_sim.recording.reader import read_rate
+    config, _, inputs, _, _ = load_recording(path)
+    series = read_rate(path)
+    t_ns = np.asarray(series.t_ns, dtype=np.int64)
+    rate = np.asarray(series.rate, dtype=np.float64)
+    applied = applied_rate(config, inputs, t_ns)
+    t = t_ns * 1e-9
+    stats = RateStats(config.gyro.output_rate)
+    shocks = ([e.at_ns for e in inputs if isinstance(e, Shock)]
+              + [at_ns for at_ns, _, _ in config.run.scheduled_shocks()])
+    shock_s = min(shocks) * 1e-9 if shocks else None
+    if shock_s is not None:
+        stats.shock_at(shock_s)
+    stats.add(RateSamples(t=t, rate=rate, quadrature=np.zeros_like(rate)), applied)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / 'rate.csv', 'w', newline='', encoding='utf-8') as f:
+        writer = csv.writer(f)
+        writer.writerow(['t_s', 'rate_rad_s', 'applied_rad_s', 'error_rad_s'])
+        for row in zip(t, rate, applied, rate - applied):
+            writer.writerow([repr(float(x)) for x in row])
+    files = [str(out / 'rate.csv')]
+    if plotting.plot_rate([('', t, rate, applied)], out / 'rate.png',
+                          title=f'Rate output of {Path(path).name}', shock_s=shock_s):
+        files.append(str(out / 'rate.png'))
+    figures = dict(stats.figures(), samples=int(t.size), files=files)
+    return json.loads(json.dumps(figures, allow_nan=False))

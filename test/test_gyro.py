@@ -1,0 +1,275 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The gyroscope end to end: ``Run``, ``ring_gyro run`` and ``ring_gyro rate`` (issue 12).
+
+The rate output against the applied rate, its bandwidth, its noise against the prediction
+from the noise sources, the shock figures and the collapse of the scale factor (the node:
+``test/ros/test_node_gyro.py``).
+"""
+
+import json
+import math
+from pathlib import Path
+import warnings
+
+import allantools
+import numpy as np
+import pytest
+from ring_gyro_sim import cli
+from ring_gyro_sim.analysis.nnm import drive_initial_state
+from ring_gyro_sim.core.params import build_config, STANDARD_GRAVITY
+from ring_gyro_sim.paramfile import check_params_file
+from ring_gyro_sim.rate_record import applied_rate
+from ring_gyro_sim.run import AngularRate, Run
+from scipy import signal
+import yaml
+
+REPO = Path(__file__).resolve().parents[1]
+TEN_DEG_S = math.radians(10.0)  # 0.174533 rad/s, the issue's rate
+
+
+def gyro_values(**extra):
+    """config/gyro.yaml (the gyroscope's operating point) with changes."""
+    values = check_params_file(str(REPO / 'config' / 'gyro.yaml'))
+    values.update(extra)
+    return values
+
+
+def run_blocks(config, seconds, state='orbit', inputs=()):
+    """Run ``config`` in its blocks; return (t, rate, applied, run)."""
+    start = drive_initial_state(config) if state == 'orbit' else None
+    run = Run(config, start_state=start)
+    for event in inputs:
+        run.apply(event)
+    t, rate, applied = [], [], []
+    block = config.run.block_samples
+    for _ in range(int(round(seconds / (block * config.run.output_period_ns * 1e-9)))):
+        b = run.advance(block)
+        t.append(b.rate.t)
+        rate.append(b.rate.rate)
+        at = np.searchsorted(b.samples.t, b.rate.t)
+        applied.append(b.samples.rate[at])
+    return np.concatenate(t), np.concatenate(rate), np.concatenate(applied), run
+
+
+def write_params(path, values):
+    nested = {}
+    for name, value in values.items():
+        node = nested
+        parts = name.split('.')
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+        node[parts[-1]] = value
+    path.write_text(yaml.safe_dump({'ring_gyro': {'ros__parameters': nested}}))
+    return path
+
+
+def test_ring_gyro_run_measures_10_deg_s_within_1_percent(tmp_path, capsys):
+    # The issue's check through the command line users run, the recording and `ring_gyro
+    # rate` (which rebuilds the applied rate from the recording alone).
+    rec = tmp_path / 'gyro.mcap'
+    assert cli.main(['run', str(REPO / 'config' / 'gyro.yaml'), '--duration', '1.5', '--json',
+                     '--no-progress', '-o', str(rec)]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary['rate_true_mean_rad_s'] == pytest.approx(TEN_DEG_S, rel=1e-12)
+    assert summary['rate_mean_rad_s'] == pytest.approx(TEN_DEG_S, rel=0.01)
+    assert summary['rate_scale_factor_valid'] is True
+    assert 'rate_error_peak_rad_s' not in summary  # no shock
+    assert cli.main(['rate', str(rec), '--out', str(tmp_path / 'plot')]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report['samples'] == 1500
+    assert report['rate_mean_rad_s'] == pytest.approx(summary['rate_mean_rad_s'], rel=1e-12)
+    assert (tmp_path / 'plot' / 'rate.csv').exists()
+    if any(f.endswith('.png') for f in report['files']):
+        assert (tmp_path / 'plot' / 'rate.png').stat().st_size > 10_000
+
+
+def test_minus_10_deg_s_reads_the_opposite_sign():
+    config = build_config(gyro_values(**{'scenario.rate_values': [-TEN_DEG_S],
+                                         'gyro.temperature': 0.0}))
+    t, rate, applied, _ = run_blocks(config, 0.5)
+    assert np.all(applied == -TEN_DEG_S)
+    assert np.mean(rate[t > 0.1]) == pytest.approx(-TEN_DEG_S, rel=0.01)
+
+
+def test_a_rate_step_shows_the_documented_bandwidth():
+    # A step from 0 to 10 deg/s at 0.2 s streamed on ~/angular_rate, no noise: the output
+    # rises as the first-order low-pass of the sense mode's half-power pole f_s / (2 Q_s)
+    # (electronics E9: bandwidth_hz, the Butterworth adds 1e-6). After one time constant
+    # 1 - 1/e of the step, after two 1 - 1/e^2, within 2 % of the step (the 2theta pair
+    # split by 2 kappa Omega = 0.28 rad/s against its 0.77 rad/s half-width bends the curve
+    # a little).
+    config = build_config(gyro_values(**{'scenario.rate_times': [], 'scenario.rate_values': [],
+                                         'gyro.temperature': 0.0,
+                                         'gyro.input_noise_density': 0.0}))
+    t_step = 0.2
+    tau = None
+    probe = Run(config, start_state=None)
+    tau = 1.0 / (2.0 * math.pi * probe.gyro.electronics.bandwidth_hz)
+    assert probe.gyro.electronics.bandwidth_hz == pytest.approx(15800.0 / (2 * 64700.0),
+                                                                rel=1e-4)
+    t, rate, applied, run = run_blocks(
+        config, t_step + 2.2 * tau,
+        inputs=[AngularRate(z=TEN_DEG_S, at_ns=int(t_step * 1e9))])
+    assert np.all(applied[t < t_step] == 0.0) and np.all(applied[t > t_step] == TEN_DEG_S)
+    for k in (1.0, 2.0):
+        at = np.searchsorted(t, t_step + k * tau)
+        rise = rate[at] / TEN_DEG_S
+        print(f'after {k:g} tau = {k * tau:.3f} s: {rise:.4f} of the step '
+              f'(first order: {1 - math.exp(-k):.4f})')
+        assert rise == pytest.approx(1.0 - math.exp(-k), abs=0.02)
+
+
+def predicted_allan_deviation(el, taus):
+    """
+    Allan deviation of the rate output predicted from the noise sources, rad/s.
+
+    White rate-equivalent noise of one-sided density 2 N^2 (the electronics' predicted_arw:
+    the thermomechanical part through the sense mode's first-order pole f_s / (2 Q_s), the
+    pick-off's through the Butterworth only; both through the Butterworth), and
+    sigma^2(tau) = 2 int S(f) |H(f)|^2 sin^4(pi f tau) / (pi f tau)^2 df (IEEE 952).
+    """
+    _, n_th, n_el = el.predicted_arw()
+    f = np.geomspace(1e-4, 0.5 * el.config.gyro.output_rate, 200_000)
+    _, hb = signal.sosfreqz(el._sos, worN=f, fs=el.sample_rate_hz)
+    pole = el.sense_omega / (2.0 * el.sense_quality_factor) / (2.0 * math.pi)
+    path = np.abs(hb) ** 2 * (2.0 * n_th ** 2 / (1.0 + (f / pole) ** 2) + 2.0 * n_el ** 2)
+    out = []
+    for tau in taus:
+        x = np.pi * f * tau
+        out.append(math.sqrt(2.0 * np.trapezoid(path * np.sin(x) ** 4 / x ** 2, f)))
+    return np.array(out)
+
+
+def test_angle_random_walk_matches_the_noise_sources():
+    # Zero rate, every noise on, the 2theta pair at Q = 500 so that the sense mode's pole
+    # (2 Q / omega = 10 ms) is short against the Allan times used; N_R = 2 (the 3theta mode
+    # does not enter the rate). 30 s of record: the overlapping estimator's standard error
+    # is ~2.4 / 3.3 / 4.7 % of the deviation at 0.05 / 0.1 / 0.2 s (edf ~ 3 N / (2 m)), so
+    # the 10 % check of the issue is made where it is >= 3 standard errors: 0.05 and 0.1 s
+    # (at 0.2 s this seed gives -10.7 %, 2.3 standard errors; 60 s of seed 6 gave 0.99,
+    # 0.976, 1.011, 1.053, 1.071 of the prediction at 0.05, 0.1, 0.2, 0.5, 1 s). The filters'
+    # share is in the prediction (30 % of the variance at 0.05 s); at 5 s it is N / sqrt(tau).
+    values = gyro_values(**{'modes.frequencies': [11200.0, 15800.0],
+                            'modes.quality_factors': [120000.0, 500.0],
+                            'scenario.rate_times': [], 'scenario.rate_values': [],
+                            'drive.start_on': 'rest', 'gyro.noise_seed': 5})
+    config = build_config(values)
+    # Start on the drive's linear response (rest would need ~10 time constants to build up).
+    w = 2 * math.pi * config.drive.frequency
+    w2 = 2 * math.pi * config.modes.frequencies[1]
+    c = config.drive.amplitude / complex(w2 * w2 - w * w, w * w2 / 500.0)
+    q = np.zeros(4)
+    v = np.zeros(4)
+    q[1], v[1] = c.real, (1j * w * c).real
+    run = Run(config, start_state=(q, v))
+    el = run.gyro.electronics
+    n_total, n_thermo, n_el = el.predicted_arw()
+    rate = []
+    for _ in range(3000):
+        rate.append(run.advance(config.run.block_samples).rate.rate)
+    rate = np.concatenate(rate)[100:]  # after 0.1 s (10 time constants of the pole)
+    taus = np.array([0.05, 0.1])
+    expected = predicted_allan_deviation(el, taus)
+    long = predicted_allan_deviation(el, [5.0])[0]
+    assert long * math.sqrt(5.0) == pytest.approx(n_total, rel=2e-3)
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')
+        got_taus, adev, _, _ = allantools.oadev(rate, rate=config.gyro.output_rate,
+                                                data_type='freq', taus=taus)
+    assert np.allclose(got_taus, taus)
+    print(f'ARW predicted {n_total:.4e} rad/sqrt(s) (thermomechanical {n_thermo:.4e}, '
+          f'pick-off {n_el:.2e}); Allan deviation / predicted at {taus} s: '
+          f'{np.round(adev / expected, 4)}')
+    np.testing.assert_allclose(adev, expected, rtol=0.1)
+
+
+def test_same_seed_same_record_other_seed_other_record_bit_for_bit():
+    base = gyro_values(**{'gyro.bias_instability': 1.0})
+    a = run_blocks(build_config(base), 0.05)[1]
+    b = run_blocks(build_config(base), 0.05)[1]
+    c = run_blocks(build_config({**base, 'gyro.noise_seed': 2}), 0.05)[1]
+    assert np.array_equal(a, b)
+    assert not np.array_equal(a, c)
+    # and the record does not depend on how it is cut into blocks
+    cut = build_config({**base, 'output.block_duration': 0.003})
+    d = run_blocks(cut, 0.051)[1][:a.size]
+    assert np.array_equal(a, d)
+
+
+def test_shock_figures_and_recovery():
+    # Fast modes (Q = 2 000 for 1theta and 2theta: the rigid mode rings for Q / (pi f) =
+    # 57 ms, the sense mode's time constant is 40 ms; the drive raised by 64 700 / 2 000 to
+    # keep q2 = 0.04 um) so that the recovery fits in a short run: a 10 000 g shock along x
+    # at 0.1 s during 10 deg/s. The error has a peak and returns within 1 % of the rate; the
+    # figures say when. (With the default Q the rigid mode rings for seconds and detunes the
+    # drive through the electrostatic coupling: doc/gyroscope.md.)
+    values = gyro_values(**{'modes.quality_factors': [2000.0, 2000.0, 170000.0],
+                            'drive.amplitude': 0.0065 * 64700.0 / 2000.0,
+                            'scenario.shock_times': [0.1],
+                            'scenario.shock_peaks': [10_000 * STANDARD_GRAVITY]})
+    config = build_config(values)
+    t, rate, applied, run = run_blocks(config, 0.8)
+    figures = run.gyro_figures()
+    err = np.abs(rate - applied)
+    assert figures['rate_error_peak_rad_s'] == pytest.approx(np.max(err[t >= 0.1]), rel=1e-12)
+    assert figures['rate_error_peak_rad_s'] > 0.01 * TEN_DEG_S  # the shock is seen
+    assert figures['rate_recovered'] is True
+    rec = figures['rate_recovery_s']
+    band = np.maximum(0.01 * TEN_DEG_S, 4.0 * run.rate_stats.noise_sigma)
+    after = t >= 0.1 + rec
+    assert 0.0 < rec < 0.6
+    assert np.all(err[t > 0.1 + rec] <= band)  # inside the band from then on
+    assert np.any(err[(t >= 0.1) & ~after] > band)
+
+
+def test_the_paper_case_3_collapses_the_scale_factor_and_says_so():
+    # The paper's Case 3 settings (drive 0.065 m/s^2 at 15 798.6 Hz on its upper branch,
+    # Q_1 = 40 000, 10 000 g) with the gyroscope: the drive falls, the pick-off drops far
+    # below its operating point, and the diagnostics and the figures say the rate output is
+    # not a measurement.
+    values = {'modes.companions': True, 'gyro.enabled': True,
+              'modes.quality_factors': [40000.0, 64700.0, 170000.0],
+              'scenario.shock_times': [0.05], 'scenario.shock_peaks': [10_000 * STANDARD_GRAVITY],
+              'scenario.rate_times': [0.0], 'scenario.rate_values': [TEN_DEG_S]}
+    config = build_config(values)
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')  # the upper branch's companion instability (nnm)
+        start = drive_initial_state(config)
+    run = Run(config, start_state=start)
+    for _ in range(5):
+        run.advance(config.run.block_samples)
+    assert run.diagnostics().level == 'OK'
+    for _ in range(25):
+        run.advance(config.run.block_samples)
+    diag = run.diagnostics()
+    assert diag.level == 'WARN' and 'scale factor collapsed' in diag.message
+    assert diag.values['scale_factor_valid'] is False
+    assert diag.values['drive_amplitude_ratio'] < 0.2
+    figures = run.gyro_figures()
+    assert figures['rate_scale_factor_valid'] is False
+
+
+def test_applied_rate_rebuilt_from_inputs_matches_the_simulator():
+    config = build_config(gyro_values(**{'scenario.rate_times': [0.0, 0.02, 0.02, 0.03],
+                                         'scenario.rate_values': [0.0, 1.0, -1.0, 2.0],
+                                         'gyro.temperature': 0.0}))
+    step = AngularRate(z=0.5, at_ns=25_000_123)
+    t, _, applied, run = run_blocks(config, 0.04, inputs=[step])
+    # the knots come with the configuration, the streamed step as an input (load_recording)
+    rebuilt = applied_rate(config, [step], np.round(t * 1e9).astype(np.int64))
+    assert np.array_equal(rebuilt, applied)
+    assert applied[np.searchsorted(t, 0.0251)] == 0.5 and applied[0] == pytest.approx(0.05)
