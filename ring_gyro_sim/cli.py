@@ -27,7 +27,6 @@ import sys
 from typing import List, Optional
 
 from ring_gyro_sim.core.errors import RingGyroError
-from ring_gyro_sim.run import format_number
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -156,6 +155,7 @@ def cmd_run(args) -> int:
     """``ring_gyro run``."""
     from ring_gyro_sim import offline
     from ring_gyro_sim.ros.recorder import check_output_path
+    from ring_gyro_sim.run import format_number
     if args.source:
         check_output_path(args.output, [args.source])
         summary = offline.resimulate(args.source, args.output, progress=not args.no_progress,

@@ -90,6 +90,23 @@ class GyroChannel:
         self.drive_phase_rad = phase
         self.electronics = SenseElectronics(config, sim, amp, phase)
         self.kappa = structure.gyroscopic_coefficient(2)
+        w = 2.0 * math.pi * config.drive.frequency
+        # A start state without drive motion (rest, given or not) keeps the default: the
+        # filters at the linear operating point the drive will build up to.
+        moving = start_state is not None and w > 0.0 and (
+            float(start_state[0][1]) != 0.0 or float(start_state[1][1]) != 0.0)
+        if moving:
+            # The demodulator's outputs of the start state (q = Re(c e^{i psi}), psi = p at
+            # t = 0: I = G Re(c), Q = -G Im(c)), so that the filters start settled.
+            el = self.electronics
+            q, v = start_state
+            turn = complex(math.cos(phase), -math.sin(phase))
+            out = []
+            for index, gain in ((el.sense_index, el.electronic_gain),
+                                (el.drive_index, el.drive_gain)):
+                c = complex(float(q[index]), -float(v[index]) / w) * turn
+                out += [gain * c.real, -gain * c.imag]
+            el.start_outputs(np.array(out))
 
     def process(self, first_index: int, samples: Samples) -> Tuple[DemodSamples, RateSamples]:
         """Return the demodulator's channels and the rate output of one block."""

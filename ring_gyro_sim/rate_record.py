@@ -21,8 +21,10 @@ the simulator's own rules (the ``scenario.rate_*`` knots, linear between them, a
 streamed ``~/angular_rate`` a step that replaces the knots after it:
 ``Simulator.set_rate``), and writes
 
-* ``DIR/rate.png``: the rate output and the applied rate, and their difference, in deg/s,
-  the first shock marked (``analysis.plotting.plot_rate``);
+* ``DIR/rate.png``: the rate output and the applied rate, their difference (log scale, the
+  1 % band drawn) in deg/s, and the drive pick-off over its value at the start (from
+  ``/ring_gyro/demodulator`` when recorded), the first shock marked
+  (``analysis.plotting.plot_rate``);
 * ``DIR/rate.csv``: ``t_s, rate_rad_s, applied_rad_s, error_rad_s``;
 * the figures of ``ring_gyro run --json`` over the record (``rate.RateStats``), returned and
   printed as one JSON object.
@@ -56,7 +58,8 @@ def rate_report(path: str, out_dir: str) -> Dict[str, Any]:
     """Write ``rate.png`` and ``rate.csv`` of a gyroscope recording; return its figures."""
     from ring_gyro_sim.analysis import plotting
     from ring_gyro_sim.offline import load_recording
-    from ring_gyro_sim.recording.reader import read_rate
+    from ring_gyro_sim.recording.errors import RecordingError
+    from ring_gyro_sim.recording.reader import read_block_topic, read_rate
     config, _, inputs, _, _ = load_recording(path)
     series = read_rate(path)
     t_ns = np.asarray(series.t_ns, dtype=np.int64)
@@ -78,8 +81,18 @@ def rate_report(path: str, out_dir: str) -> Dict[str, Any]:
         for row in zip(t, rate, applied, rate - applied):
             writer.writerow([repr(float(x)) for x in row])
     files = [str(out / 'rate.csv')]
+    drive = None
+    try:
+        demod = read_block_topic(path, 'demodulator')
+    except RecordingError:
+        demod = None  # not recorded (record.topics)
+    if demod is not None and len(demod.data):
+        cols = {name: k for k, name in enumerate(demod.labels)}
+        amp = np.hypot(demod.data[:, cols['drive_i']], demod.data[:, cols['drive_q']])
+        drive = [('', demod.data[:, cols['t']], amp / amp[0])]
     if plotting.plot_rate([('', t, rate, applied)], out / 'rate.png',
-                          title=f'Rate output of {Path(path).name}', shock_s=shock_s):
+                          title=f'Rate output of {Path(path).name}', shock_s=shock_s,
+                          drive=drive):
         files.append(str(out / 'rate.png'))
     figures = dict(stats.figures(), samples=int(t.size), files=files)
     return json.loads(json.dumps(figures, allow_nan=False))

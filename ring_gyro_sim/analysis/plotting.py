@@ -541,38 +541,52 @@ def plot_sweep(ds, plot_axes: Sequence[str], metrics: Sequence[str], out_dir) ->
     return written
 
 
-def plot_rate(traces, path, title='Rate output', shock_s=None) -> bool:
+def plot_rate(traces, path, title='Rate output', shock_s=None, drive=None,
+              band=0.01) -> bool:
     """
-    Save the rate output against the applied rate, and its error (deg/s against time).
+    Save the rate output against the applied rate, its error and the drive (against time).
 
     Parameters
     ----------
     traces : sequence of (label, t, rate, applied)
         One or more rate records: times (s), the rate output and the applied rate (rad/s),
-        e.g. open and closed loop, or before and after a jump of the drive.
+        e.g. open and closed loop.
     path : str or Path
         PNG file to write.
     title : str
         Title of the figure.
     shock_s : float, optional
         Start of the shock, s (marked).
+    drive : sequence of (label, t, ratio), optional
+        The drive pick-off over its value at the operating point (a third panel).
+    band : float
+        Relative band drawn on the error panel (the recovery band, 1 %).
 
     """
     plt = _pyplot()
     if plt is None:
         return False
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8.0, 6.0), sharex=True)
+    rows = 3 if drive else 2
+    fig, axes = plt.subplots(rows, 1, figsize=(8.0, 2.6 * rows + 0.6), sharex=True)
+    top, middle = axes[0], axes[1]
     for label, t, rate, applied in traces:
-        top.plot(t, np.degrees(rate), lw=0.8, label=f'{label}: ~/rate')
-        top.plot(t, np.degrees(applied), lw=0.8, ls='--', label=f'{label}: applied')
-        bottom.plot(t, np.degrees(np.asarray(rate) - np.asarray(applied)), lw=0.8, label=label)
-    for ax in (top, bottom):
+        prefix = f'{label}: ' if label else ''
+        top.plot(t, np.degrees(rate), lw=0.7, label=f'{prefix}~/rate')
+        top.plot(t, np.degrees(applied), lw=0.9, ls='--', label=f'{prefix}applied')
+        err = np.abs(np.asarray(rate) - np.asarray(applied))
+        middle.semilogy(t, np.degrees(np.maximum(err, 1e-12)), lw=0.7, label=label or None)
+        middle.semilogy(t, np.degrees(band * np.abs(applied)), lw=0.8, ls=':', color='k')
+    if drive:
+        for label, t, ratio in drive:
+            axes[2].semilogy(t, np.maximum(ratio, 1e-6), lw=0.8, label=label or None)
+        axes[2].set_ylabel('drive pick-off / nominal')
+    for ax in axes:
         if shock_s is not None:
             ax.axvline(shock_s, color='k', lw=0.6, ls=':')
         ax.grid(True, lw=0.3)
     top.set_ylabel('rate (deg/s)')
-    bottom.set_ylabel('rate error (deg/s)')
-    bottom.set_xlabel('t (s)')
+    middle.set_ylabel(f'|error| (deg/s); {100 * band:g} % band')
+    axes[-1].set_xlabel('t (s)')
     top.legend(fontsize=7)
     top.set_title(title)
     _save(plt, fig, path)

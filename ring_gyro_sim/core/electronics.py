@@ -175,6 +175,7 @@ Flicker (bias instability, E13)
 """
 
 from dataclasses import dataclass
+import importlib
 import math
 import numbers
 from typing import Dict, Tuple, Union
@@ -183,7 +184,23 @@ import numpy as np
 from ring_gyro_sim.core import forces, noise
 from ring_gyro_sim.core.errors import InputError
 from ring_gyro_sim.core.params import SimConfig
-from scipy import integrate, interpolate, optimize, signal
+
+
+class _LazyModule:
+    """``scipy.<name>``, imported on first use: importing ``run`` (every verb) stays light."""
+
+    def __init__(self, name: str) -> None:
+        self._name = name
+
+    def __getattr__(self, attr: str):
+        return getattr(importlib.import_module(f'scipy.{self._name}'), attr)
+
+
+integrate = _LazyModule('integrate')
+interpolate = _LazyModule('interpolate')
+optimize = _LazyModule('optimize')
+signal = _LazyModule('signal')
+
 
 __all__ = ['DEMOD_CHANNELS', 'DemodSamples', 'RateSamples', 'BOLTZMANN',
            'CORIOLIS_KAPPA_N2', 'SCALE_FACTOR_TOLERANCE', 'GAIN_STEP_RATIO',
@@ -567,6 +584,20 @@ class SenseElectronics:
         electronic = (self.output_noise_density[0] / abs(self.scale_factor)
                       if g.input_noise_density > 0.0 else 0.0)
         return math.hypot(thermo, electronic), thermo, electronic
+
+    def start_outputs(self, values) -> None:
+        """
+        Start the low-pass in the steady state of given outputs (``DEMOD_CHANNELS``, V).
+
+        Before the first :meth:`process`. The default is the operating point's drive pick-off
+        and a sense channel at 0; a run that starts with the sense mode moving (a rate at
+        t = 0) passes what its start state gives, so the output has no filter transient.
+        """
+        if self._next_index is not None:
+            raise InputError('values: the filters are already running')
+        steady = _check_array('values', values, (4,))
+        self._zi = signal.sosfilt_zi(self._sos)[:, :, None] * steady[None, None, :]
+        self._latest = steady.copy()
 
     def rate_variance(self) -> float:
         """

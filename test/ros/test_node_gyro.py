@@ -203,3 +203,11 @@ def test_rate_output_end_to_end(ros, tmp_path):
     assert np.array_equal(live, series.rate)
     cov = probe.rate[-1].angular_velocity_covariance
     assert cov[8] > 0.0 and math.isinf(cov[0]) and math.isinf(cov[4])
+    # /diagnostics carries the rate channel's state (issue 12, item 6)
+    diag = probe.latest_diagnostics()
+    assert diag is not None
+    for key in ('rate_scale_factor_v_per_rad_s', 'rate_quadrature_rad_s', 'noise_seed',
+                'temperature_k', 'input_noise_density_v_per_sqrt_hz',
+                'predicted_arw_deg_per_sqrt_h', 'scale_factor_valid'):
+        assert key in diag, sorted(diag)
+    assert float(diag['rate_scale_factor_v_per_rad_s']) > 0.0

@@ -96,7 +96,9 @@ def decoded_blocks(path, topic):
 
 def sliced(samples, start, stop):
     """Return the samples ``start:stop`` of a Samples (rows of every array)."""
-    return Samples(**{f.name: getattr(samples, f.name)[start:stop]
+    def rows(value):
+        return None if value is None else value[start:stop]  # drive_phase, rate: gyro only
+    return Samples(**{f.name: rows(getattr(samples, f.name))
                       for f in dataclasses.fields(Samples)})
 
 
