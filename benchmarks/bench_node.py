@@ -36,6 +36,8 @@ import sys
 import tempfile
 import time
 
+import yaml
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 LINE = re.compile(r'([0-9.]+) s simulated in ([0-9.]+) s \(x([0-9.]+) real time\)')
@@ -52,8 +54,7 @@ def run_node(params: str, duration: float, gyro: bool, domain: int):
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
                PYTHONPATH=os.pathsep.join([REPO, os.environ.get('PYTHONPATH', '')]))
     args = node_command() + ['--ros-args', '--params-file', params, '-p',
-                             f'duration:={duration}', '-p',
-                             f'gyro.enabled:={"true" if gyro else "false"}']
+                             f'duration:={duration}']
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     done = subprocess.run(args, env=env, capture_output=True, text=True, timeout=3600,
@@ -74,10 +75,20 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     params = os.path.join(HERE, 'gyro.yaml')
     best = {}
-    with tempfile.TemporaryDirectory():
+    with tempfile.TemporaryDirectory() as tmp:
+        # the resonator: the same file without the gyroscope (and so without a rate)
+        with open(params, encoding='utf-8') as f:
+            doc = yaml.safe_load(f)
+        p = doc['ring_gyro']['ros__parameters']
+        p['gyro']['enabled'] = False
+        del p['scenario']['rate_times'], p['scenario']['rate_values']
+        resonator = os.path.join(tmp, 'resonator.yaml')
+        with open(resonator, 'w', encoding='utf-8') as f:
+            yaml.safe_dump(doc, f)
         for k in range(args.rounds):
             for gyro in (True, False):
-                rtf, wall, cpu = run_node(params, args.duration, gyro, 240 + (k % 5))
+                rtf, wall, cpu = run_node(params if gyro else resonator, args.duration, gyro,
+                                          80 + (k % 5))
                 tag = 'gyroscope' if gyro else 'resonator'
                 print(f'round {k + 1}: {tag}: x{rtf:.3f} real time (node log), wall '
                       f'{wall:.2f} s, CPU {cpu:.2f} s for {args.duration:g} s simulated',

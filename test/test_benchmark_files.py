@@ -34,7 +34,20 @@ FILES = ('paper.yaml', 'nr3_companions.yaml', 'nr5_companions.yaml')
 
 
 def test_every_benchmark_file_is_tested():
-    assert sorted(p.name for p in BENCH.glob('*.yaml')) == sorted(FILES)
+    assert sorted(p.name for p in BENCH.glob('*.yaml')) == sorted(FILES + ('gyro.yaml',))
+
+
+def test_the_gyroscope_benchmark_file_runs_with_its_rate_output():
+    # benchmarks/gyro.yaml (issue 12): config/gyro.yaml's operating point, 10 deg/s, a
+    # 10 000 g shock at 0.5 s, nothing recorded; 20 ms here: the rate output is on and right.
+    config = load_yaml(str(BENCH / 'gyro.yaml'))
+    assert config.run.record_path == '' and config.run.real_time_factor == 0.0
+    assert config.gyro.enabled and config.modes.companions
+    (at_ns, peak_x, peak_y), = config.run.scheduled_shocks()
+    assert at_ns == 500_000_000 and peak_y == 0.0
+    assert peak_x == pytest.approx(10_000.0 * STANDARD_GRAVITY, rel=1e-12)
+    summary = offline.run_offline(config, duration_s=0.02, progress=False)
+    assert summary.extra['rate_mean_rad_s'] == pytest.approx(math.radians(10.0), rel=0.01)
 
 
 @pytest.mark.parametrize('name', FILES)
