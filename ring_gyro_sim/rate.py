@@ -43,7 +43,6 @@ from typing import Any, Deque, Dict, Optional, Tuple
 
 import numpy as np
 
-from ring_gyro_sim.core import structure
 from ring_gyro_sim.core.electronics import DemodSamples, RateSamples, SenseElectronics
 from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.core.simulator import Samples, Simulator
@@ -89,7 +88,6 @@ class GyroChannel:
         self.drive_amplitude_m = amp
         self.drive_phase_rad = phase
         self.electronics = SenseElectronics(config, sim, amp, phase)
-        self.kappa = structure.gyroscopic_coefficient(2)
         w = 2.0 * math.pi * config.drive.frequency
         # A start state without drive motion (rest, given or not) keeps the default: the
         # filters at the linear operating point the drive will build up to.

@@ -116,7 +116,6 @@ def test_a_rate_step_shows_the_documented_bandwidth():
                                          'gyro.temperature': 0.0,
                                          'gyro.input_noise_density': 0.0}))
     t_step = 0.2
-    tau = None
     probe = Run(config, start_state=None)
     tau = 1.0 / (2.0 * math.pi * probe.gyro.electronics.bandwidth_hz)
     assert probe.gyro.electronics.bandwidth_hz == pytest.approx(15800.0 / (2 * 64700.0),

@@ -32,7 +32,7 @@ import numpy as np
 import pytest
 from ring_gyro_sim import offline, progress, run
 from ring_gyro_sim.analysis.nnm import drive_initial_state
-from ring_gyro_sim.core.errors import InputError, ParameterError
+from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.params import build_config, STANDARD_GRAVITY
 from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.paramfile import load_yaml
@@ -379,19 +379,6 @@ GYRO = {'drive.start_on': 'rest', 'modes.companions': True, 'gyro.enabled': True
 GYRO_TOPICS = [f'{NS}/rate', f'{NS}/demodulator', f'{NS}/angular_rate']
 
 
-def gyro_physics_reason():
-    """Return why the gyroscope's outputs cannot be tested end to end yet, or None."""
-    r = run.Run(build_config(GYRO))
-    try:
-        r.apply(run.AngularRate(z=0.1))
-    except InputError as exc:
-        return f'Run does not take AngularRate yet ({exc})'
-    block = r.advance(20)  # one rate period at 1 kHz
-    if block.rate is None or block.demod is None:
-        return 'the blocks carry no RateSamples / DemodSamples yet (no sense electronics)'
-    return None
-
-
 def test_a_gyro_run_records_the_gyro_topics(tmp_path):
     path = tmp_path / 'gyro.mcap'
     offline.run_offline(build_config(GYRO), 0.02, output=str(path), progress=False)
@@ -430,10 +417,7 @@ def test_load_recording_reads_the_angular_rates_that_acted(tmp_path):
 
 
 def test_resimulation_with_angular_rates_is_bit_identical(tmp_path):
-    """End to end (enable once the physics and electronics are merged): skipped until then."""
-    reason = gyro_physics_reason()
-    if reason is not None:
-        pytest.skip(f'gyroscope end to end: {reason}')
+    """A run with streamed angular rates re-simulated from its recording: bit for bit."""
     config = build_config(GYRO)
     original = tmp_path / 'run.mcap'
     inputs = [run.AngularRate(z=0.174533, at_ns=2_000_000),

@@ -181,9 +181,13 @@ import numbers
 from typing import Dict, Tuple, Union
 
 import numpy as np
-from ring_gyro_sim.core import forces, noise
+from ring_gyro_sim.core import forces, noise, structure
 from ring_gyro_sim.core.errors import InputError
-from ring_gyro_sim.core.params import SimConfig
+from ring_gyro_sim.core.params import BOLTZMANN, SimConfig
+
+
+KAPPA_2 = structure.gyroscopic_coefficient(2)
+"""Coriolis coefficient of the 2theta pair, 2 n / (n^2 + 1) = 0.8 (eqs. G5-G6)."""
 
 
 class _LazyModule:
@@ -202,8 +206,8 @@ optimize = _LazyModule('optimize')
 signal = _LazyModule('signal')
 
 
-__all__ = ['DEMOD_CHANNELS', 'DemodSamples', 'RateSamples', 'BOLTZMANN',
-           'CORIOLIS_KAPPA_N2', 'SCALE_FACTOR_TOLERANCE', 'GAIN_STEP_RATIO',
+__all__ = ['DEMOD_CHANNELS', 'DemodSamples', 'RateSamples', 'KAPPA_2',
+           'SCALE_FACTOR_TOLERANCE', 'GAIN_STEP_RATIO',
            'FLICKER_LOWEST_HZ', 'FLICKER_POLES_PER_DECADE', 'FLICKER_FLOOR_RATIO',
            'deg_per_h_to_rad_per_s', 'rad_per_sqrt_s_to_deg_per_sqrt_h', 'FlickerNoise',
            'SenseElectronics', 'orbit_sense_response']
@@ -211,10 +215,6 @@ __all__ = ['DEMOD_CHANNELS', 'DemodSamples', 'RateSamples', 'BOLTZMANN',
 DEMOD_CHANNELS = ('sense_i', 'sense_q', 'drive_i', 'drive_q')
 """Channels of ``~/demodulator`` after ``t`` (V, low-passed, at every internal sample)."""
 
-BOLTZMANN = 1.380649e-23
-"""Boltzmann constant, J/K (SI 2019, exact)."""
-CORIOLIS_KAPPA_N2 = 0.8
-"""Coriolis coefficient 2n/(n^2 + 1) of the n = 2 pair (E5)."""
 SCALE_FACTOR_TOLERANCE = 0.1
 ORBIT_PHASES = 128
 """Phases of the drive orbit at which the sense stiffness is evaluated (E6b)."""
@@ -411,7 +411,7 @@ def orbit_sense_response(config: SimConfig, model, drive_amplitude_m: float) -> 
     ws = math.sqrt((2.0 * math.pi * config.modes.coordinate_frequencies()[sense]) ** 2 - j_rest)
     qs = float(config.modes.coordinate_quality_factors()[sense])
     w = 2.0 * math.pi * float(config.drive.frequency)
-    amp, kap = float(drive_amplitude_m), CORIOLIS_KAPPA_N2
+    amp, kap = float(drive_amplitude_m), KAPPA_2
     psi = 2.0 * math.pi * np.arange(ORBIT_PHASES) / ORBIT_PHASES
     j = np.empty(ORBIT_PHASES + 1)
     q = zero.copy()
@@ -515,7 +515,7 @@ class SenseElectronics:
         w, ws, qs = self.drive_omega, self.sense_omega, self.sense_quality_factor
         self.sense_response = 1.0 / complex(ws * ws - w * w, w * ws / qs)
         self.mechanical_scale_factor = self.drive_amplitude_m * (
-            -2j * CORIOLIS_KAPPA_N2 * w * self.sense_response).real
+            -2j * KAPPA_2 * w * self.sense_response).real
         self.linear_mechanical_scale_factor = self.mechanical_scale_factor
         self.rate_quadrature_per_rate = 0.0
         if self.drive_amplitude_m > 0.0 and w > 0.0:
@@ -580,7 +580,7 @@ class SenseElectronics:
         amp = abs(self.drive_amplitude_m)
         thermo = (math.sqrt(BOLTZMANN * g.temperature * ws
                             / (self.sense_mass * self.sense_quality_factor))
-                  / (CORIOLIS_KAPPA_N2 * amp * w))
+                  / (KAPPA_2 * amp * w))
         electronic = (self.output_noise_density[0] / abs(self.scale_factor)
                       if g.input_noise_density > 0.0 else 0.0)
         return math.hypot(thermo, electronic), thermo, electronic
@@ -714,7 +714,7 @@ class SenseElectronics:
                                    math.sin(self.drive_phase_rad)))
         ws = self.sense_omega
         d_s = complex(ws * ws - w * w, w * ws / self.sense_quality_factor)
-        g = 2.0 * CORIOLIS_KAPPA_N2 * rate * w
+        g = 2.0 * KAPPA_2 * rate * w
         return abs(d / (d - g * g / d_s))
 
     def diagnostics_values(self) -> Dict[str, Union[float, bool, int]]:

@@ -64,9 +64,13 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from ring_gyro_sim.core import structure
 from ring_gyro_sim.core.errors import ParameterError
+import scipy.constants
 
 EPSILON_0 = 8.8541878128e-12
 """Vacuum permittivity, F/m."""
+
+BOLTZMANN = scipy.constants.k
+"""Boltzmann constant, J/K (exact since SI 2019; ``scipy.constants``)."""
 
 STANDARD_GRAVITY = 9.80665
 """Standard gravity, m/s^2 (only for conversions from g at the boundaries)."""

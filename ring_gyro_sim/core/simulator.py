@@ -60,17 +60,15 @@ import numpy as np
 
 from ring_gyro_sim.core import forces, kernels, noise, structure
 from ring_gyro_sim.core.errors import InputError, SimulationError
-from ring_gyro_sim.core.params import build_config, EPSILON_0, SimConfig, to_flat
+from ring_gyro_sim.core.params import BOLTZMANN, build_config, EPSILON_0, SimConfig, to_flat
 
 _EMPTY = np.empty(0)
 _NO_NOISE = np.empty((0, 1))
 
-__all__ = ['BOLTZMANN', 'STEPS_PER_PERIOD', 'STEP_HARMONICS', 'PULSE_SUBSTEPS_PER_DURATION',
+__all__ = ['STEPS_PER_PERIOD', 'STEP_HARMONICS', 'PULSE_SUBSTEPS_PER_DURATION',
            'GAP_GRID_POINTS_PER_MODE', 'ELECTRODE_GAUSS_POINTS', 'GAP_FLOOR_RATIO', 'Status',
            'default_max_step', 'Samples', 'Simulator']
 
-BOLTZMANN = 1.380649e-23
-"""Boltzmann constant, J/K (exact, SI 2019)."""
 STEPS_PER_PERIOD = 8
 """Default steps per period of the fastest step-setting mode (see :func:`default_max_step`)."""
 STEP_HARMONICS = 3
@@ -505,23 +503,12 @@ class Simulator:
         if at_ns < self.time_ns:
             raise InputError(f'angular_rate: time {at_ns * 1e-9:.9f} s is in the past '
                              f'(simulation time {self.time_s:.9f} s)')
-        before = self.rate_at(at_ns)
+        before = float(self.rates_at(np.array([at_ns]))[0])
         keep = bisect.bisect_right(self._rate_t, at_ns)
         del self._rate_t[keep:]
         del self._rate_w[keep:]
         self._rate_t += [at_ns, at_ns]
         self._rate_w += [before, float(rate)]
-
-    def rate_at(self, at_ns: int) -> float:
-        """Angular rate of the profile at ``at_ns`` (rad/s; after a step at that time: before)."""
-        times, rates = self._rate_t, self._rate_w
-        k = bisect.bisect_left(times, at_ns) - 1
-        if k < 0:
-            return 0.0
-        if k >= len(times) - 1:
-            return rates[-1]
-        t0, t1 = times[k], times[k + 1]
-        return rates[k] + (rates[k + 1] - rates[k]) * (at_ns - t0) / (t1 - t0)
 
     def set_drive(self, amplitude: Optional[float] = None, frequency_hz: Optional[float] = None,
                   at_ns: Optional[int] = None) -> None:

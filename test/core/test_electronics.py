@@ -30,7 +30,7 @@ import pytest
 from ring_gyro_sim.core import electronics
 from ring_gyro_sim.core.electronics import FlickerNoise, orbit_sense_response, SenseElectronics
 from ring_gyro_sim.core.errors import InputError
-from ring_gyro_sim.core.params import build_config, EPSILON_0
+from ring_gyro_sim.core.params import BOLTZMANN, build_config, EPSILON_0
 from ring_gyro_sim.core.simulator import Simulator
 from scipy import signal
 
@@ -317,7 +317,7 @@ def test_thermomechanical_arw_formula():
     m = config.modal_masses()[el.sense_index]
     w = 2.0 * math.pi * 15800.0
     # (E10) at match
-    expect = math.sqrt(electronics.BOLTZMANN * 300.0 / (m * w * 64700.0)) / (0.8 * amplitude)
+    expect = math.sqrt(BOLTZMANN * 300.0 / (m * w * 64700.0)) / (0.8 * amplitude)
     assert thermo == pytest.approx(expect, rel=1e-12, abs=0)
     assert n_el == 0.0 and total == thermo
     assert el.predicted_arw_deg_per_sqrt_h() == pytest.approx(
