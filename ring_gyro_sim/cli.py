@@ -87,7 +87,26 @@ def _parser() -> argparse.ArgumentParser:
                      help='short runs (a few minutes; branches not decided)')
     rpt.add_argument('--workers', type=int, default=2, help='worker processes (default 2)')
     _add_sweep_verb(sub)
+    _add_characterize_verb(sub)
     return p
+
+
+def _add_characterize_verb(sub) -> None:
+    ch = sub.add_parser('characterize', help="the gyroscope's datasheet measured as IEEE Std "
+                                             '1431 measures one: datasheet.md, datasheet.json '
+                                             'and PNGs (doc/datasheet.md)')
+    ch.add_argument('params', help='params YAML of a gyroscope (gyro.enabled: true), as '
+                                   '`ring_gyro run` takes it')
+    ch.add_argument('--out', required=True, help='output directory')
+    ch.add_argument('--quick', action='store_true',
+                    help='short records (~20 simulated s; the figures are rough)')
+    ch.add_argument('--loops', help='loop modes of the shock table, comma-separated: open, '
+                                    'closed (default: those this build has)')
+    ch.add_argument('--shock-g', help='shock amplitudes, g, comma-separated (default 1000,'
+                                      '3000,10000; --quick 1000,10000)')
+    ch.add_argument('--no-progress', action='store_true', help='no progress bar')
+    ch.add_argument('--node-name', default='ring_gyro',
+                    help='node name whose ros__parameters to read (default ring_gyro)')
 
 
 def _add_sweep_verb(sub) -> None:
@@ -293,6 +312,33 @@ def cmd_report(args) -> int:
     return 0
 
 
+def cmd_characterize(args) -> int:
+    """``ring_gyro characterize``."""
+    from ring_gyro_sim.characterize import characterize, parse_loops
+    loops = parse_loops(args.loops)
+    peaks = None
+    if args.shock_g is not None:
+        try:
+            peaks = [float(v) for v in args.shock_g.split(',') if v.strip()]
+        except ValueError:
+            raise RingGyroError(f'--shock-g: not numbers: {args.shock_g!r}') from None
+    _plots_available('characterize')
+    sheet = characterize(args.params, args.out, quick=args.quick, loops=loops,
+                         progress=not args.no_progress, node_name=args.node_name,
+                         shock_peaks_g=peaks)
+    print(json.dumps({
+        'out': args.out, 'quick': args.quick, 'loops': sheet['loops'],
+        'scale_factor_v_per_rad_s': sheet['scale_factor'],
+        'scale_factor_nonlinearity_ppm': sheet['scale_factor_nonlinearity_ppm'],
+        'bias_deg_per_h': sheet['bias_deg_per_h'],
+        'arw_deg_per_sqrt_h': sheet['arw_deg_per_sqrt_h'],
+        'bias_instability_deg_per_h': sheet['bias_instability_deg_per_h'],
+        'bandwidth_hz': sheet['bandwidth_hz'], 'shock_entries': len(sheet['shock']),
+        'agreement': sheet['agreement'], 'wall_time_s': sheet['wall_time_s'],
+        'files': sheet['files']}, sort_keys=True))
+    return 0
+
+
 def cmd_sweep(args) -> int:
     """``ring_gyro sweep``: exit 0, or 3 when some points failed (results written)."""
     from ring_gyro_sim.sweep import load_spec, run_sweep
@@ -314,7 +360,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     handler = {'run': cmd_run, 'replay': cmd_replay, 'recover': cmd_recover, 'rate': cmd_rate,
                'calibrate': cmd_calibrate,
                'backbone': cmd_backbone, 'frf': cmd_frf,
-               'report': cmd_report, 'sweep': cmd_sweep}[args.verb]
+               'report': cmd_report, 'sweep': cmd_sweep,
+               'characterize': cmd_characterize}[args.verb]
     try:
         return handler(args)
     except RingGyroError as exc:

@@ -591,3 +591,202 @@ def plot_rate(traces, path, title='Rate output', shock_s=None, drive=None,
     top.set_title(title)
     _save(plt, fig, path)
     return True
+
+
+def plot_allan(tau_s, adev, err, path, model=None, arw_deg_per_h=None,
+               predicted_arw_deg_per_h=None, fit_tau_s=None, floor=None,
+               slope_only=None) -> bool:
+    """
+    Save an Allan-deviation plot with the ARW line and the bias-instability floor marked.
+
+    Parameters
+    ----------
+    tau_s, adev, err : sequence of float
+        Averaging times (s), Allan deviation and its standard error (deg/h).
+    path : str or Path
+        PNG file to write.
+    model : sequence of float, optional
+        The fitted noise model's deviation at ``tau_s``, deg/h.
+    arw_deg_per_h, predicted_arw_deg_per_h : float, optional
+        Level of the -1/2 line at tau = 1 s, deg/h (measured, predicted): ``N / sqrt(tau)``.
+    fit_tau_s : (float, float), optional
+        The tau range of the fit (shaded).
+    floor : (float, float), optional
+        ``(tau_s, deg/h)`` of the curve's minimum (the bias-instability read).
+    slope_only : ((float, float), float), optional
+        The plain -1/2 fit: its tau range (s) and level at 1 s (deg/h).
+
+    """
+    plt = _pyplot()
+    if plt is None:
+        return False
+    tau = np.asarray(tau_s, dtype=float)
+    fig, ax = plt.subplots(figsize=(7.0, 5.0))
+    try:
+        ax.errorbar(tau, adev, yerr=err, fmt='o', ms=3, lw=0.8, label='measured (oadev)')
+        if fit_tau_s is not None:
+            ax.axvspan(fit_tau_s[0], fit_tau_s[1], color='0.9', zorder=0, label='fit range')
+        if model is not None:
+            ax.loglog(tau, model, '-', lw=1.0, label='fitted noise model')
+        line_tau = np.array([tau[0], tau[-1]])
+        if arw_deg_per_h is not None:
+            ax.loglog(line_tau, arw_deg_per_h / np.sqrt(line_tau), '--', lw=1.0,
+                      label=f'-1/2 slope: ARW = {arw_deg_per_h / 60.0:.4g} deg/sqrt(h)')
+            ax.plot([1.0], [arw_deg_per_h], 'k*', ms=9)
+        if predicted_arw_deg_per_h is not None:
+            ax.loglog(line_tau, predicted_arw_deg_per_h / np.sqrt(line_tau), ':', lw=1.0,
+                      color='k', label=f'model ARW {predicted_arw_deg_per_h / 60.0:.4g} '
+                                       f'deg/sqrt(h)')
+        if slope_only is not None:
+            (lo, hi), level = slope_only
+            seg = np.array([lo, hi])
+            ax.loglog(seg, level / np.sqrt(seg), '-', lw=3, alpha=0.6,
+                      label=f'plain -1/2 fit ({lo:.3g}-{hi:.3g} s): '
+                            f'{level / 60.0:.4g} deg/sqrt(h)')
+        if floor is not None:
+            ax.axhline(floor[1], color='tab:red', lw=0.8, ls='-.',
+                       label=f'minimum {floor[1]:.3g} deg/h at {floor[0]:.3g} s: '
+                             f'BI = {floor[1] / 0.6643:.3g} deg/h')
+            ax.plot([floor[0]], [floor[1]], 'o', color='tab:red', ms=7, mfc='none')
+        ax.set_xscale('log')
+        ax.set_yscale('log')
+        ax.set_xlabel('tau (s)')
+        ax.set_ylabel('Allan deviation (deg/h)')
+        ax.set_title('Allan deviation of the zero-rate output')
+        ax.grid(True, which='both', lw=0.3)
+        ax.legend(fontsize=7)
+        _save(plt, fig, path)
+    finally:
+        plt.close(fig)
+    return True
+
+
+def plot_scale_factor(rate_dps, residual_ppm, error_ppm, predicted_ppm, path,
+                      nonlinearity_ppm=None) -> bool:
+    """
+    Save the scale-factor error against the rate (residuals from the least-squares line).
+
+    Parameters
+    ----------
+    rate_dps : sequence of float
+        Rates of the table, deg/s.
+    residual_ppm, error_ppm, predicted_ppm : sequence of float
+        Measured residuals, their standard errors and the model's residuals, ppm of the
+        full-scale output.
+    path : str or Path
+        PNG file to write.
+    nonlinearity_ppm : float, optional
+        The nonlinearity figure (in the title).
+
+    """
+    plt = _pyplot()
+    if plt is None:
+        return False
+    fig, ax = plt.subplots(figsize=(7.0, 4.2))
+    try:
+        ax.errorbar(rate_dps, residual_ppm, yerr=2.0 * np.asarray(error_ppm), fmt='o-', ms=4,
+                    lw=0.8, capsize=3, label='measured (+- 2 standard errors)')
+        ax.plot(rate_dps, predicted_ppm, 's--', ms=3, lw=0.8, label='model')
+        ax.axhline(0.0, color='k', lw=0.5)
+        ax.set_xlabel('rate (deg/s)')
+        ax.set_ylabel('residual from the line (ppm of full scale)')
+        title = 'Scale-factor error'
+        if nonlinearity_ppm is not None:
+            title += f': nonlinearity {nonlinearity_ppm:.3g} ppm FS'
+        ax.set_title(title)
+        ax.grid(True, lw=0.3)
+        ax.legend(fontsize=8)
+        _save(plt, fig, path)
+    finally:
+        plt.close(fig)
+    return True
+
+
+def plot_step(t_s, response, gain, time_constant_s, path,
+              predicted_time_constant_s=None) -> bool:
+    """
+    Save a rate-step response (over the step) with its first-order fit.
+
+    Parameters
+    ----------
+    t_s : sequence of float
+        Time since the step, s.
+    response : sequence of float
+        Output over the step size (0 before, ~1 after).
+    gain, time_constant_s : float
+        The fit ``gain (1 - exp(-t / tau))``.
+    path : str or Path
+        PNG file to write.
+    predicted_time_constant_s : float, optional
+        The model's time constant (drawn dotted).
+
+    """
+    plt = _pyplot()
+    if plt is None:
+        return False
+    t = np.asarray(t_s, dtype=float)
+    fig, ax = plt.subplots(figsize=(7.0, 4.2))
+    try:
+        ax.plot(t, response, lw=0.6, label='~/rate / step')
+        after = np.maximum(t, 0.0)
+        ax.plot(t, gain * (1.0 - np.exp(-after / time_constant_s)), '--', lw=1.0,
+                label=f'first-order fit: tau = {time_constant_s:.4g} s, '
+                      f'f_3dB = {1.0 / (2.0 * math.pi * time_constant_s):.4g} Hz')
+        if predicted_time_constant_s is not None:
+            ax.plot(t, 1.0 - np.exp(-after / predicted_time_constant_s), ':', color='k',
+                    lw=1.0, label=f'model: tau = {predicted_time_constant_s:.4g} s')
+        ax.axhline(gain * (1.0 - math.exp(-1.0)), color='0.5', lw=0.5)
+        ax.axvline(time_constant_s, color='0.5', lw=0.5)
+        ax.set_xlabel('time since the step (s)')
+        ax.set_ylabel('output / step')
+        ax.set_title('Rate step response (bandwidth)')
+        ax.grid(True, lw=0.3)
+        ax.legend(fontsize=8)
+        _save(plt, fig, path)
+    finally:
+        plt.close(fig)
+    return True
+
+
+def plot_shock_recovery(panels, path, band=0.01) -> bool:
+    """
+    Save the rate error after a shock, one panel per loop mode side by side.
+
+    Parameters
+    ----------
+    panels : sequence of (name, curves, measured)
+        Per loop mode: its name, ``[(label, t_since_shock_s, error_deg_s, applied_deg_s)]``
+        (one per shock amplitude) and whether it was measured (False: the panel says so).
+    path : str or Path
+        PNG file to write.
+    band : float
+        Relative band drawn (the recovery band, 1 % of the rate).
+
+    """
+    plt = _pyplot()
+    if plt is None:
+        return False
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels), 4.4), sharey=True,
+                             squeeze=False)
+    try:
+        for ax, (name, curves, measured) in zip(axes[0], panels):
+            for label, t, err, applied in curves:
+                ax.semilogy(t, np.maximum(np.abs(err), 1e-9), lw=0.6, label=label)
+            if curves:
+                applied = np.abs(curves[0][3])
+                ax.semilogy(curves[0][1], band * applied, 'k:', lw=0.8,
+                            label=f'{100 * band:g} % of the rate')
+                ax.legend(fontsize=7)
+            else:
+                ax.text(0.5, 0.5, f'{name} loop: not measured' + (
+                    '' if measured else '\n(not available in this build)'),
+                    ha='center', va='center', transform=ax.transAxes)
+            ax.axvline(0.0, color='k', lw=0.5)
+            ax.set_title(f'{name} loop')
+            ax.set_xlabel('time since the shock (s)')
+            ax.grid(True, which='both', lw=0.3)
+        axes[0][0].set_ylabel('|rate error| (deg/s)')
+        _save(plt, fig, path)
+    finally:
+        plt.close(fig)
+    return True

@@ -1,0 +1,993 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+r"""
+``ring_gyro characterize``: the emulated gyroscope's datasheet, measured as IEEE Std 1431 does.
+
+IEEE Std 1431-2004 (Coriolis vibratory gyros), part II, measures a gyroscope by test series
+on a rate table; its Allan-variance analysis is that of IEEE Std 952-1997, annex C. Each test
+here is one or more runs of the one run path (:class:`~ring_gyro_sim.run.Run`, the start state
+of ``drive.start_on`` as ``ring_gyro run`` makes it) of the device of one params file, read
+only through ``~/rate`` (1 kHz), its drive pick-off (``~/demodulator``) and the run summary,
+as a test engineer reads a real sensor. The file's ``scenario.*`` and ``duration`` are
+replaced by each test's own; everything else (drive, modes, electronics, noise, seed) is the
+device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
+
+1. Drift (12.11, with IEEE 952 annex C) and bandwidth (12.15), one run: the device at zero
+   rate for 310 s / 8 s, then a rate step of 10 deg/s held for 12 s / 4 s.
+
+   * **Bias**: the mean of the zero-rate output after the first 10 s / 2 s (the noise
+     starts from a ring at rest: the thermomechanical response needs a few sense time
+     constants, 1.3 s, to become stationary), deg/h, with its standard error
+     ``N / sqrt(T)``.
+   * **Allan deviation**: ``allantools.oadev`` (overlapping) of that record at log-spaced
+     tau from one sample to ``T / 8``. The open-loop, mode-matched ring filters its white
+     rate noise through the sense mode's pole (time constant ``Tc = 2 Q / omega``, 1.3 s):
+     the curve follows ``N / sqrt(tau)`` only for ``tau >> Tc`` (still 5 % low in variance
+     at 30 Tc), so a plain -1/2 line fitted at the tau a record of minutes reaches reads the
+     ARW low. The fit is therefore that of the noise model, IEEE 952's way for correlated
+     noise: ``sigma^2(tau) = a h(tau) + b / tau + c`` by non-negative least squares over
+     ``tau`` from ``max(0.01 s, 1 / gyro.filter_bandwidth)`` to ``T / 8``, weighted by the
+     number of independent clusters ``T / tau``, where
+     ``h(tau) = [1 - (Tc / 2 tau)(3 - 4 e^{-tau/Tc} + e^{-2 tau/Tc})] / tau`` is the Allan
+     variance of unit white rate noise through a first-order low-pass of time constant
+     ``Tc`` (the measured one, from the step below), ``b`` white rate noise that bypasses
+     the pole (the pick-off's) and ``c`` the flicker floor; each term only when the device
+     has that source (``gyro.temperature``, ``gyro.input_noise_density``,
+     ``gyro.bias_instability`` > 0). **ARW** = the -1/2 asymptote ``sqrt(a + b) / sqrt(tau)``
+     read at ``tau = 1 s``, in deg/sqrt(h). Beside it, where the record reaches
+     ``tau >= 10 Tc`` over a factor 2 of tau (the full form: 13 to 37 s), the plain -1/2 line
+     fitted there (``arw_slope_only``; low by the pole's share, 4-8 % in deviation). The
+     **standard error** of the ARW is that of the same estimator on 200 / 50 records of the
+     fitted noise model with the same length and start (a parametric bootstrap, Gaussian
+     first-order noise: ``arw_relative_standard_error``).
+   * **Bias instability**: the minimum of the Allan deviation / 0.664 (the flicker floor of
+     IEEE 952), deg/h, and the tau where it lies, sought over the fitted tau from the
+     curve's maximum on (below ~Tc the curve rises with tau, the pole's doing: its low end
+     is not a floor). When the minimum is at the longest tau the curve has not turned: the
+     figure is an upper bound set by the record length (``bias_instability_floor_reached``
+     false; ``--quick``'s record ends before the maximum, so its figure is only that).
+   * **Bandwidth**: the step response (10 deg/s, small enough that the rate's splitting of
+     the pair, ``2 kappa Omega`` = 0.28 rad/s against the 0.77 rad/s half-width, bends it by
+     ~2 %) fitted by a first-order response ``y0 + G Omega (1 - e^{-t / tau})`` (least
+     squares for ``G`` and ``tau``, ``y0`` the mean of the last second before the step);
+     ``bandwidth_hz = 1 / (2 pi tau)``, the -3 dB frequency of that first-order fit. The
+     time to 63.2 % of the step is given beside it.
+
+2. Scale factor (12.9): one run per rate of the table, -300 .. 300 deg/s in 13 points of
+   12 s each, the mean over the last 4 s (``--quick``: -300, -100, 0, 100, 300 deg/s, 0.6 s
+   each, the mean after 0.1 s). The start state holds the pair's steady linear response to
+   the rate (``drive.start_on``), so the output starts at the rate; the nonlinear pair
+   settles from there within ~8 s at 30-50 deg/s (up to 0.2 % off before), hence the
+   window. **One calibration for the whole table**: the electronics of a run compute their
+   scale factor at the start state's drive amplitude, and a rate at t = 0 lowers that
+   amplitude (open loop: to 0.034 of rest at 300 deg/s), so each point's ``~/rate`` is put
+   back on the calibration of the device at rest,
+   ``rate x (SF_p / A_p) / (SF_0 / A_0)`` (``SF`` the electronics' scale factor, ``A`` the
+   drive amplitude it was computed at; only the orbit correction E6b makes the ratio differ
+   from 1; the flicker term, 0 by default, is scaled along). The output in volts is that
+   rate times ``SF_0``. **Scale factor** = the least-squares slope of output against input,
+   V/(rad/s) (and mV/(deg/s)); **nonlinearity** = the largest residual from that line over
+   the full-scale output ``slope x 300 deg/s``, ppm. Each point's standard error is that of
+   the mean of the fitted noise model over the window, times ``A_0 / A_p`` (the signal falls
+   with the drive, the thermomechanical noise does not). The model's own table (the
+   electronics' ``SF_p / A_p`` ratios, the settled per-run readings taken as exact) is given
+   as ``predicted``.
+
+3. Shock (12.17, the environment series): per shock amplitude (1 000, 3 000, 10 000 g, a
+   half-sine along x, ``shock.duration``) and per loop mode, one run at 10 deg/s with the
+   shock at 1 s, 40 s after it (``--quick``: 1 000 and 10 000 g at 0.3 s, 1.7 s after).
+   **Peak rate error** and **recovery** are the run's own figures (``rate.RateStats``: back
+   within ``max(1 % of the rate, 4 sigma of the pre-shock error)`` for good, ``None`` if not
+   by the end). **Jumped**: the drive pick-off over the last 0.5 s is below half its mean
+   over the 0.5 s before the shock (the drive has not come back; in the paper's Case 3 it
+   sits at ~0.1 on its lower branch); with a record as short as ``--quick``'s a drive still
+   recovering counts too. ``drive_recovery_s``: from the shock to the last sample of the
+   pick-off more than 1 % off its pre-shock mean (``None`` if not back for the last 0.1 s).
+   **Lost lock**: the PLL's ``pll_lost_lock`` of the closed loop (``None`` open loop: there
+   is no loop to lose). **Contact**: the run summary's (the run stops there).
+
+Loop modes: the shock table has one entry per amplitude and per mode of ``loops``
+(``open``, ``closed``), each set by the parameter ``control.drive_loop``; ``closed`` needs
+that parameter in the table (:func:`available_loops`), the other tests run the file's own
+setting.
+
+Why sequential runs, not the sweep engine: a sweep point (``sweep.point.evaluate``) is a
+paper case that keeps scalar metrics of the 100 kHz q2 envelope; these tests need the 1 kHz
+rate records themselves (the Allan deviation, the step, the error curves of the shock plot)
+and the electronics' calibration of each run. The runs are cheap beside a sweep (the full
+characterization is ~500 simulated s, ~7 min on one core), and on this 2-core machine a
+local Dask cluster bought 1.0-1.6x (doc/sweeps.md) for a second process tree; one process
+keeps the numba kernels and the progress bar in one place.
+"""
+
+from dataclasses import dataclass, replace
+import json
+import math
+from pathlib import Path
+import time
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
+import warnings
+
+import numpy as np
+
+from ring_gyro_sim.core.errors import ParameterError
+from ring_gyro_sim.core.params import build_config, SimConfig, SPECS, STANDARD_GRAVITY
+from ring_gyro_sim.run import Run, Sink
+
+__all__ = ['FULL', 'LOOP_PARAMETER', 'Plan', 'QUICK', 'allan_fit', 'available_loops',
+           'characterize', 'load_device', 'lp1_allan_variance', 'parse_loops',
+           'scale_factor_fit', 'step_fit']
+
+LOOP_PARAMETER = 'control.drive_loop'
+"""The parameter that selects the drive loop (``open`` / ``closed``)."""
+LOOP_MODES = ('open', 'closed')
+DEG = math.pi / 180.0
+RAD_S_TO_DEG_H = 180.0 / math.pi * 3600.0
+RAD_SQRT_S_TO_DEG_SQRT_H = 180.0 / math.pi * 60.0
+FLICKER_FLOOR = math.sqrt(2.0 * math.log(2.0) / math.pi)
+"""Allan floor of flicker rate noise over the bias instability B, 0.6643 (IEEE 952)."""
+JUMP_RATIO = 0.5
+"""Jumped: the drive pick-off ends below this fraction of its pre-shock value."""
+DRIVE_BAND = 0.01
+"""Drive recovery: back within 1 % of the pre-shock pick-off."""
+DRIVE_WINDOW_S = 0.5
+"""Windows of the pre-shock and final drive pick-off, s."""
+HOLD_S = 0.1
+"""A recovery counts when it held for at least this long at the end (as ``rate.RateStats``)."""
+SLOPE_ONLY_TC = 10.0
+"""The plain -1/2 fit starts at this many time constants."""
+TAU_FRACTION = 8.0
+"""The Allan deviation is computed up to ``record / TAU_FRACTION``."""
+
+
+@dataclass(frozen=True)
+class Plan:
+    """
+    Record lengths and tables of a characterization (module docstring).
+
+    Attributes
+    ----------
+    zero_rate_s, zero_rate_skip_s : float
+        The zero-rate record and its first part left out (s).
+    step_rate_dps, step_s : float
+        The rate step (deg/s) and how long it is recorded (s).
+    rate_points_dps : tuple of float
+        The rate table, deg/s.
+    rate_point_s, rate_average_s : float
+        Length of each table run and the final part averaged, s.
+    shock_peaks_g : tuple of float
+        Shock amplitudes, g (9.80665 m/s^2).
+    shock_rate_dps, shock_at_s, shock_after_s : float
+        The rate during the shock runs (deg/s), the shock's start and the record after it (s).
+    bootstrap : int
+        Records of the ARW's parametric bootstrap.
+
+    """
+
+    zero_rate_s: float
+    zero_rate_skip_s: float
+    step_rate_dps: float
+    step_s: float
+    rate_points_dps: Tuple[float, ...]
+    rate_point_s: float
+    rate_average_s: float
+    shock_peaks_g: Tuple[float, ...]
+    shock_rate_dps: float
+    shock_at_s: float
+    shock_after_s: float
+    bootstrap: int
+
+    @property
+    def simulated_s(self) -> float:
+        """Simulated seconds of the drift, table and one loop mode's shock runs."""
+        return (self.zero_rate_s + self.step_s + len(self.rate_points_dps) * self.rate_point_s
+                + len(self.shock_peaks_g) * (self.shock_at_s + self.shock_after_s))
+
+
+FULL = Plan(zero_rate_s=310.0, zero_rate_skip_s=10.0, step_rate_dps=10.0, step_s=12.0,
+            rate_points_dps=tuple(float(r) for r in range(-300, 301, 50)), rate_point_s=12.0,
+            rate_average_s=4.0, shock_peaks_g=(1000.0, 3000.0, 10000.0), shock_rate_dps=10.0,
+            shock_at_s=1.0, shock_after_s=40.0, bootstrap=50)
+"""The full characterization (~500 simulated s with two loop modes' shocks ~580 s)."""
+QUICK = Plan(zero_rate_s=8.0, zero_rate_skip_s=2.0, step_rate_dps=10.0, step_s=4.0,
+             rate_points_dps=(-300.0, -100.0, 0.0, 100.0, 300.0), rate_point_s=0.6,
+             rate_average_s=0.5, shock_peaks_g=(1000.0, 10000.0), shock_rate_dps=10.0,
+             shock_at_s=0.3, shock_after_s=1.7, bootstrap=200)
+"""``--quick``: ~20 simulated s (short records; the tests use it)."""
+
+
+# ----------------------------------------------------------------------------- the device
+def available_loops() -> Tuple[str, ...]:
+    """Return the loop modes this build can run: ``('open', 'closed')`` or ``('open',)``."""
+    spec = SPECS.get(LOOP_PARAMETER)
+    if spec is None:
+        return ('open',)
+    return tuple(m for m in LOOP_MODES if not spec.choices or m in spec.choices)
+
+
+def parse_loops(text: Optional[str]) -> Tuple[str, ...]:
+    """
+    Return the loop modes of ``--loops`` (comma-separated; None: all this build has).
+
+    Raises
+    ------
+    ParameterError
+        An unknown mode, none, or ``closed`` without the ``control.drive_loop`` parameter.
+
+    """
+    have = available_loops()
+    if text is None:
+        return have
+    modes = tuple(m.strip() for m in text.split(',') if m.strip())
+    if not modes:
+        raise ParameterError('--loops: give one or more of open, closed')
+    for m in modes:
+        if m not in LOOP_MODES:
+            raise ParameterError(f'--loops: unknown loop mode {m!r} (open, closed)')
+        if m not in have:
+            raise ParameterError(f'--loops: {m!r} needs the parameter {LOOP_PARAMETER} '
+                                 f'(the closed-loop drive), which this build does not have')
+    return tuple(dict.fromkeys(modes))
+
+
+def load_device(path: str, node_name: str = 'ring_gyro') -> Dict[str, Any]:
+    """
+    Read a params file as ``ring_gyro run`` does and return its flat parameters.
+
+    Raises
+    ------
+    ParameterError
+        The file cannot be read or is invalid (``paramfile.check_params_file``'s message),
+        or it is not a gyroscope: ``gyro.enabled`` must be true.
+
+    """
+    from ring_gyro_sim.paramfile import check_params_file
+    flat = check_params_file(path, node_name)
+    config = build_config(flat)
+    if not config.gyro.enabled:
+        raise ParameterError(f'params file {path!r}: gyro.enabled: must be true (characterize '
+                             f'measures the gyroscope; the file describes the resonator '
+                             f'alone)')
+    return flat
+
+
+def _test_parameters(flat: Mapping[str, Any], duration_s: float,
+                     **values: Any) -> Dict[str, Any]:
+    """The device's parameters with a test's scenario: no shock, no rate but ``values``."""
+    out = {k: v for k, v in flat.items() if not k.startswith('scenario.')}
+    out['duration'] = float(duration_s)
+    out.update(values)
+    return out
+
+
+# ----------------------------------------------------------------------------- runs
+class _Trace(Sink):
+    """Keeps the rate output, the applied rate and the drive pick-off at every rate sample."""
+
+    def __init__(self) -> None:
+        self.parts: List[Tuple[np.ndarray, ...]] = []
+
+    def block(self, block) -> None:
+        rate = block.rate
+        if rate is None or len(rate) == 0:
+            return
+        s = block.samples
+        at = np.clip(np.searchsorted(s.t, rate.t), 0, len(s) - 1)
+        drive = np.hypot(block.demod.values[at, 2], block.demod.values[at, 3])
+        self.parts.append((rate.t, rate.rate, s.rate[at], drive))
+
+    def arrays(self) -> Tuple[np.ndarray, ...]:
+        if not self.parts:
+            return tuple(np.zeros(0) for _ in range(4))
+        return tuple(np.concatenate([p[k] for p in self.parts]) for k in range(4))
+
+
+@dataclass
+class _Record:
+    """One run: its rate samples, the electronics' calibration and the summary."""
+
+    t: np.ndarray
+    rate: np.ndarray
+    applied: np.ndarray
+    drive: np.ndarray
+    scale_factor: float
+    drive_amplitude_m: float
+    electronics: Any
+    summary: Any
+    config: SimConfig
+
+
+class _Bar:
+    """One progress bar over every run of the characterization (simulated s)."""
+
+    def __init__(self, total_s: float, enabled: bool) -> None:
+        from ring_gyro_sim.progress import Progress
+        self.progress = Progress(total_s, enabled, name='characterize')
+        self.done_s = 0.0
+
+    def update(self, run_s: float, note: str) -> None:
+        self.progress.update(self.done_s + run_s, note)
+
+    def finish_run(self, planned_s: float) -> None:
+        self.done_s += planned_s
+        self.progress.update(self.done_s)
+
+    def close(self) -> None:
+        self.progress.close()
+
+
+def _simulate(values: Mapping[str, Any], duration_s: float, bar: _Bar, note: str) -> _Record:
+    """Run the device on ``values`` for ``duration_s`` (stops at contact)."""
+    from ring_gyro_sim.analysis.nnm import drive_initial_state
+    config = build_config(dict(values))
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore', RuntimeWarning)  # an orbit unstable to the companions
+        state = drive_initial_state(config)
+    trace = _Trace()
+    run = Run(config, start_state=state, sink=trace)
+    total = int(round(duration_s / (config.run.output_period_ns * 1e-9)))
+    block = config.run.block_samples
+    done = 0
+    try:
+        while done < total and run.running:
+            count = min(block, total - done)
+            run.advance(count)
+            done += count
+            bar.update(run.sim.time_s, note)
+        summary = run.summary()
+    finally:
+        run.close()
+    bar.finish_run(duration_s)
+    t, rate, applied, drive = trace.arrays()
+    el = run.gyro.electronics
+    return _Record(t=t, rate=rate, applied=applied, drive=drive,
+                   scale_factor=float(el.scale_factor),
+                   drive_amplitude_m=float(el.drive_amplitude_m), electronics=el,
+                   summary=summary, config=config)
+
+
+# ----------------------------------------------------------------------------- analyses
+def lp1_allan_variance(tau_s: np.ndarray, time_constant_s: float) -> np.ndarray:
+    """
+    Allan variance of unit white rate noise through a first-order low-pass, (rad/s)^2.
+
+    ``h(tau) = [1 - (Tc / 2 tau)(3 - 4 e^{-tau/Tc} + e^{-2 tau/Tc})] / tau`` for white noise
+    of two-sided density 1 (so ``N^2 h`` for an ARW ``N``): ``1 / tau`` for ``tau >> Tc``,
+    ``tau / (3 Tc^2)`` for ``tau << Tc``.
+
+    Parameters
+    ----------
+    tau_s : ndarray
+        Averaging times, s.
+    time_constant_s : float
+        Time constant ``Tc`` of the low-pass, s.
+
+    """
+    tau = np.asarray(tau_s, dtype=np.float64)
+    r = tau / time_constant_s
+    return (1.0 - (3.0 - 4.0 * np.exp(-r) + np.exp(-2.0 * r)) / (2.0 * r)) / tau
+
+
+def _oadev(x: np.ndarray, rate_hz: float, taus: np.ndarray):
+    import allantools
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')
+        tau, dev, err, n = allantools.oadev(x, rate=rate_hz, data_type='freq', taus=taus)
+    return np.asarray(tau), np.asarray(dev), np.asarray(err), np.asarray(n)
+
+
+def _allan_taus(n_samples: int, rate_hz: float) -> np.ndarray:
+    top = n_samples / rate_hz / TAU_FRACTION
+    m = np.unique(np.round(np.geomspace(1.0, top * rate_hz, 1 + int(8 * math.log10(
+        max(top * rate_hz, 10.0))))).astype(np.int64))
+    return m / rate_hz
+
+
+def allan_fit(rate: np.ndarray, rate_hz: float, time_constant_s: float,
+              terms: Sequence[str] = ('correlated',), tau_min_s: float = 0.01
+              ) -> Dict[str, Any]:
+    """
+    Allan deviation of a zero-rate record and its noise-model fit (module docstring, 1).
+
+    Parameters
+    ----------
+    rate : ndarray
+        Rate samples, rad/s (the stationary part of the record).
+    rate_hz : float
+        Their sample rate, Hz.
+    time_constant_s : float
+        Time constant of the rate path (the sense pole), s.
+    terms : sequence of str
+        Terms of the model: ``correlated`` (white rate noise through the pole),
+        ``white`` (white rate noise, not through it), ``flicker`` (a constant floor).
+    tau_min_s : float
+        Shortest tau of the fit, s.
+
+    Returns
+    -------
+    dict
+        ``tau_s``, ``adev_rad_s``, ``adev_err_rad_s`` (the curve), ``arw_rad_sqrt_s`` (the
+        -1/2 asymptote's level: ``sigma(1 s)`` of the line), ``coefficients`` (a, b, c of
+        ``sigma^2 = a h + b / tau + c``, those not in ``terms`` 0), ``fit_tau_s`` (range),
+        ``slope_only`` (the plain -1/2 fit over ``tau >= 10 Tc``, or None),
+        ``minimum_rad_s`` and ``minimum_tau_s`` (the smallest deviation from the curve's
+        maximum on, within the fit range), ``floor_reached`` (that minimum is not the last
+        tau: the curve has turned).
+
+    """
+    from scipy import optimize
+    x = np.asarray(rate, dtype=np.float64)
+    record_s = x.size / rate_hz
+    tau, dev, err, _ = _oadev(x, rate_hz, _allan_taus(x.size, rate_hz))
+    fit = tau >= tau_min_s * (1.0 - 1e-9)
+    if np.count_nonzero(fit) < 2:
+        raise ParameterError(f'zero-rate record of {record_s:.3g} s: too short for an Allan '
+                             f'fit from {tau_min_s:g} s')
+    basis = {'correlated': lp1_allan_variance(tau, time_constant_s),
+             'white': 1.0 / tau, 'flicker': np.ones_like(tau)}
+    names = [n for n in ('correlated', 'white', 'flicker') if n in terms]
+    weight = np.sqrt(record_s / tau[fit])
+    design = np.stack([basis[n][fit] for n in names], axis=1) / (dev[fit] ** 2)[:, None]
+    solution, _ = optimize.nnls(design * weight[:, None], weight)
+    coefficients = {n: 0.0 for n in ('correlated', 'white', 'flicker')}
+    coefficients.update({n: float(v) for n, v in zip(names, solution)})
+    arw = math.sqrt(coefficients['correlated'] + coefficients['white'])
+    model = sum(coefficients[n] * basis[n] for n in coefficients)
+    slope_only = None
+    lo = SLOPE_ONLY_TC * time_constant_s
+    region = fit & (tau >= lo)
+    if np.any(region) and tau[region][-1] >= 2.0 * lo:
+        w = record_s / tau[region]
+        level = float(np.exp(np.sum(w * np.log(dev[region] * np.sqrt(tau[region])))
+                             / np.sum(w)))
+        slope_only = {'arw_rad_sqrt_s': level,
+                      'tau_s': [float(tau[region][0]), float(tau[region][-1])]}
+    # The bias instability is read on the flat part after the white-noise descent: below
+    # Tc the curve rises (the pole), so the minimum is sought from the curve's maximum on.
+    top = int(np.argmax(np.where(fit, dev, -np.inf)))
+    k = top + int(np.argmin(np.where(fit[top:], dev[top:], np.inf)))
+    return {'tau_s': tau, 'adev_rad_s': dev, 'adev_err_rad_s': err,
+            'model_adev_rad_s': np.sqrt(model), 'arw_rad_sqrt_s': arw,
+            'coefficients': coefficients, 'terms': names,
+            'fit_tau_s': [float(tau[fit][0]), float(tau[fit][-1])],
+            'slope_only': slope_only, 'minimum_rad_s': float(dev[k]),
+            'minimum_tau_s': float(tau[k]), 'floor_reached': bool(k < np.flatnonzero(fit)[-1])}
+
+
+def _bootstrap_arw(coefficients: Mapping[str, float], time_constant_s: float, rate_hz: float,
+                   samples: int, skip: int, terms: Sequence[str], tau_min_s: float,
+                   count: int, seed: int = 20260) -> float:
+    """Relative standard error of :func:`allan_fit`'s ARW on records of the fitted model."""
+    from scipy import signal
+    a, b, c = (coefficients[n] for n in ('correlated', 'white', 'flicker'))
+    arw = math.sqrt(a + b)
+    if count < 2 or arw == 0.0:
+        return math.nan
+    rng = np.random.default_rng(seed)
+    rho = math.exp(-1.0 / (rate_hz * time_constant_s))
+    ratios = []
+    for _ in range(count):
+        # a: x_k = rho x_{k-1} + sqrt(1 - rho^2) sigma e_k from 0 (the ring starts at rest),
+        # stationary variance a / (2 Tc); b: white, density b two-sided; c: a random bias
+        # of the flicker floor's order (a stand-in, flicker is not drawn here).
+        e = rng.standard_normal(samples + skip) * math.sqrt(a / (2.0 * time_constant_s)
+                                                            * (1.0 - rho * rho))
+        x = signal.lfilter([1.0], [1.0, -rho], e)[skip:]
+        if b > 0.0:
+            x = x + rng.standard_normal(samples) * math.sqrt(b * rate_hz)
+        if c > 0.0:
+            x = x + rng.standard_normal() * math.sqrt(c)
+        ratios.append(allan_fit(x, rate_hz, time_constant_s, terms, tau_min_s)[
+            'arw_rad_sqrt_s'] / arw)
+    return float(np.std(ratios, ddof=1))
+
+
+def step_fit(t_s: np.ndarray, rate: np.ndarray, step_at_s: float,
+             step_rad_s: float) -> Dict[str, float]:
+    """
+    First-order fit of a rate step response (module docstring, 1).
+
+    Parameters
+    ----------
+    t_s, rate : ndarray
+        Times (s) and rate output (rad/s), the second before the step included.
+    step_at_s : float
+        Time of the step, s.
+    step_rad_s : float
+        Size of the step, rad/s.
+
+    Returns
+    -------
+    dict
+        ``time_constant_s``, ``gain`` (of the step), ``baseline_rad_s``, ``bandwidth_hz``
+        (``1 / (2 pi tau)``), ``t63_s`` (first time the output passes 63.2 % of the fitted
+        step) and ``rms_residual`` (of the fit, over the step).
+
+    """
+    from scipy import optimize
+    before = (t_s > step_at_s - 1.0) & (t_s <= step_at_s)
+    baseline = float(np.mean(rate[before])) if np.any(before) else 0.0
+    after = t_s > step_at_s
+    dt = t_s[after] - step_at_s
+    y = (rate[after] - baseline) / step_rad_s
+
+    def model(x, gain, tau):
+        return gain * (1.0 - np.exp(-x / tau))
+    guess_tau = max(float(dt[np.argmax(y >= (1.0 - math.exp(-1.0)) * y[-1])]), 1e-3)
+    (gain, tau), _ = optimize.curve_fit(model, dt, y, p0=(float(y[-1]), guess_tau))
+    crossing = np.flatnonzero(y >= (1.0 - math.exp(-1.0)) * gain)
+    t63 = float(dt[crossing[0]]) if crossing.size else math.nan
+    return {'time_constant_s': float(tau), 'gain': float(gain), 'baseline_rad_s': baseline,
+            'bandwidth_hz': 1.0 / (2.0 * math.pi * float(tau)), 't63_s': t63,
+            'rms_residual': float(np.sqrt(np.mean((model(dt, gain, tau) - y) ** 2)))}
+
+
+def scale_factor_fit(input_rad_s: np.ndarray, output_rad_s: np.ndarray) -> Dict[str, Any]:
+    """
+    Least-squares line of a rate table and its nonlinearity (module docstring, 2).
+
+    Parameters
+    ----------
+    input_rad_s, output_rad_s : ndarray
+        Applied rates and the outputs (on the table's one calibration), rad/s.
+
+    Returns
+    -------
+    dict
+        ``slope`` (output per input, 1 = the calibration), ``offset_rad_s``,
+        ``residual_rad_s`` per point, ``full_scale_rad_s`` (``slope x max |input|``) and
+        ``nonlinearity_ppm`` (largest ``|residual|`` over the full-scale output).
+
+    """
+    x = np.asarray(input_rad_s, dtype=np.float64)
+    y = np.asarray(output_rad_s, dtype=np.float64)
+    slope, offset = np.polyfit(x, y, 1)
+    residual = y - (slope * x + offset)
+    full_scale = abs(slope) * float(np.max(np.abs(x)))
+    return {'slope': float(slope), 'offset_rad_s': float(offset), 'residual_rad_s': residual,
+            'full_scale_rad_s': full_scale,
+            'nonlinearity_ppm': float(np.max(np.abs(residual)) / full_scale * 1e6)}
+
+
+def _mean_noise(arw_rad_sqrt_s: float, time_constant_s: float, window_s: float) -> float:
+    """Standard deviation of the mean over ``window_s`` of first-order-filtered white noise."""
+    r = time_constant_s / window_s
+    return arw_rad_sqrt_s / math.sqrt(window_s) * math.sqrt(
+        max(0.0, 1.0 - r * (1.0 - math.exp(-1.0 / r))))
+
+
+def _drive_figures(rec: _Record, shock_s: float) -> Dict[str, Any]:
+    before = (rec.t > shock_s - DRIVE_WINDOW_S) & (rec.t <= shock_s)
+    reference = float(np.mean(rec.drive[before])) if np.any(before) else math.nan
+    end = rec.t > rec.t[-1] - DRIVE_WINDOW_S if rec.t.size else np.zeros(0, bool)
+    ratio_end = float(np.mean(rec.drive[end])) / reference if np.any(end) else math.nan
+    after = rec.t > shock_s
+    off = np.flatnonzero(np.abs(rec.drive[after] / reference - 1.0) > DRIVE_BAND)
+    recovery = None
+    if not off.size:
+        recovery = 0.0
+    elif rec.t[-1] - rec.t[after][off[-1]] >= HOLD_S:
+        recovery = float(rec.t[after][off[-1]] - shock_s)
+    return {'drive_ratio_end': ratio_end, 'drive_recovery_s': recovery}
+
+
+# ----------------------------------------------------------------------------- the datasheet
+def _noise_terms(config: SimConfig) -> List[str]:
+    g = config.gyro
+    terms = []
+    if g.temperature > 0.0:
+        terms.append('correlated')
+    if g.input_noise_density > 0.0:
+        terms.append('white')
+    if g.bias_instability > 0.0:
+        terms.append('flicker')
+    return terms or ['correlated']
+
+
+def characterize(params_path: str, out_dir: str, quick: bool = False,
+                 loops: Optional[Sequence[str]] = None, progress: bool = True,
+                 node_name: str = 'ring_gyro', plan: Optional[Plan] = None,
+                 shock_peaks_g: Optional[Sequence[float]] = None) -> Dict[str, Any]:
+    """
+    Measure the datasheet of the gyroscope of ``params_path``; write it to ``out_dir``.
+
+    Parameters
+    ----------
+    params_path : str
+        Params file (as ``ring_gyro run`` takes it) with ``gyro.enabled: true``.
+    out_dir : str
+        Directory for ``datasheet.md``, ``datasheet.json`` and the PNGs (created).
+    quick : bool
+        The :data:`QUICK` plan instead of :data:`FULL`.
+    loops : sequence of str, optional
+        Loop modes of the shock table (default :func:`available_loops`).
+    progress : bool
+        A progress bar on stderr.
+    node_name : str
+        Whose ``ros__parameters`` to read.
+    plan : Plan, optional
+        Overrides ``quick``.
+    shock_peaks_g : sequence of float, optional
+        Overrides the plan's shock amplitudes, g.
+
+    Returns
+    -------
+    dict
+        The datasheet (what ``datasheet.json`` holds).
+
+    Raises
+    ------
+    ParameterError
+        Not a gyroscope, an invalid file, an unknown loop mode (the message names the field).
+
+    """
+    wall0, cpu0 = time.monotonic(), time.process_time()
+    flat = load_device(params_path, node_name)
+    loops = tuple(loops) if loops is not None else available_loops()
+    parse_loops(','.join(loops))
+    plan = plan or (QUICK if quick else FULL)
+    if shock_peaks_g is not None:
+        peaks = tuple(float(g) for g in shock_peaks_g)
+        if not peaks or not all(math.isfinite(g) and g > 0.0 for g in peaks):
+            raise ParameterError('--shock-g: give positive shock amplitudes in g')
+        plan = replace(plan, shock_peaks_g=peaks)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    total_s = plan.simulated_s + (len(loops) - 1) * len(plan.shock_peaks_g) * (
+        plan.shock_at_s + plan.shock_after_s)
+    bar = _Bar(total_s, progress)
+    try:
+        drift = _drift_and_step(flat, plan, bar)
+        table = _rate_table(flat, plan, bar, drift)
+        shocks = [_shock(flat, plan, bar, peak, loop)
+                  for loop in loops for peak in plan.shock_peaks_g]
+    finally:
+        bar.close()
+    sheet = _assemble(params_path, flat, plan, quick, loops, drift, table, shocks)
+    sheet['files'] = _write(out, sheet, drift, table, shocks, loops)
+    sheet['wall_time_s'] = time.monotonic() - wall0
+    sheet['cpu_time_s'] = time.process_time() - cpu0
+    (out / 'datasheet.json').write_text(json.dumps(_jsonable(sheet), indent=1, sort_keys=True,
+                                                   allow_nan=False) + '\n', encoding='utf-8')
+    return _jsonable(sheet)
+
+
+def _drift_and_step(flat, plan: Plan, bar: _Bar) -> Dict[str, Any]:
+    step = plan.step_rate_dps * DEG
+    t0 = plan.zero_rate_s
+    values = _test_parameters(flat, plan.zero_rate_s + plan.step_s,
+                              **{'scenario.rate_times': [t0, t0],
+                                 'scenario.rate_values': [0.0, step]})
+    rec = _simulate(values, plan.zero_rate_s + plan.step_s, bar, 'zero rate, step')
+    el = rec.electronics
+    fit = step_fit(rec.t, rec.rate, t0, step)
+    tc = fit['time_constant_s']
+    zero = (rec.t > plan.zero_rate_skip_s) & (rec.t <= t0)
+    x = rec.rate[zero]
+    rate_hz = rec.config.gyro.output_rate
+    terms = _noise_terms(rec.config)
+    tau_min = max(0.01, 1.0 / rec.config.gyro.filter_bandwidth)
+    allan = allan_fit(x, rate_hz, tc, terms, tau_min)
+    skip = int(round(plan.zero_rate_skip_s * rate_hz))
+    allan['relative_standard_error'] = _bootstrap_arw(
+        allan['coefficients'], tc, rate_hz, x.size, skip, terms, tau_min, plan.bootstrap)
+    return {'record': rec, 'step': fit, 'allan': allan, 'bias_rad_s': float(np.mean(x)),
+            'bias_standard_error_rad_s': _mean_noise(allan['arw_rad_sqrt_s'], tc,
+                                                     x.size / rate_hz),
+            'zero_rate_s': x.size / rate_hz, 'scale_factor_v_per_rad_s': rec.scale_factor,
+            'calibration': rec.scale_factor / rec.drive_amplitude_m,
+            'drive_amplitude_m': rec.drive_amplitude_m,
+            'predicted_arw_rad_sqrt_s': el.predicted_arw()[0],
+            'predicted_bandwidth_hz': float(el.bandwidth_hz), 'step_at_s': t0,
+            'step_rad_s': step}
+
+
+def _rate_table(flat, plan: Plan, bar: _Bar, drift) -> Dict[str, Any]:
+    rows = []
+    for dps in plan.rate_points_dps:
+        rate = dps * DEG
+        values = _test_parameters(flat, plan.rate_point_s,
+                                  **({'scenario.rate_times': [0.0],
+                                      'scenario.rate_values': [rate]} if rate else {}))
+        rec = _simulate(values, plan.rate_point_s, bar, f'rate table {dps:+g} deg/s')
+        window = rec.t > plan.rate_point_s - plan.rate_average_s
+        recalibrate = (rec.scale_factor / rec.drive_amplitude_m) / drift['calibration']
+        amplitude_ratio = rec.drive_amplitude_m / drift['drive_amplitude_m']
+        rows.append({'rate_deg_per_s': dps, 'rate_rad_s': rate,
+                     'output_rad_s': float(np.mean(rec.rate[window])) * recalibrate,
+                     'predicted_output_rad_s': rate * recalibrate,
+                     'calibration_ratio': recalibrate, 'drive_amplitude_ratio': amplitude_ratio,
+                     'standard_error_rad_s': _mean_noise(
+                         drift['allan']['arw_rad_sqrt_s'], drift['step']['time_constant_s'],
+                         plan.rate_average_s) / amplitude_ratio})
+    x = np.array([r['rate_rad_s'] for r in rows])
+    measured = scale_factor_fit(x, np.array([r['output_rad_s'] for r in rows]))
+    predicted = scale_factor_fit(x, np.array([r['predicted_output_rad_s'] for r in rows]))
+    for row, res, pres in zip(rows, measured['residual_rad_s'], predicted['residual_rad_s']):
+        row['residual_ppm_fs'] = float(res / measured['full_scale_rad_s'] * 1e6)
+        row['predicted_residual_ppm_fs'] = float(pres / predicted['full_scale_rad_s'] * 1e6)
+        row['standard_error_ppm_fs'] = row['standard_error_rad_s'] / measured[
+            'full_scale_rad_s'] * 1e6
+    return {'rows': rows, 'measured': measured, 'predicted': predicted}
+
+
+def _shock(flat, plan: Plan, bar: _Bar, peak_g: float, loop: str) -> Dict[str, Any]:
+    rate = plan.shock_rate_dps * DEG
+    length = plan.shock_at_s + plan.shock_after_s
+    extra = {LOOP_PARAMETER: loop} if LOOP_PARAMETER in SPECS else {}
+    values = _test_parameters(flat, length, **{
+        'scenario.rate_times': [0.0], 'scenario.rate_values': [rate],
+        'scenario.shock_times': [plan.shock_at_s],
+        'scenario.shock_peaks': [peak_g * STANDARD_GRAVITY]}, **extra)
+    rec = _simulate(values, length, bar, f'shock {peak_g:g} g, {loop} loop')
+    s = rec.summary
+    fig = s.extra
+    contact = bool(s.contact)
+    drive = _drive_figures(rec, plan.shock_at_s)
+    jumped = None if contact else bool(drive['drive_ratio_end'] < JUMP_RATIO)
+    lost = fig.get('pll_lost_lock') if loop == 'closed' else None
+    peak_err = fig.get('rate_error_peak_rad_s')
+    return {'peak_g': float(peak_g), 'loop': loop,
+            'peak_rate_error_deg_per_s': None if peak_err is None else peak_err / DEG,
+            'recovery_s': fig.get('rate_recovery_s'), 'recovered': fig.get('rate_recovered'),
+            'jumped': jumped, 'lost_lock': None if lost is None else bool(lost),
+            'lost_lock_at_s': fig.get('pll_lock_lost_at_s') if loop == 'closed' else None,
+            'contact': contact, 'status': s.status, 'min_gap_um': s.min_gap_m * 1e6,
+            'drive_amplitude_recovery_s': fig.get('drive_amplitude_recovery_s'),
+            **drive, 'rate_deg_per_s': plan.shock_rate_dps, 'shock_at_s': plan.shock_at_s,
+            'record_after_s': plan.shock_after_s,
+            '_series': (rec.t - plan.shock_at_s, rec.rate - rec.applied, rec.applied)}
+
+
+def _assemble(path, flat, plan: Plan, quick: bool, loops, drift, table,
+              shocks) -> Dict[str, Any]:
+    allan = drift['allan']
+    config = drift['record'].config
+    sf0 = drift['scale_factor_v_per_rad_s']
+    measured_sf = table['measured']['slope'] * sf0
+    arw = allan['arw_rad_sqrt_s'] * RAD_SQRT_S_TO_DEG_SQRT_H
+    arw_pred = drift['predicted_arw_rad_sqrt_s'] * RAD_SQRT_S_TO_DEG_SQRT_H
+    bw = drift['step']['bandwidth_hz']
+    bw_pred = drift['predicted_bandwidth_hz']
+    slope_only = allan['slope_only']
+    sheet: Dict[str, Any] = {
+        'params_file': str(path), 'quick': bool(quick), 'loops': list(loops),
+        'device': {'drive_amplitude_m_s2': config.drive.amplitude,
+                   'drive_frequency_hz': config.drive.frequency,
+                   'q2_amplitude_m': drift['drive_amplitude_m'],
+                   'sense_quality_factor': float(drift['record'].electronics
+                                                 .sense_quality_factor),
+                   'temperature_k': config.gyro.temperature,
+                   'input_noise_density_v_per_sqrt_hz': config.gyro.input_noise_density,
+                   'noise_seed': config.gyro.noise_seed,
+                   'output_rate_hz': config.gyro.output_rate},
+        'scale_factor': measured_sf, 'scale_factor_unit': 'V/(rad/s)',
+        'scale_factor_mv_per_deg_s': measured_sf * DEG * 1e3,
+        'scale_factor_relative': table['measured']['slope'],
+        'scale_factor_offset_deg_per_s': table['measured']['offset_rad_s'] / DEG,
+        'scale_factor_nonlinearity_ppm': table['measured']['nonlinearity_ppm'],
+        'rate_table': [{k: v for k, v in r.items() if not k.endswith('_rad_s')}
+                       | {'output_deg_per_s': r['output_rad_s'] / DEG,
+                          'standard_error_deg_per_s': r['standard_error_rad_s'] / DEG}
+                       for r in table['rows']],
+        'bias_deg_per_h': drift['bias_rad_s'] * RAD_S_TO_DEG_H,
+        'bias_standard_error_deg_per_h': drift['bias_standard_error_rad_s'] * RAD_S_TO_DEG_H,
+        'arw_deg_per_sqrt_h': arw,
+        'arw_relative_standard_error': allan['relative_standard_error'],
+        'arw_fit': {'model': 'sigma^2 = a h(tau; Tc) + b / tau + c', 'terms': allan['terms'],
+                    'tau_s': allan['fit_tau_s'], 'time_constant_s':
+                        drift['step']['time_constant_s'],
+                    'a_rad2_per_s': allan['coefficients']['correlated'],
+                    'b_rad2_per_s': allan['coefficients']['white'],
+                    'c_rad2_per_s2': allan['coefficients']['flicker']},
+        'arw_slope_only_deg_per_sqrt_h': (slope_only['arw_rad_sqrt_s']
+                                          * RAD_SQRT_S_TO_DEG_SQRT_H if slope_only else None),
+        'arw_slope_only_tau_s': slope_only['tau_s'] if slope_only else None,
+        'bias_instability_deg_per_h': allan['minimum_rad_s'] / FLICKER_FLOOR * RAD_S_TO_DEG_H,
+        'bias_instability_tau_s': allan['minimum_tau_s'],
+        'bias_instability_floor_reached': allan['floor_reached'],
+        'allan': {'tau_s': allan['tau_s'],
+                  'adev_deg_per_h': allan['adev_rad_s'] * RAD_S_TO_DEG_H,
+                  'adev_err_deg_per_h': allan['adev_err_rad_s'] * RAD_S_TO_DEG_H},
+        'bandwidth_hz': bw,
+        'step': {'rate_deg_per_s': plan.step_rate_dps,
+                 'time_constant_s': drift['step']['time_constant_s'],
+                 'gain': drift['step']['gain'], 't63_s': drift['step']['t63_s'],
+                 'rms_residual': drift['step']['rms_residual'],
+                 'method': 'first-order fit of the step response, 1 / (2 pi tau)'},
+        'shock': [{k: v for k, v in s.items() if not k.startswith('_')} for s in shocks],
+        'predicted': {
+            'scale_factor': sf0, 'scale_factor_unit': 'V/(rad/s)',
+            'scale_factor_table': table['predicted']['slope'] * sf0,
+            'scale_factor_nonlinearity_ppm': table['predicted']['nonlinearity_ppm'],
+            'arw_deg_per_sqrt_h': arw_pred, 'bandwidth_hz': bw_pred, 'bias_deg_per_h': 0.0,
+            'bias_instability_deg_per_h': config.gyro.bias_instability},
+        'agreement': {'scale_factor': measured_sf / sf0 - 1.0,
+                      'scale_factor_table': table['measured']['slope']
+                      / table['predicted']['slope'] - 1.0,
+                      'arw': arw / arw_pred - 1.0, 'bandwidth': bw / bw_pred - 1.0},
+        'plan': {k: (list(v) if isinstance(v, tuple) else v)
+                 for k, v in plan.__dict__.items()},
+    }
+    return sheet
+
+
+def _write(out: Path, sheet, drift, table, shocks, loops) -> List[str]:
+    from ring_gyro_sim.analysis import plotting
+    files = [str(out / 'datasheet.json'), str(out / 'datasheet.md')]
+    allan = drift['allan']
+    pngs = {}
+    if plotting.plot_allan(
+            allan['tau_s'], allan['adev_rad_s'] * RAD_S_TO_DEG_H,
+            allan['adev_err_rad_s'] * RAD_S_TO_DEG_H, out / 'allan.png',
+            model=allan['model_adev_rad_s'] * RAD_S_TO_DEG_H,
+            arw_deg_per_h=allan['arw_rad_sqrt_s'] * RAD_S_TO_DEG_H,
+            predicted_arw_deg_per_h=drift['predicted_arw_rad_sqrt_s'] * RAD_S_TO_DEG_H,
+            fit_tau_s=allan['fit_tau_s'],
+            floor=(allan['minimum_tau_s'], allan['minimum_rad_s'] * RAD_S_TO_DEG_H),
+            slope_only=None if allan['slope_only'] is None else (
+                allan['slope_only']['tau_s'],
+                allan['slope_only']['arw_rad_sqrt_s'] * RAD_S_TO_DEG_H)):
+        pngs['allan'] = 'allan.png'
+    rows = sheet['rate_table']
+    if plotting.plot_scale_factor(
+            [r['rate_deg_per_s'] for r in rows], [r['residual_ppm_fs'] for r in rows],
+            [r['standard_error_ppm_fs'] for r in rows],
+            [r['predicted_residual_ppm_fs'] for r in rows], out / 'scale_factor.png',
+            nonlinearity_ppm=sheet['scale_factor_nonlinearity_ppm']):
+        pngs['scale_factor'] = 'scale_factor.png'
+    rec = drift['record']
+    after = rec.t > drift['step_at_s'] - 1.0
+    step = drift['step']
+    if plotting.plot_step(rec.t[after] - drift['step_at_s'],
+                          (rec.rate[after] - step['baseline_rad_s']) / drift['step_rad_s'],
+                          step['gain'], step['time_constant_s'], out / 'step.png',
+                          predicted_time_constant_s=1.0 / (2.0 * math.pi * drift[
+                              'predicted_bandwidth_hz'])):
+        pngs['step'] = 'step.png'
+    panels = []
+    for loop in LOOP_MODES:
+        curves = [(f'{s["peak_g"]:g} g', s['_series'][0], s['_series'][1] / DEG,
+                   s['_series'][2] / DEG) for s in shocks if s['loop'] == loop]
+        panels.append((loop, curves, loop in loops))
+    if plotting.plot_shock_recovery(panels, out / 'shock_recovery.png'):
+        pngs['shock_recovery'] = 'shock_recovery.png'
+    files += [str(out / name) for name in pngs.values()]
+    (out / 'datasheet.md').write_text(_markdown(sheet, pngs), encoding='utf-8')
+    return files
+
+
+def _fmt(value, digits: int = 4) -> str:
+    if value is None:
+        return '-'
+    if isinstance(value, bool):
+        return 'yes' if value else 'no'
+    if isinstance(value, float) and not math.isfinite(value):
+        return '-'
+    if isinstance(value, float):
+        return f'{value:.{digits}g}'
+    return str(value)
+
+
+def _markdown(sheet, pngs: Mapping[str, str]) -> str:
+    p = sheet['predicted']
+    a = sheet['agreement']
+    d = sheet['device']
+    plan = sheet['plan']
+    lines = [f'# Gyroscope datasheet: `{sheet["params_file"]}`'
+             + (' (`--quick`: short records)' if sheet['quick'] else ''), '',
+             f'Measured by `ring_gyro characterize` (IEEE Std 1431 test procedures, Allan '
+             f'analysis of IEEE Std 952; doc/datasheet.md). Device: drive '
+             f'{_fmt(d["drive_amplitude_m_s2"])} m/s^2 at {_fmt(d["drive_frequency_hz"], 6)} '
+             f'Hz (q2 = {_fmt(d["q2_amplitude_m"] * 1e6)} um), sense Q '
+             f'{_fmt(d["sense_quality_factor"], 6)}, {_fmt(d["temperature_k"])} K, pick-off '
+             f'{_fmt(d["input_noise_density_v_per_sqrt_hz"] * 1e9)} nV/sqrt(Hz), seed '
+             f'{d["noise_seed"]}, output {_fmt(d["output_rate_hz"])} Hz.', '',
+             '| figure | measured | model | unit | measured / model - 1 | how |',
+             '|---|---|---|---|---|---|']
+    rng = plan['rate_points_dps']
+    table_note = (f'{len(rng)} rates {_fmt(min(rng))} .. {_fmt(max(rng))} deg/s, '
+                  f'{_fmt(plan["rate_average_s"])} s means, least-squares line')
+    lines += [
+        f'| scale factor | {_fmt(sheet["scale_factor"], 5)} | {_fmt(p["scale_factor"], 5)} '
+        f'| V/(rad/s) | {a["scale_factor"]:+.2%} | {table_note} (model: small-signal, at '
+        f'rest) |',
+        f'| scale factor (table slope of the model) | {_fmt(sheet["scale_factor"], 5)} | '
+        f'{_fmt(p["scale_factor_table"], 5)} | V/(rad/s) | {a["scale_factor_table"]:+.3%} | '
+        f'the model\'s reading at each rate (E6b at that rate\'s drive amplitude) |',
+        f'| scale factor | {_fmt(sheet["scale_factor_mv_per_deg_s"], 5)} | '
+        f'{_fmt(p["scale_factor"] * DEG * 1e3, 5)} | mV/(deg/s) | | |',
+        f'| scale-factor nonlinearity | {_fmt(sheet["scale_factor_nonlinearity_ppm"], 3)} | '
+        f'{_fmt(p["scale_factor_nonlinearity_ppm"], 3)} | ppm of full scale | | largest '
+        f'residual / (slope x {_fmt(max(abs(r) for r in rng))} deg/s) |',
+        f'| bias | {_fmt(sheet["bias_deg_per_h"], 3)} +- '
+        f'{_fmt(sheet["bias_standard_error_deg_per_h"], 2)} | 0 | deg/h | | zero-rate mean '
+        f'over {_fmt(plan["zero_rate_s"] - plan["zero_rate_skip_s"])} s (+- 1 standard '
+        f'error) |',
+        f'| angle random walk | {_fmt(sheet["arw_deg_per_sqrt_h"], 4)} +- '
+        f'{_fmt(sheet["arw_relative_standard_error"] * sheet["arw_deg_per_sqrt_h"], 2)} | '
+        f'{_fmt(p["arw_deg_per_sqrt_h"], 4)} | deg/sqrt(h) | {a["arw"]:+.1%} | Allan fit '
+        f'over tau {_fmt(sheet["arw_fit"]["tau_s"][0], 3)} .. '
+        f'{_fmt(sheet["arw_fit"]["tau_s"][1], 3)} s, -1/2 asymptote at 1 s |']
+    if sheet['arw_slope_only_deg_per_sqrt_h'] is not None:
+        lo, hi = sheet['arw_slope_only_tau_s']
+        lines.append(f'| angle random walk, plain -1/2 line | '
+                     f'{_fmt(sheet["arw_slope_only_deg_per_sqrt_h"], 4)} | '
+                     f'{_fmt(p["arw_deg_per_sqrt_h"], 4)} | deg/sqrt(h) | '
+                     f'{sheet["arw_slope_only_deg_per_sqrt_h"] / p["arw_deg_per_sqrt_h"] - 1:+.1%}'
+                     f' | over tau {_fmt(lo, 3)} .. {_fmt(hi, 3)} s (>= 10 Tc; low by the '
+                     f'pole\'s share) |')
+    bound = '' if sheet['bias_instability_floor_reached'] else '<= '
+    lines += [
+        f'| bias instability | {bound}{_fmt(sheet["bias_instability_deg_per_h"], 3)} | '
+        f'{_fmt(p["bias_instability_deg_per_h"], 3)} | deg/h | | Allan minimum / 0.664 at '
+        f'tau = {_fmt(sheet["bias_instability_tau_s"], 3)} s'
+        + ('' if sheet['bias_instability_floor_reached'] else
+           ' (no floor within the record: an upper bound)') + ' |',
+        f'| bandwidth | {_fmt(sheet["bandwidth_hz"], 4)} | {_fmt(p["bandwidth_hz"], 4)} | Hz '
+        f'| {a["bandwidth"]:+.2%} | {_fmt(sheet["step"]["rate_deg_per_s"])} deg/s step, '
+        f'first-order fit tau = {_fmt(sheet["step"]["time_constant_s"], 4)} s '
+        f'(63.2 % at {_fmt(sheet["step"]["t63_s"], 4)} s) |', '']
+    lines += ['## Shock response', '',
+              f'{_fmt(sheet["plan"]["shock_rate_dps"])} deg/s, half-sine along x at '
+              f'{_fmt(plan["shock_at_s"])} s, recorded {_fmt(plan["shock_after_s"])} s after '
+              f'it. Recovery: back within max(1 % of the rate, 4 sigma of the pre-shock '
+              f'error) for good; jumped: drive pick-off at the end below '
+              f'{JUMP_RATIO:g} of its pre-shock value.', '',
+              '| shock (g) | loop | peak rate error (deg/s) | recovery (s) | drive back (s) | '
+              'drive at end | jumped | lost lock | contact | smallest gap (um) |',
+              '|---|---|---|---|---|---|---|---|---|---|']
+    for s in sheet['shock']:
+        lines.append(
+            f'| {_fmt(s["peak_g"])} | {s["loop"]} | {_fmt(s["peak_rate_error_deg_per_s"], 3)} | '
+            f'{_fmt(s["recovery_s"], 4) if s["recovery_s"] is not None else "not within the record"} | '
+            f'{_fmt(s["drive_recovery_s"], 4) if s["drive_recovery_s"] is not None else "no"} | '
+            f'{_fmt(s["drive_ratio_end"], 3)} | {_fmt(s["jumped"])} | '
+            f'{_fmt(s["lost_lock"]) if s["loop"] == "closed" else "n/a (no loop)"} | '
+            f'{_fmt(s["contact"])} | {_fmt(s["min_gap_um"], 3)} |')
+    if 'closed' not in sheet['loops']:
+        lines += ['', f'Closed loop: not measured (this build has no `{LOOP_PARAMETER}`, or '
+                      f'`--loops` left it out).']
+    lines += ['', '## Rate table', '',
+              '| rate (deg/s) | output (deg/s) | residual (ppm FS) | +- 1 s.e. (ppm FS) | '
+              'model residual (ppm FS) | drive amplitude / rest |', '|---|---|---|---|---|---|']
+    for r in sheet['rate_table']:
+        lines.append(f'| {_fmt(r["rate_deg_per_s"])} | {r["output_deg_per_s"]:.5f} | '
+                     f'{r["residual_ppm_fs"]:.0f} | {r["standard_error_ppm_fs"]:.0f} | '
+                     f'{r["predicted_residual_ppm_fs"]:.0f} | '
+                     f'{r["drive_amplitude_ratio"]:.4f} |')
+    titles = {'allan': 'Allan deviation', 'scale_factor': 'Scale-factor error',
+              'step': 'Rate step (bandwidth)', 'shock_recovery': 'Shock recovery'}
+    lines.append('')
+    for key, name in pngs.items():
+        lines += [f'![{titles[key]}]({name})', '']
+    return '\n'.join(lines)
+
+
+def _jsonable(value):
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return [_jsonable(v) for v in value.tolist()]
+    if isinstance(value, (np.floating, float)):
+        v = float(value)
+        return v if math.isfinite(v) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
