@@ -35,14 +35,28 @@ output. :class:`RateStats` keeps the figures ``ring_gyro run --json`` reports (i
     At the end of the run: the drive pick-off against its value at the operating point. When
     the drive has jumped to its lower branch (the paper's Case 3) the ratio falls to ~0.1:
     the scale factor has collapsed and the rate output is not a measurement.
+
+With the closed-loop drive (``control.drive_loop: closed``) :class:`DriveStats` adds:
+
+``pll_lost_lock`` / ``pll_lock_lost_at_s`` / ``pll_relocked_at_s``
+    Whether the PLL was ever out of lock (``core.control``, C4), when first, and when it
+    last came back (None: never).
+``drive_amplitude_recovery_s``
+    After the first shock: from the shock's start to the last sample whose measured drive
+    amplitude was outside 1 % of the AGC's set-point (0.0: never outside; None: still
+    outside in the last :data:`RECOVERY_HOLD_S` of the run).
+``drive_amplitude_final_ratio``
+    The measured drive amplitude at the end over the set-point.
 """
 
 from collections import deque
+from dataclasses import replace
 import math
 from typing import Any, Deque, Dict, Optional, Tuple
 
 import numpy as np
 
+from ring_gyro_sim.core.control import CONTROL_CHANNELS
 from ring_gyro_sim.core.electronics import DemodSamples, RateSamples, SenseElectronics
 from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.core.simulator import Samples, Simulator
@@ -85,9 +99,26 @@ class GyroChannel:
 
     def __init__(self, config: SimConfig, sim: Simulator, start_state) -> None:
         amp, phase = drive_operating_point(config, start_state)
+        self.lock_frequency_hz: Optional[float] = None
+        electronics_config = config
+        if sim.loop is not None:
+            # Closed loop the drive sits at the PLL's lock point, q2 = X sin(phi), at the
+            # AGC's set-point (core.control, C3, C5), on the backbone: the scale factor is
+            # that of the sense mode driven there (config/gyro.yaml: 0.017 Hz below
+            # drive.frequency, a seventh of the sense mode's half-width, which moves the
+            # scale factor by 0.55 %).
+            amp, phase = sim.loop.setpoint_m, -0.5 * math.pi
+            from ring_gyro_sim.analysis.nnm import lock_frequency  # the analysis layer
+            self.lock_frequency_hz = lock_frequency(config, amp)
+            electronics_config = replace(config, drive=replace(
+                config.drive, frequency=self.lock_frequency_hz))
         self.drive_amplitude_m = amp
         self.drive_phase_rad = phase
-        self.electronics = SenseElectronics(config, sim, amp, phase)
+        start_rate = float(sim.rates_at(np.zeros(1, np.int64))[0])
+        self.electronics = SenseElectronics(electronics_config, sim, amp, phase,
+                                            start_rate=start_rate)
+        self._rebalance_columns = [CONTROL_CHANNELS.index('rebalance_rate_rad_s'),
+                                   CONTROL_CHANNELS.index('rebalance_quadrature_rad_s')]
         w = 2.0 * math.pi * config.drive.frequency
         # A start state without drive motion (rest, given or not) keeps the default: the
         # filters at the linear operating point the drive will build up to.
@@ -108,8 +139,11 @@ class GyroChannel:
 
     def process(self, first_index: int, samples: Samples) -> Tuple[DemodSamples, RateSamples]:
         """Return the demodulator's channels and the rate output of one block."""
+        rebalance = None
+        if self.electronics.rebalance:
+            rebalance = samples.control[:, self._rebalance_columns]
         return self.electronics.process(first_index, samples.t, samples.capacitance,
-                                        samples.drive_phase)
+                                        samples.drive_phase, rebalance)
 
     def diagnostics_values(self) -> Dict[str, Any]:
         """Return the rate channel's state for ``/diagnostics``."""
@@ -184,4 +218,51 @@ class RateStats:
             out['rate_recovered'] = bool(recovered)
             out['rate_recovery_s'] = (0.0 if last is None else last - self.shock_s) \
                 if recovered else None
+        return out
+
+
+class DriveStats:
+    """Figures of the closed-loop drive over a run (module docstring)."""
+
+    def __init__(self, loop) -> None:
+        self.loop = loop
+        self._column = CONTROL_CHANNELS.index('amplitude_m')
+        self.shock_s: Optional[float] = None
+        self.last_outside_s: Optional[float] = None
+        self.last_t = math.nan
+        self.last_ratio = 1.0
+
+    def shock_at(self, t_s: float) -> None:
+        """Note the first shock's start time, s."""
+        if self.shock_s is None or t_s < self.shock_s:
+            self.shock_s = float(t_s)
+
+    def add(self, t: np.ndarray, control: np.ndarray) -> None:
+        """Add a block's sample times (s) and ``Samples.control`` rows."""
+        if t.size == 0:
+            return
+        ratio = control[:, self._column] / self.loop.setpoint_m
+        self.last_t = float(t[-1])
+        self.last_ratio = float(ratio[-1])
+        if self.shock_s is None:
+            return
+        outside = np.nonzero((t >= self.shock_s)
+                             & (np.abs(ratio - 1.0) > RECOVERY_BAND))[0]
+        if outside.size:
+            self.last_outside_s = float(t[outside[-1]])
+
+    def figures(self) -> Dict[str, Any]:
+        """Return the drive loop's figures (module docstring)."""
+        loop = self.loop
+        out: Dict[str, Any] = {
+            'pll_lost_lock': loop.lost_lock_at_s is not None,
+            'pll_lock_lost_at_s': loop.lost_lock_at_s,
+            'pll_relocked_at_s': loop.relocked_at_s,
+            'drive_amplitude_final_ratio': self.last_ratio,
+        }
+        if self.shock_s is not None:
+            last = self.last_outside_s
+            recovered = last is None or self.last_t - last >= RECOVERY_HOLD_S
+            out['drive_amplitude_recovery_s'] = (
+                (0.0 if last is None else last - self.shock_s) if recovered else None)
         return out

@@ -67,7 +67,7 @@ from ring_gyro_sim.core.electronics import DemodSamples, RateSamples
 from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.core.simulator import channel_names, Samples, Simulator, Status
-from ring_gyro_sim.rate import GyroChannel, RateStats
+from ring_gyro_sim.rate import DriveStats, GyroChannel, RateStats
 
 __all__ = ['AngularRate', 'BaseAcceleration', 'Block', 'Diagnostics', 'DriveAmplitude',
            'DriveFrequency',
@@ -441,6 +441,8 @@ class Run:
         if config.gyro.enabled:
             self.gyro = GyroChannel(config, self.sim, start_state)
             self.rate_stats = RateStats(config.gyro.output_rate)
+        self.drive_stats: Optional[DriveStats] = (
+            DriveStats(self.sim.loop) if self.sim.loop is not None else None)
         self.sink: Sink = sink if sink is not None else NullSink()
         if self.gyro is not None:
             self.sink.set_rate_variance(self.gyro.electronics.rate_variance())
@@ -608,6 +610,8 @@ class Run:
         self.stats.shock_at(at_ns)
         if self.rate_stats is not None:
             self.rate_stats.shock_at(at_ns * 1e-9)
+        if self.drive_stats is not None:
+            self.drive_stats.shock_at(at_ns * 1e-9)
         self._accepted(replace(event, at_ns=at_ns, z=0.0))
         return at_ns
 
@@ -684,6 +688,8 @@ class Run:
         if rate is not None and self.rate_stats is not None and samples.rate is not None:
             at = np.clip(np.searchsorted(samples.t, rate.t), 0, max(0, len(samples) - 1))
             self.rate_stats.add(rate, samples.rate[at])
+        if self.drive_stats is not None and samples.control is not None:
+            self.drive_stats.add(samples.t, samples.control)
         block = Block(samples=samples, end_ns=end_ns, first_index=first, rate=rate,
                       demod=demod)
         self.blocks += 1
@@ -741,10 +747,16 @@ class Run:
         values['drive_frequency_hz'] = drive.frequency
         values['withheld_nonfinite_blocks'] = self.withheld_blocks
         gyro_warning = ''
+        if sim.loop is not None:
+            loop = sim.loop.diagnostics_values()
+            values.update(loop)
+            if not loop['pll_locked']:
+                gyro_warning = (f'PLL out of lock since t = {sim.loop.unlocked_since_s:.6f} s '
+                                f'(phase error {loop["pll_phase_error_rad"]:.3g} rad)')
         if self.gyro is not None:
             gyro = self.gyro.diagnostics_values()
             values.update(gyro)
-            if not gyro.get('scale_factor_valid', True):
+            if not gyro.get('scale_factor_valid', True) and not gyro_warning:
                 gyro_warning = (f'scale factor collapsed: drive pick-off at '
                                 f'{gyro.get("drive_amplitude_ratio", math.nan):.3g} of its '
                                 f'value at the operating point (~/rate is not a measurement)')
@@ -779,10 +791,17 @@ class Run:
             extra=self.gyro_figures())
 
     def gyro_figures(self) -> Dict[str, Any]:
-        """Return the rate channel's figures (``rate.RateStats``), {} with the gyroscope off."""
+        """
+        Return the rate channel's and the drive loop's figures, {} without either.
+
+        ``rate.RateStats`` with the gyroscope on, ``rate.DriveStats`` with the closed loop.
+        """
+        out: Dict[str, Any] = {}
+        if self.drive_stats is not None:
+            out.update(self.drive_stats.figures())
         if self.gyro is None or self.rate_stats is None:
-            return {}
-        out = self.rate_stats.figures()
+            return out
+        out.update(self.rate_stats.figures())
         diag = self.gyro.diagnostics_values()
         for key in ('rate_scale_factor_v_per_rad_s', 'scale_factor_valid',
                     'drive_amplitude_ratio', 'predicted_arw_deg_per_sqrt_h', 'bandwidth_hz'):

@@ -638,7 +638,8 @@ def _solve_at_amplitude(curve: _Curve, index: int, y_low: np.ndarray, y_high: np
 
 
 def backbone_frequency(config: SimConfig, amplitude_m: float, mode: int = 1,
-                       taylor_terms: Optional[int] = None, harmonics: int = 12) -> float:
+                       taylor_terms: Optional[int] = None, harmonics: int = 12,
+                       start_amplitude_m: float = 0.02e-6) -> float:
     """
     Backbone frequency (Hz) at ``max |q_mode| = amplitude_m`` (m), solved there exactly.
 
@@ -654,6 +655,8 @@ def backbone_frequency(config: SimConfig, amplitude_m: float, mode: int = 1,
         N_T override (0: untruncated).
     harmonics : int
         N_h.
+    start_amplitude_m : float
+        Fundamental amplitude of the continuation's first point, m (below ``amplitude_m``).
 
     Returns
     -------
@@ -662,7 +665,7 @@ def backbone_frequency(config: SimConfig, amplitude_m: float, mode: int = 1,
 
     """
     bb = backbone(config, mode, taylor_terms, max_amplitude_m=amplitude_m,
-                  harmonics=harmonics)
+                  harmonics=harmonics, start_amplitude_m=start_amplitude_m)
     if bb.status or abs(bb.amplitude_m[-1] - amplitude_m) > 1e-9 * amplitude_m:
         raise SimulationError(f'backbone did not reach {amplitude_m:g} m: {bb.status}')
     return float(bb.frequency_hz[-1])

@@ -269,12 +269,8 @@ def forced_orbit(config: SimConfig, frequency_hz: float, amplitude_guess_m: floa
     if config.modes.companions:
         # The scheduled shocks do not enter the orbit; one off the x axis needs companions.
         # Nor does a rotation (a gyroscope's sense response is added by drive_initial_state).
-        cos_only = forced_orbit(replace(config, modes=replace(config.modes, companions=False),
-                                        gyro=replace(config.gyro, enabled=False),
-                                        run=replace(config.run, shock_times=(), shock_peaks=(),
-                                                    shock_angles=(), rate_times=(),
-                                                    rate_values=())),
-                                frequency_hz, amplitude_guess_m, drive_amplitude)
+        cos_only = forced_orbit(_cos_only(config), frequency_hz, amplitude_guess_m,
+                                drive_amplitude)
     m = _Model(config)
     n = m.n
     zeta = 1.0 / (2.0 * np.asarray(config.modes.coordinate_quality_factors()))
@@ -333,6 +329,31 @@ def forced_orbit(config: SimConfig, frequency_hz: float, amplitude_guess_m: floa
                        floquet_multipliers=mu)
 
 
+def _cos_only(config: SimConfig) -> SimConfig:
+    """The resonator of the cos coordinates: no companions, rotation, loops or shocks."""
+    return replace(config, modes=replace(config.modes, companions=False),
+                   gyro=replace(config.gyro, enabled=False),
+                   control=replace(config.control, drive_loop='open', rebalance=False),
+                   run=replace(config.run, shock_times=(), shock_peaks=(), shock_angles=(),
+                               rate_times=(), rate_values=()))
+
+
+def lock_frequency(config: SimConfig, amplitude_m: float) -> float:
+    """
+    Return the frequency (Hz) the closed loop's PLL locks to at the drive amplitude (m).
+
+    The 2theta backbone there (``hbm.backbone_frequency`` of the cos coordinates, no
+    damping): with the phase held at 90 degrees the forced response sits on it to
+    ``O(1 / Q^2)`` (``test/core/test_control.py`` compares it with the PLL's).
+    ``drive.frequency`` when the amplitude is 0.
+    """
+    if amplitude_m <= 0.0:
+        return float(config.drive.frequency)
+    from ring_gyro_sim.analysis import hbm  # hbm imports the plotting layer
+    return hbm.backbone_frequency(_cos_only(config), amplitude_m, mode=2,
+                                  start_amplitude_m=min(0.02e-6, 0.5 * amplitude_m))
+
+
 def drive_initial_state(config: SimConfig):
     """
     Return the initial ``(x, v)`` for ``drive.start_on`` (None for 'rest' or with the drive off).
@@ -376,7 +397,9 @@ def drive_initial_state(config: SimConfig):
                       RuntimeWarning, stacklevel=2)
     n = config.modes.count * (2 if config.modes.companions else 1)
     x, v = orbit.initial_state[:n].copy(), orbit.initial_state[n:].copy()
-    if config.gyro.enabled:
+    if config.gyro.enabled and not config.control.rebalance:
+        # With force-to-rebalance the loop holds the sense mode at 0 from the start (its
+        # force starts at the Coriolis force of the rate at t = 0: core.control, C6).
         _add_sense_response(config, x, v)
     return x, v
 
@@ -412,14 +435,20 @@ def _add_sense_response(config: SimConfig, x: np.ndarray, v: np.ndarray) -> None
         return
     m = config.modes.count
     w = 2.0 * math.pi * config.drive.frequency
+    c0 = complex(x[1], -v[1] / w)  # q2 = Re(c0 e^{i w t}), q2' = Re(i w c0 e^{i w t})
+    if config.control.closed:
+        # The closed loop holds the drive's amplitude (no drop) at the PLL's lock
+        # frequency, where the sense mode is driven.
+        config = replace(config, drive=replace(config.drive, frequency=lock_frequency(
+            config, abs(c0))))
+        w = 2.0 * math.pi * config.drive.frequency
     f = config.modes.coordinate_frequencies()
     qf = config.modes.coordinate_quality_factors()
     ws, qs = 2.0 * math.pi * f[m + 1], qf[m + 1]
-    c0 = complex(x[1], -v[1] / w)  # q2 = Re(c0 e^{i w t}), q2' = Re(i w c0 e^{i w t})
     d = config.drive.amplitude / c0
     d_s = ws * ws - w * w + 1j * w * ws / qs
     g = 2.0 * structure.gyroscopic_coefficient(2) * rate0 * w
-    c = config.drive.amplitude / (d - g * g / d_s)
+    c = c0 if config.control.closed else config.drive.amplitude / (d - g * g / d_s)
     # The sense response about the drive orbit (electronics.orbit_sense_response: the sense
     # mode softened and pumped by the drive's amplitude), per unit rate and drive phase.
     per_rate = electronics.orbit_sense_response(config, forces.build_force_model(config),

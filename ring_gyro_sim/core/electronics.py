@@ -172,16 +172,28 @@ Flicker (bias instability, E13)
     The Allan deviation of the bank, computed exactly from its autocovariance
     (``test_electronics.py``), is within 1.5 % of ``0.6643 B`` from ``tau = 10 / f_r`` to
     ``tau = 0.01 / FLICKER_LOWEST_HZ``.
+
+Force-to-rebalance readout (E14)
+    With ``control.rebalance`` the sense mode is held at 0 by a loop (``core.control``,
+    C6-C8) and the rate is read from its force: the rebalance rate ``S_c / (2 kappa omega X)``
+    and quadrature ``S_s / (2 kappa omega X)`` of each sample (``Samples.control``) pass the
+    same Butterworth (own state, started at the rate at t = 0) and the same decimation;
+    the sense pick-off still feeds ``~/demodulator``. The rate's bandwidth is then the
+    loop's (``control.rebalance_bandwidth``), the ARW the same as open loop (E10-E12: the
+    force noise is read the same way, and the pick-off noise referred to the rate through
+    the loop's inverse plant equals ``e_o / SF`` below the sense pole); above the pole the
+    loop turns the pick-off noise into force as ``|1 + i f / f_p|``, which
+    :meth:`SenseElectronics.rate_variance` integrates through the loop's response.
 """
 
 from dataclasses import dataclass
 import importlib
 import math
 import numbers
-from typing import Dict, Tuple, Union
+from typing import Dict, Optional, Tuple, Union
 
 import numpy as np
-from ring_gyro_sim.core import forces, noise, structure
+from ring_gyro_sim.core import control, forces, noise, structure
 from ring_gyro_sim.core.errors import InputError
 from ring_gyro_sim.core.params import BOLTZMANN, SimConfig
 
@@ -444,6 +456,85 @@ def orbit_sense_response(config: SimConfig, model, drive_amplitude_m: float) -> 
     return complex(2.0 / 256.0 * np.sum(x[:-1] * np.exp(-1j * w * t[:-1])))
 
 
+class PickOff:
+    """
+    The two charge amplifiers of the pick-off (E1) with their noise (E2).
+
+    Shared by the sense chain (:class:`SenseElectronics`) and the closed-loop drive
+    (``core.control``), which read the same amplifiers: the same voltages, the same noise
+    samples (addressed by sample index), on when ``noisy`` and ``gyro.input_noise_density > 0``.
+
+    Parameters
+    ----------
+    config : SimConfig
+        The run's configuration (``electrodes.*``, ``gyro.*``).
+    sim : Simulator
+        Its simulator (rest capacitances, the gains through the published capacitances).
+    noisy : bool
+        Whether the amplifiers add their noise (the closed loop of a resonator without
+        ``gyro.enabled`` reads ideal amplifiers).
+
+    Attributes
+    ----------
+    sense_gain, drive_gain : float
+        ``dV / dq2s`` and ``dV / dq2`` of the sense and drive amplifiers at rest, V/m (E7);
+        ``sense_gain`` is 0 without the companions.
+
+    """
+
+    def __init__(self, config: SimConfig, sim, noisy: bool = True) -> None:
+        g = config.gyro
+        n_modes = config.modes.count
+        self.noise_seed = int(g.noise_seed)
+        self.sample_rate_hz = float(config.run.output_rate)
+        self.drive_index = 1
+        self.sense_index = n_modes + 1 if config.modes.companions else -1
+        n_coord = sim.model.n_coordinates
+        k = config.electrodes.count
+        self.n_electrodes = k
+        theta = 2.0 * math.pi * np.arange(k) / k
+        weights = np.stack([np.sin(2.0 * theta), np.cos(2.0 * theta)], axis=1)
+        weights[np.abs(weights) < _ZERO_WEIGHT] = 0.0
+        self.weights = weights
+        self.bias_voltage = float(g.bias_voltage or config.electrodes.outer_voltage)
+        self.feedback_capacitance = float(g.feedback_capacitance)
+        self.volts_per_farad = -(self.bias_voltage / self.feedback_capacitance) * weights  # E1
+        self.rest_capacitance = sim.outputs_for(np.zeros(n_coord)).capacitance[0].copy()
+        # (E2) noise gain of each amplifier
+        c_in = np.array([self.rest_capacitance[weights[:, j] != 0.0].sum()
+                         for j in range(2)]) + g.parasitic_capacitance
+        self.input_capacitance = c_in
+        self.output_noise_density = g.input_noise_density * (1.0 + c_in / g.feedback_capacitance)
+        self._noise_std = self.output_noise_density * math.sqrt(0.5 * self.sample_rate_hz)
+        self.noisy = bool(noisy and g.input_noise_density > 0.0)
+        # (E7) gains by central differences through the published capacitances
+        step = GAIN_STEP_RATIO * config.electrodes.gap
+        self.sense_gain = (self._gain(sim, n_coord, self.sense_index, 0, step)
+                           if self.sense_index >= 0 else 0.0)
+        self.drive_gain = self._gain(sim, n_coord, self.drive_index, 1, step)
+
+    def _gain(self, sim, n_coord: int, index: int, amp: int, step: float) -> float:
+        q = np.zeros((2, n_coord))
+        q[0, index] = step
+        q[1, index] = -step
+        cap = sim.outputs_for(q).capacitance
+        return float((cap[0] - cap[1]) @ self.volts_per_farad[:, amp] / (2.0 * step))
+
+    def volts(self, first_index: int, capacitance: np.ndarray) -> np.ndarray:
+        """
+        Return the amplifiers' outputs (V), shape (K, 2): columns sense, drive (E1, E2).
+
+        ``capacitance`` (K, E) are the outer electrodes' at global samples
+        ``first_index .. first_index + K - 1``; the noise is that of those sample indices.
+        """
+        volts = (capacitance - self.rest_capacitance) @ self.volts_per_farad
+        count = volts.shape[0]
+        if self.noisy and count:
+            volts += noise.normals(self.noise_seed, noise.STREAM_PICKOFF, first_index, count,
+                                   2) * self._noise_std
+        return volts
+
+
 class SenseElectronics:
     """
     Pick-off, demodulation, low-pass and rate output of the sense chain (module docstring).
@@ -462,7 +553,7 @@ class SenseElectronics:
     """
 
     def __init__(self, config: SimConfig, sim, drive_amplitude_m: float,
-                 drive_phase_rad: float) -> None:
+                 drive_phase_rad: float, start_rate: float = 0.0) -> None:
         for name, val in (('drive_amplitude_m', drive_amplitude_m),
                           ('drive_phase_rad', drive_phase_rad)):
             if not (isinstance(val, numbers.Real) and math.isfinite(val)):
@@ -478,31 +569,23 @@ class SenseElectronics:
         self.sample_rate_hz = float(config.run.output_rate)
         self.decimation = int(round(config.run.output_rate / g.output_rate))
         self.noise_seed = int(g.noise_seed)
-        self.sense_index = n_modes + 1
-        self.drive_index = 1
+        self.pickoff = PickOff(config, sim)
+        po = self.pickoff
+        self.sense_index = po.sense_index
+        self.drive_index = po.drive_index
+        self.n_electrodes = po.n_electrodes
+        self.weights = po.weights
+        self.bias_voltage = po.bias_voltage
+        self.feedback_capacitance = po.feedback_capacitance
+        self._volts = po.volts_per_farad
+        self.rest_capacitance = po.rest_capacitance
+        self.input_capacitance = po.input_capacitance
+        self.output_noise_density = po.output_noise_density
+        self._noisy = po.noisy
+        self.electronic_gain = po.sense_gain
+        self.drive_gain = po.drive_gain
         n_coord = sim.model.n_coordinates
-        k = config.electrodes.count
-        self.n_electrodes = k
-        theta = 2.0 * math.pi * np.arange(k) / k
-        weights = np.stack([np.sin(2.0 * theta), np.cos(2.0 * theta)], axis=1)
-        weights[np.abs(weights) < _ZERO_WEIGHT] = 0.0
-        self.weights = weights
-        self.bias_voltage = float(g.bias_voltage or config.electrodes.outer_voltage)
-        self.feedback_capacitance = float(g.feedback_capacitance)
-        self._volts = -(self.bias_voltage / self.feedback_capacitance) * weights  # (E1)
         zero = np.zeros(n_coord)
-        self.rest_capacitance = sim.outputs_for(zero).capacitance[0].copy()
-        # (E2) noise gain of each amplifier
-        c_in = np.array([self.rest_capacitance[weights[:, j] != 0.0].sum()
-                         for j in range(2)]) + g.parasitic_capacitance
-        self.input_capacitance = c_in
-        self.output_noise_density = g.input_noise_density * (1.0 + c_in / g.feedback_capacitance)
-        self._noise_std = self.output_noise_density * math.sqrt(0.5 * self.sample_rate_hz)
-        self._noisy = g.input_noise_density > 0.0
-        # (E7) gains by central differences through the published capacitances
-        step = GAIN_STEP_RATIO * config.electrodes.gap
-        self.electronic_gain = self._gain(sim, n_coord, self.sense_index, 0, step)
-        self.drive_gain = self._gain(sim, n_coord, self.drive_index, 1, step)
         # (E5, E6) the sense mode's response
         f_s = config.modes.coordinate_frequencies()[self.sense_index]
         self.sense_quality_factor = float(
@@ -535,18 +618,16 @@ class SenseElectronics:
         self._next_index = None
         self.flicker = FlickerNoise(deg_per_h_to_rad_per_s(g.bias_instability),
                                     g.output_rate, self.noise_seed)
+        self.rebalance = bool(config.control.rebalance)
+        self._zi_rb = signal.sosfilt_zi(self._sos)[:, :, None] * np.array(
+            [float(start_rate), 0.0])[None, None, :]
         self.bandwidth_hz = self._bandwidth()
-
-    def _gain(self, sim, n_coord: int, index: int, amp: int, step: float) -> float:
-        q = np.zeros((2, n_coord))
-        q[0, index] = step
-        q[1, index] = -step
-        cap = sim.outputs_for(q).capacitance
-        return float((cap[0] - cap[1]) @ self._volts[:, amp] / (2.0 * step))
 
     def _bandwidth(self) -> float:
         """(E9): -3 dB frequency of the sense envelope's pole times the Butterworth, Hz."""
         f_m = self.sense_omega / (2.0 * self.sense_quality_factor) / (2.0 * math.pi)
+        if self.config.control.rebalance:  # (E14) the loop's bandwidth
+            f_m = self.config.control.rebalance_bandwidth
         fs = self.sample_rate_hz
 
         def excess(f):
@@ -608,12 +689,20 @@ class SenseElectronics:
         (``pi / 2`` times its -3 dB frequency ``f_s / (2 Q_s)``), the electronic part through
         the Butterworth (its noise bandwidth, from ``sosfreqz``). The flicker term, whose
         variance grows with the record, is left out.
+
+        With force-to-rebalance (E14) both parts pass the loop's closed-loop response ``T(f)``
+        (``control.rebalance_response``) and the Butterworth, the electronic part also the
+        inverse sense pole ``|1 + i f / f_p|^2``, integrated numerically.
         """
         if not self.has_scale_factor:
             return 0.0
         _, thermo, electronic = self.predicted_arw()
         pole_hz = self.sense_omega / (2.0 * self.sense_quality_factor) / (2.0 * math.pi)
         f, h = signal.sosfreqz(self._sos, worN=1 << 16, fs=self.sample_rate_hz)
+        if self.rebalance:
+            t2 = np.abs(control.rebalance_response(self.config, f, pole_hz)) ** 2
+            density = 2.0 * t2 * (thermo ** 2 + electronic ** 2 * (1.0 + (f / pole_hz) ** 2))
+            return float(np.sum(density * np.abs(h) ** 2) * (f[1] - f[0]))
         enbw = float(np.sum(np.abs(h) ** 2) * (f[1] - f[0]))
         return 2.0 * thermo ** 2 * 0.5 * math.pi * pole_hz + 2.0 * electronic ** 2 * enbw
 
@@ -622,7 +711,8 @@ class SenseElectronics:
         return rad_per_sqrt_s_to_deg_per_sqrt_h(self.predicted_arw()[0])
 
     def process(self, first_index: int, t: np.ndarray, capacitance: np.ndarray,
-                drive_phase: np.ndarray) -> Tuple[DemodSamples, RateSamples]:
+                drive_phase: np.ndarray, rebalance: Optional[np.ndarray] = None
+                ) -> Tuple[DemodSamples, RateSamples]:
         """
         Run the chain over consecutive samples of one block.
 
@@ -637,6 +727,9 @@ class SenseElectronics:
             Outer electrode capacitances, F (``Samples.capacitance``).
         drive_phase : ndarray, shape (K,)
             Phase ``phi_drive`` of the drive force at each sample, rad.
+        rebalance : ndarray, shape (K, 2), optional
+            With ``control.rebalance``: the rebalance rate and quadrature of each sample,
+            rad/s (E14; required then).
 
         Returns
         -------
@@ -658,10 +751,7 @@ class SenseElectronics:
         t = _check_array('t', t, (count,))
         capacitance = _check_array('capacitance', capacitance, (count, self.n_electrodes))
         drive_phase = _check_array('drive_phase', drive_phase, (count,))
-        volts = (capacitance - self.rest_capacitance) @ self._volts  # (E1), (K, 2)
-        if self._noisy and count:
-            volts += noise.normals(self.noise_seed, noise.STREAM_PICKOFF, first_index, count,
-                                   2) * self._noise_std  # (E2)
+        volts = self.pickoff.volts(first_index, capacitance)  # (E1, E2), (K, 2)
         phi = drive_phase + self.drive_phase_rad
         two_cos = 2.0 * np.cos(phi)
         two_sin = 2.0 * np.sin(phi)
@@ -677,7 +767,18 @@ class SenseElectronics:
         d = self.decimation
         start = (d - (first_index + 1) % d) % d
         picks = np.arange(start, count, d)
-        if self.has_scale_factor:
+        if self.rebalance:
+            rebalance = _check_array('rebalance', rebalance, (count, 2))
+            if count:
+                rb, self._zi_rb = signal.sosfilt(self._sos, rebalance, axis=0,
+                                                 zi=self._zi_rb)  # (E14)
+            else:
+                rb = rebalance
+            rate = rb[picks, 0].copy()
+            quadrature = rb[picks, 1].copy()
+            if picks.size:
+                self._latest_rate = float(rate[-1])
+        elif self.has_scale_factor:
             rho = np.maximum(np.hypot(values[picks, 2], values[picks, 3])
                              / self.drive_pickoff_nominal_v, RHO_FLOOR)
             rate = values[picks, 0] / (self.scale_factor * rho)  # (E4)
@@ -692,7 +793,9 @@ class SenseElectronics:
         self._next_index = first_index + count
         if count:
             self._latest = values[-1].copy()
-            if self.has_scale_factor:
+            if self.rebalance:
+                self._latest_quadrature = float(rb[-1, 1])
+            elif self.has_scale_factor:
                 rho = max(math.hypot(values[-1, 2], values[-1, 3])
                           / self.drive_pickoff_nominal_v, RHO_FLOOR)
                 self._latest_quadrature = float(values[-1, 1] / (self.scale_factor * rho))
@@ -703,8 +806,11 @@ class SenseElectronics:
         """
         Return the drive amplitude over its operating point's at ``rate`` (rad/s), linear.
 
-        The pair's linear response: ``|D / (D - g^2 / D_s)|`` (E8); 0 without a drive.
+        The pair's linear response: ``|D / (D - g^2 / D_s)|`` (E8); 0 without a drive. With
+        the closed-loop drive 1 (the AGC holds the amplitude).
         """
+        if self.config.control.closed:
+            return 1.0
         amp = self.drive_amplitude_m
         force = self.config.drive.amplitude
         if amp <= 0.0 or force == 0.0:

@@ -182,6 +182,12 @@ class Drive(NamedTuple):
         Phase at ``t_ref``, rad.
     index : int
         The driven coordinate (q2), -1 for none.
+    sense_index : int
+        The coordinate of the rebalance force (q2s, force-to-rebalance of the closed loop,
+        ``core.control``), -1 for none.
+    sense_amplitude, sense_phase : float
+        The rebalance force ``B cos(omega (t - t_ref) + phase - beta)``: B (m/s^2) and the
+        lag beta (rad) behind the drive's phase.
 
     """
 
@@ -190,6 +196,9 @@ class Drive(NamedTuple):
     t_ref: float
     phase: float
     index: int
+    sense_index: int = -1
+    sense_amplitude: float = 0.0
+    sense_phase: float = 0.0
 
 
 class Forcing(NamedTuple):
@@ -688,11 +697,12 @@ def _profile_accel(t, profile_t, profile_x, profile_y):
 
 @njit(cache=True, inline='always')
 def _external(t, t_mid, forcing, base_x, base_y, drive_index, drive_c, drive_s, rot_c, rot_s,
-              fe):
+              sense_index, sense_c, sense_s, fe):
     """
     External acceleration at time ``t`` (s) into ``fe`` (m/s^2).
 
-    Only ``fe[0]``, ``fe[forcing.y_index]`` and ``fe[drive_index]`` (distinct) are written;
+    Only ``fe[0]``, ``fe[forcing.y_index]``, ``fe[drive_index]`` and ``fe[sense_index]``
+    (distinct) are written;
     the other entries stay at the zero :func:`run_samples` puts there (zeroing all of ``fe``
     every stage compiled to a call of memset).
 
@@ -707,7 +717,9 @@ def _external(t, t_mid, forcing, base_x, base_y, drive_index, drive_c, drive_s, 
     The drive ``A cos(omega (t - t_ref) + phase)`` on q_2 is ``drive_c rot_c - drive_s rot_s``:
     ``drive_c, drive_s = A cos, A sin`` of the phase at the start of the step (one cos and one
     sin per step, :func:`_step`) and ``rot_c, rot_s`` the cos and sin of ``omega`` times the
-    stage's offset in the step (:func:`_stage_rotations`), by the angle-sum formula.
+    stage's offset in the step (:func:`_stage_rotations`), by the angle-sum formula. The
+    rebalance force on ``sense_index`` (the closed loop's, ``Drive.sense_amplitude``) is the
+    same with its own phasor ``sense_c, sense_s``.
     """
     pulses = forcing.pulses
     ax = base_x
@@ -724,6 +736,8 @@ def _external(t, t_mid, forcing, base_x, base_y, drive_index, drive_c, drive_s, 
         fe[forcing.y_index] = -ay
     if drive_index >= 0:
         fe[drive_index] = drive_c * rot_c - drive_s * rot_s
+    if sense_index >= 0:
+        fe[sense_index] = sense_c * rot_c - sense_s * rot_s
 
 
 @njit(cache=True, inline='always')
@@ -865,6 +879,11 @@ def _step(q, v, acc, ts, hs, prop, rot, method, force, drive, forcing, scratch):
     info = scratch.info
     t_mid = ts + 0.5 * hs
     drive_c, drive_s = drive_phasor(ts, drive.amplitude, drive.omega, drive.t_ref, drive.phase)
+    sense_c = 0.0
+    sense_s = 0.0
+    if drive.sense_index >= 0:
+        sense_c, sense_s = drive_phasor(ts, drive.sense_amplitude, drive.omega, drive.t_ref,
+                                        drive.phase - drive.sense_phase)
     tt = ts
     base_x = 0.0
     base_y = 0.0
@@ -878,7 +897,7 @@ def _step(q, v, acc, ts, hs, prop, rot, method, force, drive, forcing, scratch):
             base_x, base_y = _profile_accel(tt, forcing.profile_t, forcing.profile_x,
                                             forcing.profile_y)
         _external(tt, t_mid, forcing, base_x, base_y, drive.index, drive_c, drive_s,
-                  rot[i, 0], rot[i, 1], fe)
+                  rot[i, 0], rot[i, 1], drive.sense_index, sense_c, sense_s, fe)
         if rotating:
             _kick_rotating(q, v, acc, fe, b[i] * hs, w, wdot, forcing)
         else:
@@ -895,7 +914,7 @@ def _step(q, v, acc, ts, hs, prop, rot, method, force, drive, forcing, scratch):
         base_x, base_y = _profile_accel(ts + hs, forcing.profile_t, forcing.profile_x,
                                         forcing.profile_y)
     _external(ts + hs, t_mid, forcing, base_x, base_y, drive.index, drive_c, drive_s,
-              rot[n_stages, 0], rot[n_stages, 1], fe)
+              rot[n_stages, 0], rot[n_stages, 1], drive.sense_index, sense_c, sense_s, fe)
     if rotating:
         _kick_rotating(q, v, acc, fe, b[n_stages] * hs, w, wdot, forcing)
     else:

@@ -355,9 +355,43 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
     ParamSpec('gyro.noise_seed', 'gyro.noise_seed', 'int', 0, '-',
               'seed of every random stream (recorded with the run; same seed, same noise)',
               0, 2 ** 63 - 1, range_note='a 64-bit key of the counter-based generator'),
+    ParamSpec('control.drive_loop', 'control.drive_loop', 'str', 'open', '-',
+              'the 2theta drive: open (the paper: drive.amplitude at drive.frequency) or '
+              'closed (a PLL on the drive pick-off sets the frequency, an AGC the amplitude; '
+              'doc/control.md)', choices=('open', 'closed')),
+    ParamSpec('control.rate', 'control.rate', 'float', 1000.0, 'Hz',
+              'update rate of the loops (integrate-and-dump demodulation over one period; '
+              'output.rate must be a whole multiple)', **_POSITIVE),
+    ParamSpec('control.pll_bandwidth', 'control.pll_bandwidth', 'float', 20.0, 'Hz',
+              'PLL loop bandwidth (crossover of the PI loop filter)', **_POSITIVE),
+    ParamSpec('control.pll_range', 'control.pll_range', 'float', 50.0, 'Hz',
+              'the NCO stays within drive.frequency +- this (at the limit: out of lock)',
+              **_POSITIVE),
+    ParamSpec('control.lock_threshold', 'control.lock_threshold', 'float', 0.5, 'rad',
+              'phase error beyond which the PLL counts as out of lock', minimum=0.0,
+              maximum=math.pi, open_minimum=True),
+    ParamSpec('control.agc_bandwidth', 'control.agc_bandwidth', 'float', 5.0, 'Hz',
+              'AGC loop bandwidth (crossover of the PI amplitude loop)', **_POSITIVE),
+    ParamSpec('control.agc_setpoint', 'control.agc_setpoint', 'float', 0.0, 'm',
+              'drive amplitude the AGC holds (q2 amplitude; 0 = that of the start state, or '
+              'the linear response to drive.amplitude from rest)', **_NON_NEGATIVE),
+    ParamSpec('control.drive_limit', 'control.drive_limit', 'float', 1.0, 'm/s^2',
+              'largest drive force amplitude the AGC may command (the DAC range)',
+              **_POSITIVE),
+    ParamSpec('control.rebalance', 'control.rebalance', 'bool', False, '-',
+              'force-to-rebalance: a loop nulls the sense mode q2s and ~/rate is read from '
+              'its force; needs control.drive_loop: closed and gyro.enabled'),
+    ParamSpec('control.rebalance_bandwidth', 'control.rebalance_bandwidth', 'float', 20.0,
+              'Hz', 'force-to-rebalance loop bandwidth (the rate bandwidth with it on)',
+              **_POSITIVE),
 )
 
 SPECS: Dict[str, ParamSpec] = {p.name: p for p in PARAMETERS}
+
+CONTROL_BANDWIDTH_RATIO = 20.0
+"""A loop's bandwidth is at most ``control.rate`` over this (doc/control.md, stability)."""
+CONTROL_MIN_SAMPLES = 8
+"""Fewest output samples per loop period (the demodulation's least-squares fit)."""
 
 
 def _fail(name: str, reason: str) -> ParameterError:
@@ -635,6 +669,45 @@ class GyroParams:
                         f'the low-pass is the anti-alias filter of ~/rate')
 
 
+@_parameter_group('control')
+class ControlParams:
+    """
+    The closed-loop drive (PLL + AGC) and force-to-rebalance (``core.control``).
+
+    ``drive_loop: open`` (the default) is the paper's fixed-frequency drive; ``closed`` locks
+    an NCO to the drive mode and holds its amplitude (doc/control.md).
+    """
+
+    drive_loop: str
+    rate: float
+    pll_bandwidth: float
+    pll_range: float
+    lock_threshold: float
+    agc_bandwidth: float
+    agc_setpoint: float
+    drive_limit: float
+    rebalance: bool
+    rebalance_bandwidth: float
+
+    @property
+    def closed(self) -> bool:
+        """Whether the drive is the closed loop."""
+        return self.drive_loop == 'closed'
+
+    def _check(self) -> None:
+        top = max(self.pll_bandwidth, self.agc_bandwidth, self.rebalance_bandwidth)
+        if self.closed and top > self.rate / CONTROL_BANDWIDTH_RATIO:
+            name = ('control.pll_bandwidth' if top == self.pll_bandwidth else
+                    'control.agc_bandwidth' if top == self.agc_bandwidth else
+                    'control.rebalance_bandwidth')
+            raise _fail(name, f'must be at most control.rate / {CONTROL_BANDWIDTH_RATIO:g} '
+                        f'({self.rate / CONTROL_BANDWIDTH_RATIO:g} Hz): a sampled loop with '
+                        f'a delay of 1.5 periods needs it, got {top:g} Hz')
+        if self.rebalance and not self.closed:
+            raise _fail('control.rebalance', 'needs control.drive_loop: closed (the '
+                        'rebalance force is referenced to the PLL)')
+
+
 @_parameter_group('integrator')
 class IntegratorParams:
     """Choice of the splitting method and of the largest step, s."""
@@ -720,6 +793,7 @@ class SimConfig:
     electrodes: ElectrodeParams = field(default_factory=ElectrodeParams)
     drive: DriveParams = field(default_factory=DriveParams)
     gyro: GyroParams = field(default_factory=GyroParams)
+    control: ControlParams = field(default_factory=ControlParams)
     integrator: IntegratorParams = field(default_factory=IntegratorParams)
     run: RunParams = field(default_factory=RunParams)
 
@@ -751,8 +825,37 @@ class SimConfig:
                             f'multiple of it, got {self.gyro.output_rate:g} Hz')
         if self.drive.amplitude != 0.0 and self.modes.count < 2:
             raise _fail('drive.amplitude', 'drives the 2theta mode: needs at least 2 modes')
+        self._check_control()
         self._check_voltages()
         self._check_block_memory()
+
+    def _check_control(self) -> None:
+        c = self.control
+        if not c.closed:
+            return
+        if self.modes.count < 2:
+            raise _fail('control.drive_loop', 'closed drives the 2theta mode: needs at least '
+                        '2 modes')
+        if self.drive.frequency <= 0.0:
+            raise _fail('drive.frequency', 'is the centre of the closed loop\'s NCO: must be '
+                        '> 0 with control.drive_loop: closed')
+        if c.pll_range >= self.drive.frequency:
+            raise _fail('control.pll_range', f'must be below drive.frequency '
+                        f'({self.drive.frequency:g} Hz), got {c.pll_range:g} Hz')
+        ratio = self.run.output_rate / c.rate
+        if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
+            raise _fail('control.rate', f'output.rate ({self.run.output_rate:g} Hz) must be a '
+                        f'whole multiple of it, got {c.rate:g} Hz')
+        if round(ratio) < CONTROL_MIN_SAMPLES:
+            raise _fail('control.rate', f'needs at least {CONTROL_MIN_SAMPLES} output samples '
+                        f'per loop period (output.rate / control.rate = {round(ratio)})')
+        if c.rate > self.drive.frequency / 2.0:
+            raise _fail('control.rate', f'the demodulation integrates over one loop period: '
+                        f'at most half of drive.frequency ({self.drive.frequency / 2.0:g} Hz), '
+                        f'got {c.rate:g} Hz')
+        if c.rebalance and not self.gyro.enabled:
+            raise _fail('control.rebalance', 'needs gyro.enabled: true (the rebalance force '
+                        'acts on the sense mode q2s)')
 
     def _check_voltages(self) -> None:
         # K_c (eq. 26) below m omega^2 of every coordinate: static pull-in with mechanical

@@ -58,7 +58,7 @@ from typing import Any, Callable, List, Mapping, Optional, Tuple
 
 import numpy as np
 
-from ring_gyro_sim.core import forces, kernels, noise, structure
+from ring_gyro_sim.core import control, electronics, forces, kernels, noise, structure
 from ring_gyro_sim.core.errors import InputError, SimulationError
 from ring_gyro_sim.core.params import BOLTZMANN, build_config, EPSILON_0, SimConfig, to_flat
 
@@ -187,6 +187,9 @@ class Samples:
         the sense electronics); None when the gyroscope is off.
     rate : ndarray, shape (K,) or None
         Angular rate of the sensor frame at each sample time, rad/s (None: gyroscope off).
+    control : ndarray, shape (K, len(control.CONTROL_CHANNELS)) or None
+        The closed loop's state in force at each sample (``core.control``, C9); None open
+        loop.
 
     """
 
@@ -198,6 +201,7 @@ class Samples:
     capacitance: np.ndarray
     drive_phase: Optional[np.ndarray] = None
     rate: Optional[np.ndarray] = None
+    control: Optional[np.ndarray] = None
 
     def __len__(self) -> int:
         return int(self.t.size)
@@ -253,6 +257,15 @@ class Simulator:
         # source); the phase reference moves when they change, so the phase is continuous.
         self._drive_t_ref = 0.0
         self._drive_phase = 0.0
+        self.loop: Optional[control.DriveLoop] = None
+        self._loop_cap: Optional[np.ndarray] = None
+        self._loop_phase: Optional[np.ndarray] = None
+        if config.control.closed:
+            pickoff = electronics.PickOff(config, self, noisy=config.gyro.enabled)
+            self.loop = control.DriveLoop(config, pickoff)
+            self._loop_cap = np.empty((self.loop.window, self._n_electrodes))
+            self._loop_phase = np.empty(self.loop.window)
+            self.loop.start(self.q, self.v, float(self.rates_at(np.zeros(1, np.int64))[0]))
         self._drive = self._drive_args()
         self.steps_taken = 0
         for at_ns, peak_x, peak_y in config.run.scheduled_shocks():
@@ -282,6 +295,7 @@ class Simulator:
         self.coordinates = coordinate_names(config)
         self._y_index = config.modes.count if config.modes.companions else -1
         self._drive_index = 1 if config.modes.count >= 2 else -1
+        self._sense_index = config.modes.count + 1 if config.modes.companions else -1
         self._build_rotation(config)
         self._build_outputs(config)
 
@@ -409,6 +423,13 @@ class Simulator:
             raise InputError('modes: the number of coordinates cannot change at run time')
         if config.run.output_rate != self._config.run.output_rate:
             raise InputError('output.rate cannot change at run time')
+        if config.control != self._config.control:
+            raise InputError('control: the closed loop cannot change at run time')
+        if self.loop is not None and (config.drive.amplitude != self._config.drive.amplitude
+                                      or config.drive.frequency
+                                      != self._config.drive.frequency):
+            raise InputError('drive: the closed loop (control.drive_loop: closed) sets the '
+                             'drive; drive.amplitude and drive.frequency are its start values')
 
     def _apply_config(self, config: SimConfig) -> None:
         old = self._config.drive
@@ -417,6 +438,8 @@ class Simulator:
             self._rephase_drive()
         self._config = config
         self._build(config)
+        if self.loop is not None:  # the voltages set the pick-off's gains
+            self.loop.pickoff = electronics.PickOff(config, self, noisy=config.gyro.enabled)
         self._drive = self._drive_args()
         if self.status == Status.RUNNING:
             self._refresh_acceleration()
@@ -520,6 +543,9 @@ class Simulator:
             raise InputError(f'drive.frequency: must be finite and >= 0, got {frequency_hz!r}')
         if amplitude not in (None, 0.0) and self._drive_index < 0:
             raise InputError('drive.amplitude: drives the 2theta mode, needs 2 modes')
+        if self.loop is not None:
+            raise InputError('drive: the closed loop (control.drive_loop: closed) sets the '
+                             'drive; its set-point is control.agc_setpoint')
         self._at_index(at_ns, 'drive')
 
         def apply() -> None:
@@ -541,7 +567,19 @@ class Simulator:
         self._drive_t_ref = t
 
     def _drive_args(self) -> kernels.Drive:
-        """Return the kernels' drive: the configuration's, from the current phase reference."""
+        """
+        Return the kernels' drive from the current phase reference.
+
+        Open loop the configuration's; closed loop the loops' commands (``core.control``).
+        """
+        if self.loop is not None:
+            omega, force, rb_amp, rb_lag = self.loop.commands()
+            return kernels.Drive(amplitude=float(force), omega=float(omega),
+                                 t_ref=float(self._drive_t_ref),
+                                 phase=float(self._drive_phase), index=self._drive_index,
+                                 sense_index=(self._sense_index if self.loop.rebalance
+                                              else -1),
+                                 sense_amplitude=float(rb_amp), sense_phase=float(rb_lag))
         drive = self._config.drive
         return kernels.Drive(amplitude=float(drive.amplitude),
                              omega=2.0 * math.pi * float(drive.frequency),
@@ -589,6 +627,9 @@ class Simulator:
             self.q[:] = old_q
             self.v[:] = old_v
             raise
+        if self.loop is not None and self.sample_index == 0:
+            self.loop.start(self.q, self.v, float(self.rates_at(np.zeros(1, np.int64))[0]))
+            self._drive = self._drive_args()
 
     def _refresh_acceleration(self) -> None:
         self._acc[:] = forces.nonlinear_acceleration(self.q, self.model)
@@ -605,25 +646,55 @@ class Simulator:
         n = self.model.n_coordinates
         out_q = np.empty((n_samples, n))
         out_v = np.empty((n_samples, n))
-        phase = rate = None
-        if self.gyro:
+        phase = rate = rows = channels = None
+        loop = self.loop
+        if self.gyro or loop is not None:
             phase = np.empty(n_samples)
             rate = np.empty(n_samples)
+        if loop is not None:
+            rows = np.empty((n_samples, len(control.CONTROL_CHANNELS)))
+            channels = self._channel_arrays(n_samples)
         done = 0
         while done < n_samples:
             self._run_due_events()
             stop = n_samples - done
             if self._events:
                 stop = min(stop, self._events[0][0] - self.sample_index)
-            if self.gyro and stop > 0:
-                # The drive is constant over the stretch (events cut it).
+            if loop is not None:  # (C1) cut at the loop's updates
+                stop = min(stop, loop.window - self.sample_index % loop.window)
+            if phase is not None and stop > 0:
+                # The drive is constant over the stretch (events and loop updates cut it).
                 self._reference(self.sample_index, stop, phase[done:done + stop],
                                 rate[done:done + stop])
+            first = self.sample_index
             self._integrate(stop, out_q[done:done + stop], out_v[done:done + stop])
+            if loop is not None and stop > 0:
+                part = slice(done, done + stop)
+                self._channels(out_q[part], *(c[part] for c in channels))
+                rows[part] = loop.row()
+                self._feed_loop(first, channels[2][part], phase[part])
             done += stop
         self._run_due_events()
         t = (np.arange(self.sample_index - n_samples, self.sample_index) + 1) * self.period_s
-        return self._samples(t, out_q, out_v, phase, rate)
+        if loop is None:
+            return self._samples(t, out_q, out_v, phase if self.gyro else None, rate)
+        gap, min_gap, cap = channels
+        return Samples(t=t, q=out_q, v=out_v, gap=gap, min_gap=min_gap, capacitance=cap,
+                       drive_phase=phase, rate=rate if self.gyro else None, control=rows)
+
+    def _feed_loop(self, first: int, cap: np.ndarray, phase: np.ndarray) -> None:
+        """Collect a stretch into the loop period; at its end, update the loop (C1)."""
+        loop = self.loop
+        at = first % loop.window
+        count = cap.shape[0]
+        self._loop_cap[at:at + count] = cap
+        self._loop_phase[at:at + count] = phase
+        if at + count < loop.window or self.status != Status.RUNNING:
+            return
+        loop.update(first + count - loop.window, self._loop_cap, self._loop_phase,
+                    self.time_s)
+        self._rephase_drive()
+        self._drive = self._drive_args()
 
     def _run_due_events(self) -> None:
         while self._events and self._events[0][0] <= self.sample_index:
@@ -740,20 +811,24 @@ class Simulator:
                 np.array(self._profile_y[keep:end], dtype=np.float64))
 
     # ------------------------------------------------------------------ outputs
-    def _samples(self, t: np.ndarray, q: np.ndarray, v: np.ndarray,
-                 drive_phase: Optional[np.ndarray] = None,
-                 rate: Optional[np.ndarray] = None) -> Samples:
-        n_s = len(t)
+    def _channel_arrays(self, n_s: int):
         k = self._n_electrodes
-        gap = np.empty((n_s, k))
-        min_gap = np.empty(n_s)
-        cap = np.empty((n_s, k))
+        return np.empty((n_s, k)), np.empty(n_s), np.empty((n_s, k))
+
+    def _channels(self, q: np.ndarray, gap: np.ndarray, min_gap: np.ndarray,
+                  cap: np.ndarray) -> None:
         d = self.model.gap
         kernels.output_channels(q, d, self._centre_shapes, self._ring_shapes,
                                 self._electrode_shapes, self._electrode_weights,
                                 self._fine_shapes, self._fine_weights, self._curvature,
                                 self._refine_coeff, self._cap_scale, GAP_FLOOR_RATIO * d, gap,
                                 min_gap, cap)
+
+    def _samples(self, t: np.ndarray, q: np.ndarray, v: np.ndarray,
+                 drive_phase: Optional[np.ndarray] = None,
+                 rate: Optional[np.ndarray] = None) -> Samples:
+        gap, min_gap, cap = self._channel_arrays(len(t))
+        self._channels(q, gap, min_gap, cap)
         return Samples(t=t, q=q, v=v, gap=gap, min_gap=min_gap, capacitance=cap,
                        drive_phase=drive_phase, rate=rate)
 

@@ -1,0 +1,319 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+r"""
+The closed-loop drive: a PLL and an AGC on the 2theta mode, and force-to-rebalance (C1-C9).
+
+Real CVG electronics do not drive open loop: a phase-locked loop keeps the drive force at
+the drive mode's resonance as it moves (the electrostatic softening, a shock), and an
+automatic gain control holds the vibration amplitude. ``control.drive_loop: closed``
+replaces the paper's fixed ``A cos(omega t)`` by these loops; ``control.rebalance`` adds a
+third loop that holds the sense mode at zero and reads the rate from its force.
+
+Timing (C1)
+    The loops are digital, updated every ``N = output.rate / control.rate`` output samples
+    (a loop period ``T = N P``, 1 ms by default), at the fixed global sample indices
+    ``k = m N - 1`` (``m = 1, 2, ...``): the simulator cuts its stretches there, so the result
+    does not depend on how a run is cut into blocks. What a loop measures over period ``m``
+    sets the commands of period ``m + 1`` (a delay of 1.5 periods, centre of the window to
+    the centre of the next).
+
+Sensing (C2)
+    The loops read the pick-off amplifiers (``electronics.PickOff``: the electrodes'
+    capacitances, the same noise samples as the sense chain), not the modal coordinates: a
+    shock's gap changes reach the loops as they would reach real electronics. Over each
+    period both voltages are fitted by least squares to ``a cos(phi) + b sin(phi) + c``,
+    ``phi`` the NCO phase at each sample (a synchronous demodulator that rejects the
+    ``2 omega`` product exactly for a steady sinusoid, where a boxcar over a non-whole
+    number of cycles leaks ~0.5 %). Divided by the amplifiers' gains at rest
+    (``PickOff.drive_gain``, ``sense_gain``) this gives the displacements
+    ``q2 ~ x_c cos(phi) + x_s sin(phi)`` and ``q2s ~ y_c cos(phi) + y_s sin(phi)``.
+
+PLL (C3)
+    The drive force is ``F cos(phi)``. At resonance the displacement lags by 90 degrees:
+    ``q2 = X sin(phi)``. The phase detector is ``e = atan2(x_c, x_s)`` (0 at lock, > 0 below
+    resonance). Near resonance the resonator's phase obeys ``e' = -e / tau - (omega -
+    omega_n)``, ``tau = 2 Q / omega``; the PI loop filter
+    ``omega = omega_c + K_p e + K_i int e dt`` with ``K_p = 2 pi B_pll``,
+    ``K_i = K_p^2 / 4`` (the zero a quarter of the crossover below it: 76 degrees of phase
+    margin less the delay's ``2 pi B_pll 1.5 T``, 11 degrees at 20 Hz and 1 ms) closes a
+    loop of crossover ``B_pll`` (``control.pll_bandwidth``). The NCO (``omega``) is limited
+    to ``omega_c +- 2 pi control.pll_range``, ``omega_c`` = ``drive.frequency``; its phase is
+    continuous (the simulator re-phases the drive at each update).
+
+Lock detector (C4)
+    Locked while ``|e| < control.lock_threshold`` and the NCO is inside its range. A loss of
+    lock is reported with its time (``lost_lock_at_s``, the first), and so is the return.
+
+AGC (C5)
+    Amplitude ``X = hypot(x_c, x_s)``. At resonance the envelope obeys
+    ``X' = -X / tau + F / (2 omega)``; the PI ``F = K_p (X_set - X) + K_i int (X_set - X)``
+    with ``K_p = 4 pi omega B_agc`` and ``K_i = K_p (2 pi B_agc) / 4`` has crossover ``B_agc``.
+    ``F`` is limited to ``[0, control.drive_limit]``, the integrator frozen while the output
+    sits at a limit in the direction of the error (anti-windup). The integrator starts at
+    ``drive.amplitude`` (the open-loop force that holds the start state), the set-point is
+    ``control.agc_setpoint`` or, when 0, the start state's amplitude
+    (``hypot(q2, q2' / omega)``; from rest the linear response ``F Q / omega^2``).
+
+Force-to-rebalance (C6-C8)
+    The Coriolis acceleration on the sense mode is ``-2 kappa Omega q2'``
+    (``structure.gyroscopic_coefficient``), with ``q2 = X sin(phi)``:
+    ``-2 kappa Omega omega X cos(phi)``. A force ``S_c cos(phi) + S_s sin(phi)`` on q2s
+    cancels it; at match ``S_c cos(phi)`` moves ``y_s`` (gain ``+1 / (2 omega)`` per unit
+    time, as the drive) and ``S_s sin(phi)`` moves ``y_c`` (gain ``-1 / (2 omega)``), so::
+
+        S_c = -(K_p y_s + K_i int y_s),  S_s = +(K_p y_c + K_i int y_c)              (C6)
+
+    with the AGC's gains at ``B_rb`` (``control.rebalance_bandwidth``). With the sense mode
+    held at zero the rate is read from the force that holds it::
+
+        Omega = S_c / (2 kappa omega X)                                               (C7)
+
+    (``omega`` the NCO's, ``X`` the measured amplitude): a scale factor set by the geometry
+    (kappa), the NCO and the AGC, not by the sense mode's Q or its detuning. ``S_s`` is the
+    quadrature force. The integrators start at the values that hold the start state
+    (``S_c = 2 kappa Omega_0 omega X``, ``Omega_0`` the rate at t = 0). (C8) The rate's
+    bandwidth is that of the loop, ``B_rb``, against ``omega / (2 Q)`` open loop (0.12 Hz).
+
+Outputs (C9)
+    :data:`CONTROL_CHANNELS`, held over each period at the values in force during it (the
+    commands) and the last measurement (phase error, amplitude, rate), are
+    ``Samples.control``; the rebalance rate (C7) replaces the sense channel in ``~/rate``
+    (``electronics.SenseElectronics``).
+"""
+
+import math
+from typing import Dict, Optional, Tuple
+
+import numpy as np
+from ring_gyro_sim.core import structure
+from ring_gyro_sim.core.errors import InputError
+from ring_gyro_sim.core.params import SimConfig
+
+
+__all__ = ['CONTROL_CHANNELS', 'DriveLoop', 'amplitude_gains', 'rebalance_response']
+
+CONTROL_CHANNELS = ('frequency_hz', 'phase_error_rad', 'amplitude_m', 'drive_force',
+                    'rebalance_c', 'rebalance_s', 'rebalance_rate_rad_s',
+                    'rebalance_quadrature_rad_s', 'locked')
+"""Columns of ``Samples.control`` (C9): NCO frequency (Hz), phase error (rad), measured drive
+amplitude (m), drive force amplitude (m/s^2), rebalance forces (m/s^2), the rebalance rate
+and quadrature (rad/s, C7; 0 without it) and 1.0 while locked."""
+
+KAPPA_2 = structure.gyroscopic_coefficient(2)
+
+
+def amplitude_gains(omega: float, bandwidth_hz: float) -> Tuple[float, float]:
+    """
+    ``(K_p, K_i)`` of an amplitude loop of crossover ``bandwidth_hz`` at ``omega`` (C5).
+
+    The envelope plant ``1 / (2 omega) / (s + 1 / tau)`` crosses over at ``K_p / (2 omega)``;
+    the PI's zero sits a quarter of the crossover below it.
+    """
+    w_b = 2.0 * math.pi * bandwidth_hz
+    kp = 2.0 * omega * w_b
+    return kp, kp * w_b / 4.0
+
+
+def rebalance_response(config: SimConfig, f_hz: np.ndarray, pole_hz: float) -> np.ndarray:
+    """
+    Closed-loop response of the rebalance loop from the sense force to its output (C6, C8).
+
+    In the demodulated frame the sense plant is ``P(s) = (1 / (2 omega)) / (s + p)``
+    (``p = 2 pi pole_hz``, the sense mode's half-power half-width), the controller
+    ``C(s) = K_p + K_i / s`` with the loop's delay of 1.5 periods; ``T = C P e^{-s D} /
+    (1 + C P e^{-s D})`` at ``s = 2 pi i f``. Continuous-time: the loop's sampling is
+    left out (its bandwidth is at most a twentieth of its rate).
+    """
+    c = config.control
+    omega = 2.0 * math.pi * config.drive.frequency
+    kp, ki = amplitude_gains(omega, c.rebalance_bandwidth)
+    s = 2j * math.pi * np.asarray(f_hz, dtype=np.float64)
+    s = np.where(s == 0.0, 1e-30j, s)
+    delay = 1.5 / c.rate
+    loop = (kp + ki / s) * (0.5 / omega) / (s + 2.0 * math.pi * pole_hz) * np.exp(-s * delay)
+    return loop / (1.0 + loop)
+
+
+class DriveLoop:
+    """
+    PLL, AGC and force-to-rebalance of the 2theta pair (module docstring, C1-C9).
+
+    Parameters
+    ----------
+    config : SimConfig
+        The run's configuration (``control.*``, ``drive.*``, modes).
+    pickoff : electronics.PickOff
+        The amplifiers the loops read.
+
+    """
+
+    def __init__(self, config: SimConfig, pickoff) -> None:
+        c = config.control
+        self.config = config
+        self.pickoff = pickoff
+        self.window = int(round(config.run.output_rate / c.rate))
+        self.period_s = self.window / config.run.output_rate
+        self.omega_c = 2.0 * math.pi * config.drive.frequency
+        self.omega_range = 2.0 * math.pi * c.pll_range
+        self.lock_threshold = float(c.lock_threshold)
+        self.drive_limit = float(c.drive_limit)
+        self.rebalance = bool(c.rebalance)
+        kp = 2.0 * math.pi * c.pll_bandwidth
+        self.pll_gains = (kp, kp * kp / 4.0)
+        self.agc_gains = amplitude_gains(self.omega_c, c.agc_bandwidth)
+        self.rebalance_gains = amplitude_gains(self.omega_c, c.rebalance_bandwidth)
+        self.setpoint_m = float(c.agc_setpoint)
+        self._setpoint_given = c.agc_setpoint > 0.0
+        if not self._setpoint_given:
+            self.setpoint_m = self.linear_amplitude()
+        # state
+        self.pll_integral = 0.0          # rad/s
+        self.agc_integral = float(abs(config.drive.amplitude))  # m/s^2
+        self.rb_integral = np.zeros(2)   # (S_c, S_s), m/s^2
+        self.omega = self.omega_c
+        self.force = self.agc_integral
+        self.rebalance_force = np.zeros(2)
+        self.phase_error = 0.0
+        self.amplitude = self.setpoint_m
+        self.rebalance_rate = 0.0
+        self.rebalance_quadrature = 0.0
+        self.locked = True
+        self.lost_lock_at_s: Optional[float] = None
+        self.relocked_at_s: Optional[float] = None
+        self.unlocked_since_s: Optional[float] = None
+        self.unlocked_periods = 0
+        self.updates = 0
+
+    def linear_amplitude(self) -> float:
+        """The drive mode's linear response to ``drive.amplitude`` at resonance, m."""
+        f2 = 2.0 * math.pi * self.config.modes.frequencies[1]
+        q2 = self.config.modes.quality_factors[1]
+        return abs(self.config.drive.amplitude) * q2 / (f2 * f2)
+
+    def start(self, q: np.ndarray, v: np.ndarray, rate: float) -> None:
+        """
+        Start the loops at a state: the set-point (when not given) and the rebalance force.
+
+        ``q, v`` the start coordinates and velocities, ``rate`` the angular rate at t = 0
+        (rad/s). A state without drive motion keeps the linear set-point.
+        """
+        w = self.omega_c
+        amp = math.hypot(float(q[1]), float(v[1]) / w)
+        if not self._setpoint_given and amp > 0.0:
+            self.setpoint_m = amp
+        self.amplitude = self.setpoint_m
+        if self.rebalance:
+            self.rb_integral[:] = (2.0 * KAPPA_2 * rate * w * self.setpoint_m, 0.0)
+            self.rebalance_force[:] = self.rb_integral
+            self.rebalance_rate = float(rate)
+
+    def commands(self) -> Tuple[float, float, float, float]:
+        """Return ``(omega, F, B, beta)``: NCO (rad/s), drive force and rebalance force/lag."""
+        sc, ss = self.rebalance_force
+        return self.omega, self.force, math.hypot(sc, ss), math.atan2(ss, sc)
+
+    def row(self) -> np.ndarray:
+        """The :data:`CONTROL_CHANNELS` values in force now."""
+        return np.array([self.omega / (2.0 * math.pi), self.phase_error, self.amplitude,
+                         self.force, self.rebalance_force[0], self.rebalance_force[1],
+                         self.rebalance_rate, self.rebalance_quadrature,
+                         1.0 if self.locked else 0.0])
+
+    def update(self, first_index: int, capacitance: np.ndarray, phase: np.ndarray,
+               t_end_s: float) -> None:
+        """
+        Measure one loop period and set the commands of the next (C2-C7).
+
+        Parameters
+        ----------
+        first_index : int
+            Global index of the period's first sample.
+        capacitance : ndarray, shape (N, E)
+            The outer electrodes' capacitances over the period, F.
+        phase : ndarray, shape (N,)
+            The NCO phase ``phi`` of the drive force at each sample, rad.
+        t_end_s : float
+            Time at the end of the period, s (the lock detector's time stamps).
+
+        """
+        if capacitance.shape[0] != self.window or phase.shape != (self.window,):
+            raise InputError(f'capacitance: one loop period of {self.window} samples '
+                             f'expected, got {capacitance.shape[0]}')
+        volts = self.pickoff.volts(first_index, capacitance)
+        basis = np.stack([np.cos(phase), np.sin(phase), np.ones_like(phase)], axis=1)
+        coef = np.linalg.lstsq(basis, volts, rcond=None)[0]  # (3, 2): sense, drive
+        x_c, x_s = coef[0, 1] / self.pickoff.drive_gain, coef[1, 1] / self.pickoff.drive_gain
+        dt = self.period_s
+        self.updates += 1
+        # (C3) PLL
+        e = math.atan2(x_c, x_s)
+        kp, ki = self.pll_gains
+        self.pll_integral += ki * e * dt
+        self.pll_integral = min(max(self.pll_integral, -self.omega_range), self.omega_range)
+        offset = kp * e + self.pll_integral
+        clamped = abs(offset) >= self.omega_range
+        self.omega = self.omega_c + min(max(offset, -self.omega_range), self.omega_range)
+        self.phase_error = e
+        # (C4) lock detector
+        locked = abs(e) < self.lock_threshold and not clamped
+        if not locked:
+            self.unlocked_periods += 1
+            if self.locked:
+                self.unlocked_since_s = t_end_s
+                if self.lost_lock_at_s is None:
+                    self.lost_lock_at_s = t_end_s
+        elif not self.locked:
+            self.relocked_at_s = t_end_s
+            self.unlocked_since_s = None
+        self.locked = locked
+        # (C5) AGC
+        amp = math.hypot(x_c, x_s)
+        self.amplitude = amp
+        err = self.setpoint_m - amp
+        kp, ki = self.agc_gains
+        raw = kp * err + self.agc_integral + ki * err * dt
+        if not ((raw > self.drive_limit and err > 0.0) or (raw < 0.0 and err < 0.0)):
+            self.agc_integral += ki * err * dt
+        self.force = min(max(kp * err + self.agc_integral, 0.0), self.drive_limit)
+        # (C6, C7) force-to-rebalance
+        if self.rebalance:
+            gain = self.pickoff.sense_gain
+            y_c, y_s = coef[0, 0] / gain, coef[1, 0] / gain
+            kp, ki = self.rebalance_gains
+            self.rb_integral[0] -= ki * y_s * dt
+            self.rb_integral[1] += ki * y_c * dt
+            lim = self.drive_limit
+            self.rb_integral[:] = np.clip(self.rb_integral, -lim, lim)
+            self.rebalance_force[0] = min(max(self.rb_integral[0] - kp * y_s, -lim), lim)
+            self.rebalance_force[1] = min(max(self.rb_integral[1] + kp * y_c, -lim), lim)
+            scale = 2.0 * KAPPA_2 * self.omega * amp
+            self.rebalance_rate = self.rebalance_force[0] / scale if amp > 0.0 else 0.0
+            self.rebalance_quadrature = self.rebalance_force[1] / scale if amp > 0.0 else 0.0
+
+    def diagnostics_values(self) -> Dict[str, object]:
+        """The loops' state for ``/diagnostics`` and the run summary."""
+        return {
+            'pll_locked': bool(self.locked),
+            'pll_frequency_hz': float(self.omega / (2.0 * math.pi)),
+            'pll_phase_error_rad': float(self.phase_error),
+            'pll_lost_lock': self.lost_lock_at_s is not None,
+            'pll_lock_lost_at_s': self.lost_lock_at_s,
+            'pll_relocked_at_s': self.relocked_at_s,
+            'agc_drive_force_m_s2': float(self.force),
+            'agc_effort': float(self.force / self.drive_limit),
+            'drive_amplitude_m': float(self.amplitude),
+            'drive_setpoint_m': float(self.setpoint_m),
+            'rebalance_force_m_s2': float(math.hypot(*self.rebalance_force)),
+        }
