@@ -330,7 +330,7 @@ def forced_orbit(config: SimConfig, frequency_hz: float, amplitude_guess_m: floa
 
 
 def _cos_only(config: SimConfig) -> SimConfig:
-    """The resonator of the cos coordinates: no companions, rotation, loops or shocks."""
+    """Return the resonator of the cos coordinates: no companions, rotation, loops, shocks."""
     return replace(config, modes=replace(config.modes, companions=False),
                    gyro=replace(config.gyro, enabled=False),
                    control=replace(config.control, drive_loop='open', rebalance=False),
@@ -396,7 +396,20 @@ def drive_initial_state(config: SimConfig):
                       f'exactly 0 until a sine disturbance (y shock or base acceleration)',
                       RuntimeWarning, stacklevel=2)
     n = config.modes.count * (2 if config.modes.companions else 1)
-    x, v = orbit.initial_state[:n].copy(), orbit.initial_state[n:].copy()
+    return with_rate_response(config, (orbit.initial_state[:n], orbit.initial_state[n:]))
+
+
+def with_rate_response(config: SimConfig, state):
+    """
+    Return a copy of a drive orbit's start state with the pair's response to the rate at t = 0.
+
+    ``state`` is the ``(x, v)`` of :func:`drive_initial_state` for the same device at zero
+    rate (the orbit of the resting sensor: it does not depend on the rate), so that runs of
+    one device at several rates share one shooting (``ring_gyro characterize``); the result
+    is what :func:`drive_initial_state` returns at the rate of ``config``.
+    """
+    x = np.array(state[0], dtype=np.float64)
+    v = np.array(state[1], dtype=np.float64)
     if config.gyro.enabled and not config.control.rebalance:
         # With force-to-rebalance the loop holds the sense mode at 0 from the start (its
         # force starts at the Coriolis force of the rate at t = 0: core.control, C6).
