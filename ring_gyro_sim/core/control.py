@@ -197,7 +197,7 @@ class DriveLoop:
         self.updates = 0
 
     def linear_amplitude(self) -> float:
-        """The drive mode's linear response to ``drive.amplitude`` at resonance, m."""
+        """Return the drive mode's linear response to ``drive.amplitude`` at resonance, m."""
         f2 = 2.0 * math.pi * self.config.modes.frequencies[1]
         q2 = self.config.modes.quality_factors[1]
         return abs(self.config.drive.amplitude) * q2 / (f2 * f2)
@@ -225,7 +225,7 @@ class DriveLoop:
         return self.omega, self.force, math.hypot(sc, ss), math.atan2(ss, sc)
 
     def row(self) -> np.ndarray:
-        """The :data:`CONTROL_CHANNELS` values in force now."""
+        """Return the :data:`CONTROL_CHANNELS` values in force now."""
         return np.array([self.omega / (2.0 * math.pi), self.phase_error, self.amplitude,
                          self.force, self.rebalance_force[0], self.rebalance_force[1],
                          self.rebalance_rate, self.rebalance_quadrature,
@@ -303,7 +303,7 @@ class DriveLoop:
             self.rebalance_quadrature = self.rebalance_force[1] / scale if amp > 0.0 else 0.0
 
     def diagnostics_values(self) -> Dict[str, object]:
-        """The loops' state for ``/diagnostics`` and the run summary."""
+        """Return the loops' state for ``/diagnostics`` and the run summary."""
         return {
             'pll_locked': bool(self.locked),
             'pll_frequency_hz': float(self.omega / (2.0 * math.pi)),
