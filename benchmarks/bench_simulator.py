@@ -86,6 +86,7 @@ CASES = (
     ('nr3_companions.yaml', 'N_R=3 + companions, 45 deg', 6.0),
     ('nr5_companions.yaml', 'N_R=5 + companions, 45 deg', 3.0),
     ('gyro.yaml', 'gyroscope: N_R=3 + companions, electronics, noise', 2.0),
+    ('gyro_closed.yaml', 'gyroscope with PLL, AGC and rebalance (issue 14)', 1.0),
 )
 TARGET_SPEEDUP = 200.0
 TARGET_RTF_RECORDING = 1.0

@@ -85,7 +85,9 @@ def _parser() -> argparse.ArgumentParser:
     rpt.add_argument('--out', required=True, help='output directory')
     rpt.add_argument('--quick', action='store_true',
                      help='short runs (a few minutes; branches not decided)')
-    rpt.add_argument('--workers', type=int, default=2, help='worker processes (default 2)')
+    rpt.add_argument('--workers', type=int, default=2,
+                     help="worker processes of the job pool and of Case 4's local Dask "
+                          'cluster (default 2)')
     _add_sweep_verb(sub)
     _add_characterize_verb(sub)
     return p

@@ -252,7 +252,7 @@ class DriveStats:
             self.last_outside_s = float(t[outside[-1]])
 
     def figures(self) -> Dict[str, Any]:
-        """Return the drive loop's figures (module docstring)."""
+        """Return the drive loop's figures, ``pll_*`` and ``drive_amplitude_*`` (module doc)."""
         loop = self.loop
         out: Dict[str, Any] = {
             'pll_lost_lock': loop.lost_lock_at_s is not None,

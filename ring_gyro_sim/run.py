@@ -63,6 +63,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
+from ring_gyro_sim.core.control import ControlSamples, update_rows
 from ring_gyro_sim.core.electronics import DemodSamples, RateSamples
 from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.params import SimConfig
@@ -193,6 +194,9 @@ class Block:
     rate, demod : RateSamples, DemodSamples or None
         With ``gyro.enabled``: the rate output (``~/rate``, at ``gyro.output_rate``) and the
         demodulator's channels at every sample (``~/demodulator``); None otherwise.
+    control : ControlSamples or None
+        With ``control.drive_loop: closed``: the loops' updates in the block (``~/control``,
+        at ``control.rate``; ``core.control.update_rows``); None otherwise.
 
     """
 
@@ -201,6 +205,7 @@ class Block:
     first_index: int
     rate: Optional[RateSamples] = None
     demod: Optional[DemodSamples] = None
+    control: Optional[ControlSamples] = None
 
     def __len__(self) -> int:
         return len(self.samples)
@@ -677,8 +682,10 @@ class Run:
         rate = demod = None
         if self.gyro is not None:
             demod, rate = self.gyro.process(first, samples)
-        if not all(np.all(np.isfinite(a)) for a in
-                   (samples.q, samples.gap, samples.min_gap, samples.capacitance)) or (
+        channels = [samples.q, samples.gap, samples.min_gap, samples.capacitance]
+        if samples.control is not None:
+            channels.append(samples.control)
+        if not all(np.all(np.isfinite(a)) for a in channels) or (
                 rate is not None and not (np.all(np.isfinite(rate.rate))
                                           and np.all(np.isfinite(rate.quadrature))
                                           and np.all(np.isfinite(demod.values)))):
@@ -690,8 +697,12 @@ class Run:
             self.rate_stats.add(rate, samples.rate[at])
         if self.drive_stats is not None and samples.control is not None:
             self.drive_stats.add(samples.t, samples.control)
+        updates = None
+        if sim.loop is not None and samples.control is not None:
+            updates = update_rows(first, samples.t, samples.control, sim.loop.window,
+                                  sim.period_s)
         block = Block(samples=samples, end_ns=end_ns, first_index=first, rate=rate,
-                      demod=demod)
+                      demod=demod, control=updates)
         self.blocks += 1
         self.sink.block(block)
         return block

@@ -34,7 +34,8 @@ FILES = ('paper.yaml', 'nr3_companions.yaml', 'nr5_companions.yaml')
 
 
 def test_every_benchmark_file_is_tested():
-    assert sorted(p.name for p in BENCH.glob('*.yaml')) == sorted(FILES + ('gyro.yaml',))
+    assert sorted(p.name for p in BENCH.glob('*.yaml')) == sorted(
+        FILES + ('gyro.yaml', 'gyro_closed.yaml'))
 
 
 def test_the_gyroscope_benchmark_file_runs_with_its_rate_output():
@@ -48,6 +49,17 @@ def test_the_gyroscope_benchmark_file_runs_with_its_rate_output():
     assert peak_x == pytest.approx(10_000.0 * STANDARD_GRAVITY, rel=1e-12)
     summary = offline.run_offline(config, duration_s=0.02, progress=False)
     assert summary.extra['rate_mean_rad_s'] == pytest.approx(math.radians(10.0), rel=0.01)
+
+
+def test_the_closed_loop_benchmark_file_is_the_gyroscope_file_with_the_loops():
+    # benchmarks/gyro_closed.yaml (issue 14): the same run with PLL, AGC and rebalance.
+    open_loop = load_yaml(str(BENCH / 'gyro.yaml'))
+    closed = load_yaml(str(BENCH / 'gyro_closed.yaml'))
+    assert closed.control.closed and closed.control.rebalance
+    assert closed.run == open_loop.run and closed.gyro == open_loop.gyro
+    summary = offline.run_offline(closed, duration_s=0.02, progress=False)
+    assert summary.extra['rate_mean_rad_s'] == pytest.approx(math.radians(10.0), rel=0.01)
+    assert summary.extra['pll_lost_lock'] is False
 
 
 @pytest.mark.parametrize('name', FILES)

@@ -62,7 +62,7 @@ from ring_gyro_sim.analysis import envelope as env
 from ring_gyro_sim.analysis import nnm, plotting
 from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.params import build_config, SimConfig, STANDARD_GRAVITY
-from ring_gyro_sim.core.simulator import Status
+from ring_gyro_sim.core.simulator import coordinate_names, Status
 from ring_gyro_sim.progress import Progress
 from ring_gyro_sim.run import format_number, Run, Shock
 
@@ -328,6 +328,11 @@ def drive_setup(config: SimConfig) -> DriveSetup:
                       start_state=nnm.drive_initial_state(config))
 
 
+def envelope_channels(config: SimConfig) -> List[str]:
+    """Return the envelope channels of a case run: the coordinates, then ``w0``, ``wmax``."""
+    return coordinate_names(config) + ['w0', 'wmax']
+
+
 def shock_input(spec: CaseSpec, config: SimConfig) -> Shock:
     """
     Return the shock of ``spec`` for the run: m/s^2 along x and y, start time in ns.
@@ -560,8 +565,8 @@ def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
     sim = run.sim
     if spec.shock_g:
         run.apply(shock)
-    names = list(sim.coordinates) + ['w0', 'wmax']
-    acc = env.StreamingEnvelope(1.0 / sim.period_s, names, window_s, t0_s=sim.time_s)
+    acc = env.StreamingEnvelope(1.0 / sim.period_s, envelope_channels(config), window_s,
+                                t0_s=sim.time_s)
     gap = config.electrodes.gap
     cos_cols = [i for i, n in enumerate(sim.coordinates) if not n.endswith('s')]
     min_gap = math.inf
@@ -647,6 +652,6 @@ def case_table(results: Sequence[CaseResult]) -> List[Dict[str, Any]]:
 
 
 __all__ = ['Branches', 'CaseResult', 'CaseSpec', 'DriveSetup', 'case4_specs', 'case_table',
-           'drive_branches', 'drive_setup', 'inner_electrode_cases', 'paper_cases',
-           'ritz_order_specs', 'run_case', 'run_cases', 'shock_input',
+           'drive_branches', 'drive_setup', 'envelope_channels', 'inner_electrode_cases',
+           'paper_cases', 'ritz_order_specs', 'run_case', 'run_cases', 'shock_input',
            'symmetric_inner_voltage']

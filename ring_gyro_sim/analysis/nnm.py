@@ -330,7 +330,7 @@ def forced_orbit(config: SimConfig, frequency_hz: float, amplitude_guess_m: floa
 
 
 def _cos_only(config: SimConfig) -> SimConfig:
-    """Return the resonator of the cos coordinates: no companions, rotation, loops, shocks."""
+    """Return the resonator of the cos coordinates: no companions, rotation, loops or shocks."""
     return replace(config, modes=replace(config.modes, companions=False),
                    gyro=replace(config.gyro, enabled=False),
                    control=replace(config.control, drive_loop='open', rebalance=False),

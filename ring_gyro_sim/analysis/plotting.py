@@ -368,7 +368,10 @@ def plot_spectrogram(spec, path, ridge_t=None, ridge_hz=None, f_max_hz=70e3,
 # jump_map.png: branch_code (lower / upper / contact / none-or-failed); '?' marks a point whose
 # q2 had not settled (the branch is not decided), 'x' a failed point. map_<metric>.png: each
 # float metric (m drawn in um); a metric that is nan everywhere is not drawn.
+# envelope_<channel>.png (a spec with ``envelopes``): the kept envelope over time, one line per
+# point (Fig. 13 for config/sweep_case4.yaml), up to SWEEP_ENVELOPE_LINES points.
 SWEEP_PANELS_PER_FILE = 16
+SWEEP_ENVELOPE_LINES = 24
 SWEEP_BRANCH_COLOURS = ('#bdbdbd', '#3b6fb6', '#f2b134', '#c0392b')
 """Colours of branch_code -1 (none / failed), 0 (lower), 1 (upper), 2 (contact)."""
 
@@ -511,6 +514,36 @@ def plot_sweep_metric_maps(ds, plot_axes: Sequence[str], metrics: Sequence[str],
     return written
 
 
+def plot_sweep_envelopes(ds, out_dir) -> List[str]:
+    """Draw each kept ``envelope_<channel>_m`` over time, a line per point; the files."""
+    plt = _pyplot()
+    written = []
+    names = [n for n in ds.data_vars if n.startswith('envelope_') and 'time' in ds[n].dims]
+    for name in names:
+        da = ds[name]
+        axes = [d for d in da.dims if d != 'time']
+        combos = list(itertools.product(*(ds[d].values for d in axes)))
+        if not combos or len(combos) > SWEEP_ENVELOPE_LINES:
+            continue
+        channel = name[len('envelope_'):-len('_m')]
+        fig, ax = plt.subplots(figsize=(8, 4.5))
+        t = ds['time'].values
+        for combo in combos:
+            y = da.sel(dict(zip(axes, combo))).values * 1e6
+            label = ', '.join(f'{k} = {_sweep_fmt(v)}' for k, v in zip(axes, combo))
+            ax.plot(t, np.where(y > 0.0, y, np.nan), lw=0.9, label=label)
+        ax.set_yscale('log')
+        ax.set_xlabel('time (s)')
+        ax.set_ylabel(f'{channel} positive envelope (um)')
+        ax.set_title(f'{channel} envelope per point', fontsize=10)
+        ax.grid(True, which='both', alpha=0.3)
+        ax.legend(fontsize=7, loc='best')
+        target = Path(out_dir) / f'envelope_{channel}.png'
+        _save(plt, fig, target)
+        written.append(str(target))
+    return written
+
+
 def plot_sweep(ds, plot_axes: Sequence[str], metrics: Sequence[str], out_dir) -> List[str]:
     """
     Write the jump map (when ``final_branch`` was kept) and the metric maps of a sweep.
@@ -524,7 +557,8 @@ def plot_sweep(ds, plot_axes: Sequence[str], metrics: Sequence[str], out_dir) ->
     metrics : sequence of str
         Metrics to draw (float variables only; nan everywhere: skipped).
     out_dir : str or path-like
-        Directory of ``jump_map.png`` and ``map_<metric>.png``.
+        Directory of ``jump_map.png``, ``map_<metric>.png`` and ``envelope_<channel>.png``
+        (kept envelopes, :func:`plot_sweep_envelopes`).
 
     Returns
     -------
@@ -538,6 +572,7 @@ def plot_sweep(ds, plot_axes: Sequence[str], metrics: Sequence[str], out_dir) ->
     if 'branch_code' in ds:
         written += plot_sweep_jump_map(ds, plot_axes, Path(out_dir) / 'jump_map.png')
     written += plot_sweep_metric_maps(ds, plot_axes, metrics, out_dir)
+    written += plot_sweep_envelopes(ds, out_dir)
     return written
 
 

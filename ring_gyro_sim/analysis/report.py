@@ -15,15 +15,29 @@
 """
 The reproduction report: every figure of the paper we can regenerate, and the key numbers.
 
-:func:`build_report` runs the jobs of a :class:`ReportPlan` on a pool of processes (both
-cores by default), then writes into one directory:
+:func:`build_report` runs Case 4 (Fig. 13, one run per Q_1) through the sweep engine, the
+same path as ``ring_gyro sweep config/sweep_case4.yaml`` (:func:`run_case4`: a sweep spec,
+its points, a Dask ``LocalCluster`` of ``workers`` processes, the point store and results),
+then the other jobs of a :class:`ReportPlan` on a pool of processes (both cores by default),
+and writes into one directory:
 
 * PNG figures (``fig04_backbones.png``, ``fig05_ritz_orders.png``, ``fig06_nr5_modes.png``,
   ``fig07_spectrogram.png``, ``fig09_frf.png``, ``fig10_case1.png`` ... ``fig13_case4.png``,
   ``fig14_symmetric_rest.png``, ``fig15_symmetric_drive.png``, and
   ``sensitivity_case*_f15798.3.png``: Cases 1-3 at the paper's drive frequency, 9 mHz
   from the fold of our upper branch) and the CSV of every envelope and curve;
-* ``summary.json`` (all numbers) and ``summary.md`` (our numbers beside the paper's).
+* ``summary.json`` (all numbers) and ``summary.md`` (our numbers beside the paper's);
+* ``case4_sweep/``: the Case 4 sweep's own output (``results.nc``, ``results.csv``,
+  ``points/``, as ``ring_gyro sweep --out``; replaced by each report).
+
+Case 4's points keep their envelopes (``envelopes: all``, :mod:`ring_gyro_sim.sweep.spec`)
+and come back as the :class:`~ring_gyro_sim.analysis.cases.CaseResult` of each run
+(:func:`ring_gyro_sim.sweep.point.case_result`): the same envelopes and numbers as
+:func:`~ring_gyro_sim.analysis.cases.run_case` of the same case gives (tested, bit for bit),
+so Fig. 13, the envelope CSVs and the summary rows are made as for the other cases. This is
+the one place ``analysis`` uses the sweep layer above it: imported in :func:`run_case4`
+only, so importing this module loads no Dask, and a plan without Case 4 needs none.
+Case 4 needs the ``sweep`` extra (``dask[distributed]``, ``xarray``, ``netCDF4``).
 
 The harmonic-balance figures (Figs. 4 and 9) come from :mod:`ring_gyro_sim.analysis.hbm`
 when it is importable; otherwise the summary says so and the time-domain part still runs.
@@ -33,10 +47,13 @@ final branches are not decided.
 
 from concurrent.futures import as_completed, ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
+import importlib.util
+import io
 import json
 import math
 import multiprocessing
 from pathlib import Path
+import shutil
 import sys
 import time
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
@@ -45,6 +62,7 @@ import numpy as np
 from ring_gyro_sim.analysis import cases
 from ring_gyro_sim.analysis import envelope as env
 from ring_gyro_sim.analysis import hbm, plotting
+from ring_gyro_sim.core.errors import RingGyroError
 from ring_gyro_sim.core.params import build_config
 from ring_gyro_sim.run import format_number
 
@@ -93,6 +111,14 @@ SENSITIVITY_DRIVE_HZ = 15798.3
 15 798.29-15 799.47 Hz (``ring_gyro frf``), so there the upper orbit sits 0.01 Hz from its
 fold (stable orbit and saddle 0.5 % apart); the default drive, 15 798.6 Hz, is where our
 upper branch has the paper's q2 = 0.39 um."""
+CASE4_SWEEP_DIR = 'case4_sweep'
+"""Subdirectory of the report's Case 4 sweep (a ``ring_gyro sweep --out`` directory)."""
+SWEEP_MODULES = ('distributed', 'xarray', 'netCDF4')
+"""What the Case 4 sweep imports (setup.py extra ``sweep``)."""
+
+
+class ReportError(RingGyroError, RuntimeError):
+    """The report cannot run (the sweep extra is missing) or a Case 4 point failed."""
 
 
 @dataclass(frozen=True)
@@ -105,7 +131,8 @@ class ReportPlan:
     drive_cases : tuple of CaseSpec
         Cases 1-3.
     sweep : tuple of CaseSpec
-        Case 4 (one per Q_1).
+        Case 4 (one per Q_1; cases that differ in Q_1 only): run through the sweep engine
+        (:func:`run_case4`), not the job pool.
     ritz : tuple of CaseSpec
         Fig. 5 (N_R = 1..5 from rest); the last one also gives Fig. 7.
     inner : tuple of CaseSpec
@@ -141,9 +168,9 @@ def make_plan(quick: bool = False, base: Optional[Mapping[str, Any]] = None) -> 
     Return the full plan (durations that decide the branches) or the quick one.
 
     Full: Cases 1-3 for 24, 30 and 20 s (and again at :data:`SENSITIVITY_DRIVE_HZ`), Case 4
-    with six Q_1 for 30 s, N_R = 1..5 for 8 s, symmetric electrodes 2 s (rest) and 20 s
-    (drive). Quick: a tenth of the case durations, three Q_1 for 2 s, N_R runs of 0.3 s,
-    backbones for N_T = 4 and 10 only.
+    with six Q_1 for 30 s (a sweep, :func:`run_case4`), N_R = 1..5 for 8 s, symmetric
+    electrodes 2 s (rest) and 20 s (drive). Quick: a tenth of the case durations, three Q_1
+    for 2 s, N_R runs of 0.3 s, backbones for N_T = 4 and 10 only.
     """
     base = dict(base or {})
     scale = 0.1 if quick else 1.0
@@ -215,10 +242,10 @@ def _cost(job) -> float:
 
 
 def plan_jobs(plan: ReportPlan) -> List[tuple]:
-    """Every job of ``plan``, the longest first (for a balanced pool)."""
+    """Every job of ``plan`` for the pool, the longest first; Case 4 is not one (a sweep)."""
     jobs = []
     rate = cases.DEFAULT_OUTPUT_RATE_HZ
-    for spec in plan.drive_cases + plan.sweep + plan.inner + plan.sensitivity:
+    for spec in plan.drive_cases + plan.inner + plan.sensitivity:
         jobs.append(('case', spec.name, (spec, plan.base, rate)))
     for spec in plan.ritz:
         jobs.append(('case', spec.name, (spec, plan.base, plan.ritz_rate_hz)))
@@ -258,6 +285,121 @@ def run_jobs(jobs: Sequence[tuple], workers: int = 2, progress: bool = True
                 note(key, wall)
     out['_walls'] = walls
     return out
+
+
+def case4_sweep_mapping(specs: Sequence[cases.CaseSpec],
+                        output_rate_hz: float = cases.DEFAULT_OUTPUT_RATE_HZ,
+                        window_s: float = env.DEFAULT_WINDOW_S) -> Dict[str, Any]:
+    """
+    Return Case 4 as a sweep spec mapping (:func:`ring_gyro_sim.sweep.parse_spec`).
+
+    One axis, ``modes.quality_factors[0]``, over the Q_1 of ``specs`` (in their order); the
+    shock, start branch, duration and overrides, which the cases share, under ``set``;
+    ``envelopes: all`` (each point comes back as its ``CaseResult``). The same points as
+    ``config/sweep_case4.yaml`` on the defaults, but for the envelopes they keep.
+
+    Raises
+    ------
+    ValueError
+        No case, a case without its own Q_1, cases that differ in more than Q_1, or one that
+        keeps raw samples (a sweep point keeps none).
+
+    """
+    if not specs:
+        raise ValueError('Case 4: no case')
+    first = specs[0]
+
+    def rest(s: cases.CaseSpec) -> cases.CaseSpec:
+        return replace(s, name='', description='', q1_quality=None)
+
+    if any(s.q1_quality is None for s in specs):
+        raise ValueError('Case 4: every case needs its Q_1 (q1_quality)')
+    if any(rest(s) != rest(first) for s in specs[1:]):
+        raise ValueError('Case 4: the cases must differ in Q_1 only')
+    if first.keep_raw_s:
+        raise ValueError('Case 4: keep_raw_s: a sweep point keeps no raw samples')
+    fixed: Dict[str, Any] = dict(first.overrides)
+    fixed.update({'drive.start_on': first.start_on, 'shock.peak_g': float(first.shock_g),
+                  'shock.phase': float(first.shock_phase),
+                  'shock.angle_deg': float(first.shock_angle_deg)})
+    return {'duration': float(first.duration_s), 'output_rate': float(output_rate_hz),
+            'envelope_window': float(window_s), 'set': fixed,
+            'axes': {'modes.quality_factors[0]': [float(s.q1_quality) for s in specs]},
+            'envelopes': 'all'}
+
+
+def _check_sweep_extra() -> None:
+    """Raise :class:`ReportError` before anything runs when the sweep extra is missing."""
+    missing = [m for m in SWEEP_MODULES if importlib.util.find_spec(m) is None]
+    if missing:
+        raise ReportError(f'Case 4 runs through the sweep engine (ring_gyro sweep), which '
+                          f'needs {", ".join(missing)}: pip install "dask[distributed]" '
+                          f'xarray netCDF4 (setup.py extra "sweep")')
+
+
+def run_case4(plan: ReportPlan, out_dir, workers: int = 2, progress: bool = True
+              ) -> Tuple[Dict[str, cases.CaseResult], Dict[str, Any]]:
+    """
+    Run Case 4 (``plan.sweep``) through the sweep engine; its results and what ran.
+
+    :func:`case4_sweep_mapping` on ``plan.base`` is parsed as any sweep spec, run by
+    :func:`ring_gyro_sim.sweep.run_sweep` on a local Dask cluster of ``workers`` processes
+    (no dashboard) into ``out_dir/case4_sweep`` (removed first: the report recomputes), and
+    each point's stored record is given back as the ``CaseResult`` of its case.
+
+    Parameters
+    ----------
+    plan : ReportPlan
+        The plan (``sweep`` and ``base`` are used).
+    out_dir : str or path-like
+        The report's directory.
+    workers : int
+        Processes of the local cluster.
+    progress : bool
+        Progress bar and the sweep's lines on stderr.
+
+    Returns
+    -------
+    (dict, dict)
+        ``{case name: CaseResult}`` in the order of ``plan.sweep``, and ``case4_sweep`` of
+        ``summary.json``: the sweep directory, each case's point key and wall time (s), the
+        points computed, the workers and the sweep's wall time (s).
+
+    Raises
+    ------
+    ReportError
+        A point failed (its parameters and error are named).
+
+    """
+    from ring_gyro_sim.sweep import parse_spec, run_sweep
+    from ring_gyro_sim.sweep.point import case_result
+    from ring_gyro_sim.sweep.store import PointStore
+    specs = list(plan.sweep)
+    spec = parse_spec(case4_sweep_mapping(specs), source="'ring_gyro report: Case 4'",
+                      base_params=plan.base)
+    directory = Path(out_dir) / CASE4_SWEEP_DIR
+    if directory.exists():
+        shutil.rmtree(directory)
+    outcome = run_sweep(spec, directory, workers=max(1, int(workers)), progress=progress,
+                        dashboard_address=None, plots=False,
+                        log=sys.stderr if progress else io.StringIO())
+    if outcome.failures:
+        raise ReportError('Case 4: ' + '; '.join(
+            f"{f['parameters']['coords']}: {f['error']}" for f in outcome.failures))
+    store = PointStore(directory, create=False)
+    results: Dict[str, cases.CaseResult] = {}
+    keys: Dict[str, str] = {}
+    walls: Dict[str, float] = {}
+    for case, point in zip(specs, spec.points()):
+        assert dict(point.coords)['modes.quality_factors[0]'] == case.q1_quality
+        record = store.read(point.key)
+        results[case.name] = case_result(record, case)
+        keys[case.name] = point.key
+        walls[case.name] = record['wall_time_s']
+    info = {'directory': str(directory), 'point_keys': keys, 'point_wall_s': walls,
+            'computed': outcome.computed, 'workers': outcome.workers,
+            'wall_time_s': outcome.wall_time_s}
+    return results, info
 
 
 def _ritz_numbers(results: Sequence[cases.CaseResult]) -> Dict[str, Any]:
@@ -427,6 +569,11 @@ def _markdown(summary: Dict[str, Any]) -> str:
             f"{_fmt(row.get('return_time_s'), digits=3)} | {row.get('settled')} | "
             f"{_fmt(row.get('min_gap_fraction'), digits=3)} | {row.get('contact')} |")
     inner = summary.get('inner', {})
+    if summary.get('case4_sweep'):
+        sw = summary['case4_sweep']
+        lines += ['', f'Case 4 ran through the sweep engine (`ring_gyro sweep`, '
+                      f"{len(sw['point_keys'])} points on {sw['workers']} workers): "
+                      f'`{CASE4_SWEEP_DIR}/results.nc`.']
     lines += ['', '## Inner + outer electrodes (Figs. 14-15)', '',
               '| quantity | paper | ours |', '|---|---|---|',
               f'| max q2, symmetric, from rest | 0 | '
@@ -452,6 +599,9 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
     """
     Run the plan and write the figures, CSVs, ``summary.json`` and ``summary.md``.
 
+    Case 4 runs first, through the sweep engine (:func:`run_case4`, a local Dask cluster
+    into ``out_dir/case4_sweep``), then the other jobs on the pool (:func:`run_jobs`).
+
     Parameters
     ----------
     out_dir : str or path-like
@@ -459,7 +609,8 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
     quick : bool
         Short runs (a few minutes in all) instead of the full plan.
     workers : int
-        Worker processes (default 2, the machine's cores).
+        Worker processes of the pool and of the Case 4 cluster (default 2, the machine's
+        cores; one at a time).
     progress : bool
         Progress lines on stderr.
     base : mapping, optional
@@ -470,21 +621,37 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
     dict
         The content of ``summary.json``.
 
+    Raises
+    ------
+    ReportError
+        The sweep extra is missing (said before anything runs), or a Case 4 point failed.
+
     """
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     wall0 = time.perf_counter()
     plan = make_plan(quick, base)
+    if plan.sweep:
+        _check_sweep_extra()
+    out.mkdir(parents=True, exist_ok=True)
     jobs = plan_jobs(plan)
     if progress:
-        sys.stderr.write(f'[report] {len(jobs)} jobs on {workers} workers '
+        first = f'Case 4 ({len(plan.sweep)} points) through the sweep engine, then ' \
+            if plan.sweep else ''
+        sys.stderr.write(f'[report] {first}{len(jobs)} jobs on {workers} workers '
                          f"({'quick' if quick else 'full'}) -> {out}\n")
+    case4: Dict[str, cases.CaseResult] = {}
+    case4_info = None
+    if plan.sweep:
+        case4, case4_info = run_case4(plan, out, workers, progress)
     done = run_jobs(jobs, workers, progress)
     walls = done.pop('_walls')
+    for name, result in case4.items():
+        done[name] = (result, None)
+        walls[name] = case4_info['point_wall_s'][name]
     summary: Dict[str, Any] = {'quick': quick, 'workers': workers, 'paper': PAPER,
                                'job_wall_s': walls,
                                'drive_frequency_hz': build_config(plan.base).drive.frequency,
-                               'base_parameters': plan.base}
+                               'base_parameters': plan.base, 'case4_sweep': case4_info}
     # --- harmonic balance (Figs. 4, 9)
     hb: Dict[str, Any] = {}
     f6 = {}
@@ -496,8 +663,9 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
         except ValueError:
             f6[f'N_T={b.taylor_terms}'] = math.nan
     hb['backbone_f_at_6um_hz'] = f6
-    hb['backbone_f0_hz'] = float(backbones[-1].frequency_hz[0])
-    _plot_backbones(backbones, out / 'fig04_backbones.png')
+    if backbones:
+        hb['backbone_f0_hz'] = float(backbones[-1].frequency_hz[0])
+        _plot_backbones(backbones, out / 'fig04_backbones.png')
     if plan.frf:
         resp = done['frf']
         resp.to_csv(out / 'fig09_frf.csv')
@@ -525,7 +693,8 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
             results[name].plot(out / fname)
     plotting.plot_q2_sweep([results[s.name] for s in plan.sweep], out / 'fig13_case4.png')
     ritz_results = [results[s.name] for s in plan.ritz]
-    plotting.plot_ritz_orders(ritz_results, out / 'fig05_ritz_orders.png')
+    if ritz_results:
+        plotting.plot_ritz_orders(ritz_results, out / 'fig05_ritz_orders.png')
     if 'nr5' in results:
         results['nr5'].plot(out / 'fig06_nr5_modes.png',
                             title='N_R = 5, 10 000 g from rest: modal envelopes (Fig. 6)')

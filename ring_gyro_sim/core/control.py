@@ -93,6 +93,7 @@ Outputs (C9)
     (``electronics.SenseElectronics``).
 """
 
+from dataclasses import dataclass
 import math
 from typing import Dict, Optional, Tuple
 
@@ -102,7 +103,8 @@ from ring_gyro_sim.core.errors import InputError
 from ring_gyro_sim.core.params import SimConfig
 
 
-__all__ = ['CONTROL_CHANNELS', 'DriveLoop', 'amplitude_gains', 'rebalance_response']
+__all__ = ['CONTROL_CHANNELS', 'ControlSamples', 'DriveLoop', 'amplitude_gains',
+           'rebalance_response', 'update_rows']
 
 CONTROL_CHANNELS = ('frequency_hz', 'phase_error_rad', 'amplitude_m', 'drive_force',
                     'rebalance_c', 'rebalance_s', 'rebalance_rate_rad_s',
@@ -112,6 +114,44 @@ amplitude (m), drive force amplitude (m/s^2), rebalance forces (m/s^2), the reba
 and quadrature (rad/s, C7; 0 without it) and 1.0 while locked."""
 
 KAPPA_2 = structure.gyroscopic_coefficient(2)
+
+
+@dataclass(frozen=True)
+class ControlSamples:
+    """
+    The loops' updates within one block (``~/control``), one row per update (C9).
+
+    Attributes
+    ----------
+    t : ndarray, shape (M,)
+        Update times, s: the end of each loop period (every ``output.rate / control.rate``-th
+        sample time).
+    values : ndarray, shape (M, len(CONTROL_CHANNELS))
+        The loops' state right after each update (the commands of the next period and the
+        measurement of the one that ended).
+
+    """
+
+    t: np.ndarray
+    values: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+
+def update_rows(first_index: int, t: np.ndarray, rows: np.ndarray, window: int,
+                period_s: float) -> ControlSamples:
+    """
+    Return the updates inside a block from its per-sample rows (``Samples.control``).
+
+    Sample ``k`` (at ``(k + 1) P``) holds what is in force during it; the update at the end
+    of sample ``k = m N - 1`` shows in sample ``m N``, so an update at time ``m N P`` is
+    read from the first sample of the next period. An update at a block's last sample time
+    is in the next block's first row (reported there, at its own time).
+    """
+    index = first_index + np.arange(rows.shape[0])
+    pick = np.nonzero((index % window == 0) & (index > 0))[0]
+    return ControlSamples(t=t[pick] - period_s, values=rows[pick])
 
 
 def amplitude_gains(omega: float, bandwidth_hz: float) -> Tuple[float, float]:
@@ -197,27 +237,40 @@ class DriveLoop:
         self.updates = 0
 
     def linear_amplitude(self) -> float:
-        """The drive mode's linear response to ``drive.amplitude`` at resonance, m."""
+        """Return the drive mode's linear response to ``drive.amplitude`` at resonance, m."""
         f2 = 2.0 * math.pi * self.config.modes.frequencies[1]
         q2 = self.config.modes.quality_factors[1]
         return abs(self.config.drive.amplitude) * q2 / (f2 * f2)
 
-    def start(self, q: np.ndarray, v: np.ndarray, rate: float) -> None:
+    def start(self, q: np.ndarray, v: np.ndarray, rate: float) -> float:
         """
-        Start the loops at a state: the set-point (when not given) and the rebalance force.
+        Start the loops in lock at a state; return the NCO's phase at t = 0, rad.
 
         ``q, v`` the start coordinates and velocities, ``rate`` the angular rate at t = 0
-        (rad/s). A state without drive motion keeps the linear set-point.
+        (rad/s). With the drive moving, ``q2 = Re(c e^{i omega t})``, the NCO starts at
+        ``arg(c) + pi / 2`` (the lock point ``q2 = X sin(phi)``: no phase transient), the
+        set-point (when not given) at ``|c|``, the AGC's integrator at the resonant part
+        ``F |sin(arg c)|`` of the open-loop force that held the state (its lag was
+        ``arg c``), the rebalance force at the Coriolis force of ``rate``. A state without
+        drive motion keeps the linear set-point and starts at phase 0.
         """
         w = self.omega_c
-        amp = math.hypot(float(q[1]), float(v[1]) / w)
-        if not self._setpoint_given and amp > 0.0:
-            self.setpoint_m = amp
+        c = complex(float(q[1]), -float(v[1]) / w)
+        phase = 0.0
+        force = float(abs(self.config.drive.amplitude))
+        if abs(c) > 0.0:
+            psi = math.atan2(c.imag, c.real)
+            phase = math.fmod(psi + 0.5 * math.pi, 2.0 * math.pi)
+            force *= abs(math.sin(psi))
+            if not self._setpoint_given:
+                self.setpoint_m = abs(c)
+        self.agc_integral = self.force = min(force, self.drive_limit)
         self.amplitude = self.setpoint_m
         if self.rebalance:
             self.rb_integral[:] = (2.0 * KAPPA_2 * rate * w * self.setpoint_m, 0.0)
             self.rebalance_force[:] = self.rb_integral
             self.rebalance_rate = float(rate)
+        return phase
 
     def commands(self) -> Tuple[float, float, float, float]:
         """Return ``(omega, F, B, beta)``: NCO (rad/s), drive force and rebalance force/lag."""
@@ -225,7 +278,7 @@ class DriveLoop:
         return self.omega, self.force, math.hypot(sc, ss), math.atan2(ss, sc)
 
     def row(self) -> np.ndarray:
-        """The :data:`CONTROL_CHANNELS` values in force now."""
+        """Return the :data:`CONTROL_CHANNELS` values in force now."""
         return np.array([self.omega / (2.0 * math.pi), self.phase_error, self.amplitude,
                          self.force, self.rebalance_force[0], self.rebalance_force[1],
                          self.rebalance_rate, self.rebalance_quadrature,
@@ -303,7 +356,7 @@ class DriveLoop:
             self.rebalance_quadrature = self.rebalance_force[1] / scale if amp > 0.0 else 0.0
 
     def diagnostics_values(self) -> Dict[str, object]:
-        """The loops' state for ``/diagnostics`` and the run summary."""
+        """Return the loops' state for ``/diagnostics`` and the run summary."""
         return {
             'pll_locked': bool(self.locked),
             'pll_frequency_hz': float(self.omega / (2.0 * math.pi)),

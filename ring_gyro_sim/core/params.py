@@ -364,7 +364,7 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               'output.rate must be a whole multiple)', **_POSITIVE),
     ParamSpec('control.pll_bandwidth', 'control.pll_bandwidth', 'float', 20.0, 'Hz',
               'PLL loop bandwidth (crossover of the PI loop filter)', **_POSITIVE),
-    ParamSpec('control.pll_range', 'control.pll_range', 'float', 50.0, 'Hz',
+    ParamSpec('control.pll_range', 'control.pll_range', 'float', 200.0, 'Hz',
               'the NCO stays within drive.frequency +- this (at the limit: out of lock)',
               **_POSITIVE),
     ParamSpec('control.lock_threshold', 'control.lock_threshold', 'float', 0.5, 'rad',
@@ -837,8 +837,8 @@ class SimConfig:
             raise _fail('control.drive_loop', 'closed drives the 2theta mode: needs at least '
                         '2 modes')
         if self.drive.frequency <= 0.0:
-            raise _fail('drive.frequency', 'is the centre of the closed loop\'s NCO: must be '
-                        '> 0 with control.drive_loop: closed')
+            raise _fail('drive.frequency', 'is the centre of the NCO of the closed loop: must '
+                        'be > 0 with control.drive_loop: closed')
         if c.pll_range >= self.drive.frequency:
             raise _fail('control.pll_range', f'must be below drive.frequency '
                         f'({self.drive.frequency:g} Hz), got {c.pll_range:g} Hz')

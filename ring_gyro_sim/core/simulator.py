@@ -265,7 +265,7 @@ class Simulator:
             self.loop = control.DriveLoop(config, pickoff)
             self._loop_cap = np.empty((self.loop.window, self._n_electrodes))
             self._loop_phase = np.empty(self.loop.window)
-            self.loop.start(self.q, self.v, float(self.rates_at(np.zeros(1, np.int64))[0]))
+            self._drive_phase = self.loop.start(self.q, self.v, self._rate_at_start())
         self._drive = self._drive_args()
         self.steps_taken = 0
         for at_ns, peak_x, peak_y in config.run.scheduled_shocks():
@@ -628,7 +628,9 @@ class Simulator:
             self.v[:] = old_v
             raise
         if self.loop is not None and self.sample_index == 0:
-            self.loop.start(self.q, self.v, float(self.rates_at(np.zeros(1, np.int64))[0]))
+            # The loops start in lock at the state (core.control.DriveLoop.start).
+            self._drive_phase = self.loop.start(self.q, self.v, self._rate_at_start())
+            self._drive_t_ref = 0.0
             self._drive = self._drive_args()
 
     def _refresh_acceleration(self) -> None:
@@ -840,6 +842,9 @@ class Simulator:
         phase_out[:] = d.omega * (t - d.t_ref) + d.phase
         t_ns = (np.arange(first, first + count, dtype=np.int64) + 1) * self.period_ns
         rate_out[:] = self.rates_at(t_ns)
+
+    def _rate_at_start(self) -> float:
+        return float(self.rates_at(np.zeros(1, np.int64))[0])
 
     def rates_at(self, t_ns: np.ndarray) -> np.ndarray:
         """

@@ -39,9 +39,11 @@ Resume
     rest, failures included. Ctrl-C stops the client: what was stored stays.
 
 Output
-    ``DIR/results.nc`` and ``DIR/results.csv`` (:mod:`.results`), ``DIR/jump_map.png`` and
-    ``DIR/map_<metric>.png`` (:func:`ring_gyro_sim.analysis.plotting.plot_sweep`),
-    ``DIR/sweep.json`` (the resolved spec), ``DIR/failures.json``.
+    ``DIR/results.nc`` and ``DIR/results.csv`` (:mod:`.results`), ``DIR/jump_map.png``,
+    ``DIR/map_<metric>.png`` and, with kept envelopes, ``DIR/envelope_<channel>.png``
+    (:func:`ring_gyro_sim.analysis.plotting.plot_sweep`), ``DIR/sweep.json`` (the resolved
+    spec), ``DIR/failures.json``. ``ring_gyro report`` runs its Case 4 through this function
+    (:func:`ring_gyro_sim.analysis.report.run_case4`).
 """
 
 from contextlib import contextmanager

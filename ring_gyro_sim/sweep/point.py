@@ -27,6 +27,15 @@ a pure function of the configuration, so the cache changes the cost only.
 exception turned into a failure record (with the point's parameters), and the record stored
 at once in the sweep's point directory when the worker can see it (a worker of a cluster
 without the client's file system cannot: the client stores it on receipt).
+
+Kept envelopes (a point whose spec has ``envelopes``): the record also holds
+``envelope`` (``names``, ``window_s``, ``t_s`` and ``values``: one list per channel kept, m,
+the windows of :attr:`CaseResult.envelope`, exact) and ``outcome`` (the scalars of the
+:class:`~ring_gyro_sim.analysis.cases.CaseResult` beside its envelope: gap, smallest gap,
+contact, status, times, branches). With ``envelopes: all``, :func:`case_result` gives the
+point back as the ``CaseResult`` of its run: the same envelopes, hence the same numbers
+(``CaseResult`` computes them from these), which is how ``ring_gyro report`` runs Case 4
+(Fig. 13 plots q2 over time). Points that keep no envelope do nothing of this.
 """
 
 from collections import OrderedDict
@@ -36,15 +45,18 @@ import os
 import socket
 import time
 import traceback
-from typing import Any, Dict, Optional
+from typing import Any, Dict, Mapping, Optional
 
+import numpy as np
 from ring_gyro_sim import __version__
 from ring_gyro_sim.analysis import cases
+from ring_gyro_sim.analysis import envelope as env
 from ring_gyro_sim.core.params import SimConfig, to_flat
-from ring_gyro_sim.sweep.spec import Point
+from ring_gyro_sim.sweep.spec import ALL_ENVELOPES, Point
 from ring_gyro_sim.sweep.store import PointStore
 
-__all__ = ['METRICS', 'compute', 'evaluate', 'failure_record']
+__all__ = ['METRICS', 'OUTCOME_FIELDS', 'case_result', 'compute', 'evaluate',
+           'failure_record', 'kept_output']
 
 METRICS: Dict[str, tuple] = OrderedDict([
     ('final_branch', ('str', '', "branch q2 ends on: 'upper', 'lower', 'contact' ('none': "
@@ -86,6 +98,29 @@ def _setup(config: SimConfig) -> cases.DriveSetup:
     return found
 
 
+def run(point: Point) -> cases.CaseResult:
+    """Run ``point`` as a case (drive setup from this process's cache); its ``CaseResult``."""
+    spec = point.case_spec()
+    config = spec.config(None, point.output_rate_hz)
+    return cases.run_case(spec, output_rate_hz=point.output_rate_hz, window_s=point.window_s,
+                          progress=False, setup=_setup(config))
+
+
+def metrics_of(result: cases.CaseResult) -> Dict[str, Any]:
+    """Return the :data:`METRICS` of a case's numbers (nan / 'none' where they do not apply)."""
+    numbers = result.numbers
+    out: Dict[str, Any] = {}
+    for name, (kind, _, _) in METRICS.items():
+        value = numbers.get(name)
+        if kind == 'float':
+            out[name] = math.nan if value is None else float(value)
+        elif kind == 'bool':
+            out[name] = bool(value)
+        else:
+            out[name] = 'none' if value is None else str(value)
+    return out
+
+
 def evaluate(point: Point) -> Dict[str, Any]:
     """
     Run ``point`` and return its :data:`METRICS` (SI; nan where a metric does not apply).
@@ -107,21 +142,91 @@ def evaluate(point: Point) -> Dict[str, Any]:
         contact is not an exception but a result.
 
     """
-    spec = point.case_spec()
-    config = spec.config(None, point.output_rate_hz)
-    result = cases.run_case(spec, output_rate_hz=point.output_rate_hz,
-                            window_s=point.window_s, progress=False, setup=_setup(config))
-    numbers = result.numbers
-    out: Dict[str, Any] = {}
-    for name, (kind, _, _) in METRICS.items():
-        value = numbers.get(name)
-        if kind == 'float':
-            out[name] = math.nan if value is None else float(value)
-        elif kind == 'bool':
-            out[name] = bool(value)
-        else:
-            out[name] = 'none' if value is None else str(value)
-    return out
+    return metrics_of(run(point))
+
+
+OUTCOME_FIELDS = ('gap_m', 'min_gap_m', 'contact', 'status', 'message', 'contact_time_s',
+                  'contact_theta_rad', 'sim_time_s', 'wall_time_s', 'sample_rate_hz')
+"""Scalars of a ``CaseResult`` kept in ``outcome`` beside the envelopes (and ``branches``)."""
+
+
+def kept_output(point: Point, result: cases.CaseResult) -> Dict[str, Any]:
+    """
+    Return the ``envelope`` and ``outcome`` entries of the record of ``point`` (module doc).
+
+    Raises
+    ------
+    ValueError
+        A channel of ``point.envelopes`` is not one of the run (the spec checks it first).
+
+    """
+    e = result.envelope
+    names = list(e.names) if ALL_ENVELOPES in point.envelopes else list(point.envelopes)
+    missing = [n for n in names if n not in e.names]
+    if missing:
+        raise ValueError(f'envelopes: {missing}: not a channel of this run ({e.names})')
+    envelope = {'names': names, 'complete': names == list(e.names), 'window_s': e.window_s,
+                't_s': e.t.tolist(),
+                'values': {n: e.channel(n).tolist() for n in names}}
+    outcome: Dict[str, Any] = {f: getattr(result, f) for f in OUTCOME_FIELDS}
+    b = result.branches
+    outcome['branches'] = None if b is None else {
+        'upper_m': b.upper_m, 'lower_m': b.lower_m, 'threshold_m': b.threshold_m}
+    return {'envelope': envelope, 'outcome': outcome}
+
+
+def _floats(values) -> np.ndarray:
+    """Return a stored list of floats as float64 (null, a stored nan, back to nan)."""
+    return np.array([math.nan if v is None else v for v in values], dtype=float)
+
+
+def _number(value) -> float:
+    return math.nan if value is None else float(value)
+
+
+def case_result(record: Mapping[str, Any], spec: cases.CaseSpec) -> cases.CaseResult:
+    """
+    Return a point's run as the :class:`~ring_gyro_sim.analysis.cases.CaseResult` it was.
+
+    The envelopes and outcome of the record (a point of ``envelopes: all``), under ``spec``
+    (the case the point is, for its name, description and paper text): its numbers are
+    computed from them by ``CaseResult`` itself, so they are the run's.
+
+    Parameters
+    ----------
+    record : mapping
+        A computed point record (:func:`compute`, or read back from the store).
+    spec : CaseSpec
+        The case the point runs.
+
+    Raises
+    ------
+    ValueError
+        The record keeps no envelopes, or not every channel (``envelopes: all`` needed).
+
+    """
+    e = record.get('envelope')
+    out = record.get('outcome')
+    if not e or not out or not e.get('complete'):
+        raise ValueError(f'point {record.get("key")}: its record does not keep every '
+                         f'envelope (a spec with envelopes: {ALL_ENVELOPES} does)')
+    names = tuple(e['names'])
+    t = _floats(e['t_s'])
+    values = np.column_stack([_floats(e['values'][n]) for n in names]) if t.size else \
+        np.zeros((0, len(names)))
+    b = out.get('branches')
+    branches = None if b is None else cases.Branches(
+        upper_m=_number(b['upper_m']), lower_m=_number(b['lower_m']),
+        threshold_m=_number(b['threshold_m']))
+    return cases.CaseResult(
+        spec=spec, envelope=env.Envelope(t=t, values=values, names=names,
+                                         window_s=float(e['window_s'])),
+        branches=branches, gap_m=_number(out['gap_m']), min_gap_m=_number(out['min_gap_m']),
+        contact=bool(out['contact']), status=str(out['status']), message=str(out['message']),
+        contact_time_s=_number(out['contact_time_s']),
+        contact_theta_rad=_number(out['contact_theta_rad']),
+        sim_time_s=_number(out['sim_time_s']), wall_time_s=_number(out['wall_time_s']),
+        sample_rate_hz=_number(out['sample_rate_hz']))
 
 
 def failure_record(point: Point, error: str, detail: str = '') -> Dict[str, Any]:
@@ -140,7 +245,9 @@ def compute(point: Point, store_dir: Optional[str] = None) -> Dict[str, Any]:
     """
     wall0 = time.perf_counter()
     try:
-        metrics = evaluate(point)
+        result = run(point)
+        metrics = metrics_of(result)
+        kept = kept_output(point, result) if point.envelopes else {}
     except Exception as exc:  # noqa: B902 - any failure of one point is reported, not fatal
         record = failure_record(point, f'{type(exc).__name__}: {exc}',
                                 traceback.format_exc())
@@ -148,6 +255,7 @@ def compute(point: Point, store_dir: Optional[str] = None) -> Dict[str, Any]:
         record = {'key': point.key, 'coords': [[k, v] for k, v in point.coords],
                   'parameters': point.parameters(), 'metrics': metrics, 'error': None,
                   'traceback': '', 'version': __version__}
+        record.update(kept)
     record['wall_time_s'] = time.perf_counter() - wall0
     record['worker'] = f'{socket.gethostname()}:{os.getpid()}'
     if store_dir is not None and PointStore.reachable(store_dir):

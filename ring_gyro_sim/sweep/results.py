@@ -26,11 +26,16 @@ of the spec (:data:`ring_gyro_sim.sweep.point.METRICS`, attributes ``units`` and
 * ``wall_time_s``: wall time of the point on its worker (the one value that is not
   reproducible: it is left out of every comparison).
 
+With ``envelopes`` in the spec, also ``envelope_<channel>_m`` for each channel kept (``q2``
+...; every channel of the run with ``all``): float64 over the sweep axes and ``time`` (s, the
+1 ms window centres of the longest run), nan after a contact (the run stopped) and for a
+failed point.
+
 Missing values (a failed point): nan for floats, -1 for the int8 flags (``contact``,
 ``settled``: 0 / 1), '' for strings. Global attributes: ``package_version``,
 ``base_parameters`` (JSON: the flat parameters of the base file), ``set`` and ``spec`` (JSON:
 the resolved spec), ``base_path``. ``DIR/results.csv`` has one row per point: the axes, then
-the variables.
+the variables (not the envelopes over time: they are in ``results.nc``).
 """
 
 import json
@@ -41,11 +46,15 @@ from ring_gyro_sim import __version__
 from ring_gyro_sim.sweep.point import METRICS
 from ring_gyro_sim.sweep.spec import Point, SweepSpec
 
-__all__ = ['BRANCH_CODES', 'REPRODUCIBLE_EXCLUDED', 'build_dataset', 'comparable',
-           'open_results', 'write_results']
+__all__ = ['BRANCH_CODES', 'ENVELOPE_PREFIX', 'REPRODUCIBLE_EXCLUDED', 'TIME_DIM',
+           'build_dataset', 'comparable', 'open_results', 'write_results']
 
 BRANCH_CODES = {'lower': 0, 'upper': 1, 'contact': 2}
 """``branch_code`` of each final branch (-1: none)."""
+ENVELOPE_PREFIX = 'envelope_'
+"""Kept envelopes: variable ``envelope_<channel>_m``."""
+TIME_DIM = 'time'
+"""The dimension (and coordinate, s) of the kept envelopes."""
 REPRODUCIBLE_EXCLUDED = ('wall_time_s',)
 """Variables that differ between two runs of the same sweep."""
 NO_VALUE = '-1: no value (the point failed)'
@@ -116,6 +125,7 @@ def build_dataset(spec: SweepSpec, points: Sequence[Point],
             data['branch_code'][index] = BRANCH_CODES.get(metrics.get('final_branch'), -1)
         wall = record.get('wall_time_s')
         data['wall_time_s'][index] = np.nan if wall is None else float(wall)
+    envelopes = _envelope_arrays(points, records, shape)
     coords = {}
     for axis in spec.axes:
         values = np.array(axis.values)
@@ -144,11 +154,48 @@ def build_dataset(spec: SweepSpec, points: Sequence[Point],
         else:
             attrs = {'units': 's', 'long_name': 'wall time of the point (not reproducible)'}
         variables[name] = (dims, values, attrs)
+    if envelopes is not None:
+        t, arrays, window = envelopes
+        coords[TIME_DIM] = xr.Variable(TIME_DIM, t, attrs={
+            'units': 's', 'long_name': 'envelope window centre'})
+        for name, values in arrays.items():
+            variables[f'{ENVELOPE_PREFIX}{name}_m'] = (
+                dims + [TIME_DIM], values,
+                {'units': 'm', 'long_name': f'{name} positive envelope ({window:g} s windows; '
+                                            f'nan after a contact or for a failed point)'})
     attrs = {'title': 'ring_gyro sweep', 'package_version': __version__,
              'base_parameters': _json(spec.base), 'base_path': str(spec.base_path or ''),
              'set': _json(spec.fixed), 'spec': _json(spec.describe()),
              'points': int(spec.size)}
     return xr.Dataset(variables, coords=coords, attrs=attrs)
+
+
+def _envelope_arrays(points: Sequence[Point], records: Mapping[str, Optional[Dict[str, Any]]],
+                     shape):
+    """
+    Return ``(time, {channel: array over the axes and time}, window s)`` of the kept envelopes.
+
+    None when no record keeps any. Every run starts at t = 0 with the same windows, so the
+    time of each is a prefix of the longest (shorter: stopped at a contact); checked.
+    """
+    kept = [(i, records[p.key]['envelope']) for i, p in enumerate(points)
+            if records.get(p.key) and records[p.key].get('envelope')]
+    if not kept:
+        return None
+    t = np.array(max((e['t_s'] for _, e in kept), key=len), dtype=float)
+    names: List[str] = []
+    for _, e in kept:
+        names += [n for n in e['names'] if n not in names]
+    arrays = {n: np.full(tuple(shape) + (t.size,), np.nan) for n in names}
+    for i, e in kept:
+        own = np.array(e['t_s'], dtype=float)
+        if not np.array_equal(own, t[:own.size]):
+            raise ValueError(f'envelopes: point {points[i].key} has other window times than '
+                             f'the longest run')
+        index = np.unravel_index(i, shape)
+        for n in e['names']:
+            arrays[n][index][:own.size] = [np.nan if v is None else v for v in e['values'][n]]
+    return t, arrays, float(kept[0][1]['window_s'])
 
 
 def write_results(ds, out_dir) -> Dict[str, str]:
@@ -160,7 +207,8 @@ def write_results(ds, out_dir) -> Dict[str, str]:
     tmp = out / '.results.nc.tmp'
     ds.to_netcdf(tmp, engine='netcdf4')
     tmp.replace(nc)
-    frame = ds.to_dataframe().reset_index()
+    per_point = ds.drop_dims(TIME_DIM) if TIME_DIM in ds.dims else ds
+    frame = per_point.to_dataframe().reset_index()
     frame.to_csv(csv, index=False)
     return {'netcdf': str(nc), 'csv': str(csv)}
 

@@ -30,6 +30,7 @@ A spec is a YAML mapping (every key optional but ``axes``)::
       shock.peak_g: {linear: [1000, 12000, 8]}           # np.linspace, ends included
       modes.quality_factors[0]: {log: [5000, 180000, 8]} # np.geomspace, ends included
     metrics: [final_branch, final_q2_m, min_gap_m]       # kept in results (default: all)
+    envelopes: [q2]           # envelope channels kept over time per point (or all; default none)
     plot: {x: shock.peak_g, y: modes.quality_factors[0]} # axes of the maps (default: 1st, 2nd)
 
 Names
@@ -46,8 +47,18 @@ Points
     The Cartesian product of the axes, the last axis fastest. Each point has a key: the
     first 16 hex digits of the SHA-256 of its canonical JSON (the parameters that differ
     from the defaults, after the table's coercion, the shock, the run length, output rate,
-    envelope window, the package version), so ``5000`` and ``5000.0`` are one point, and a
-    point is recognised whatever spec, axis order or file it came from.
+    envelope window, the package version and, when there are any, the envelope channels
+    it keeps), so ``5000`` and ``5000.0`` are one point, and a point is recognised whatever
+    spec, axis order or file it came from. A point that keeps envelopes is another record
+    than the same point without (its record holds them), hence another key.
+
+Envelopes
+    ``envelopes`` names channels of the point's 1 ms envelopes to keep over time: ``q1``,
+    ``q2``, ... (``q1s`` ... with companions), ``w0``, ``wmax``, or ``all`` (every channel,
+    and with them what :func:`ring_gyro_sim.sweep.point.case_result` needs to give the
+    point back as the :class:`~ring_gyro_sim.analysis.cases.CaseResult` of its run: what
+    ``ring_gyro report`` does for Case 4). Default: none, and a point then keeps its
+    metrics only (nothing more is done for it).
 
 Errors
     :class:`SweepSpecError` (a ``ParameterError``) names the spec file, the key and the
@@ -73,8 +84,8 @@ from ring_gyro_sim.core.params import build_config, coerce, defaults, LIST_KINDS
 from ring_gyro_sim.paramfile import check_params_file, DEFAULT_NODE_NAME, RosYamlLoader
 import yaml
 
-__all__ = ['Axis', 'Point', 'SCENARIO_NAMES', 'SweepSpec', 'SweepSpecError', 'load_spec',
-           'parse_spec']
+__all__ = ['ALL_ENVELOPES', 'Axis', 'Point', 'SCENARIO_NAMES', 'SweepSpec', 'SweepSpecError',
+           'load_spec', 'parse_spec']
 
 SCENARIO_NAMES = {
     'shock.peak_g': ('g', 'half-sine shock peak, g = 9.80665 m/s^2', 0.0),
@@ -83,7 +94,9 @@ SCENARIO_NAMES = {
 }
 """Scenario inputs that are not ROS parameters: name -> (unit, meaning, default)."""
 SPEC_KEYS = ('base', 'node_name', 'duration', 'output_rate', 'envelope_window', 'set', 'axes',
-             'metrics', 'plot')
+             'metrics', 'envelopes', 'plot')
+ALL_ENVELOPES = 'all'
+"""``envelopes: all``: every envelope channel of the run."""
 RUN_KEYS = {'duration': 'duration', 'output.rate': 'output_rate'}
 """ROS parameters that a spec sets with its own keys instead."""
 _INDEXED = re.compile(r'^(?P<name>[A-Za-z_][A-Za-z0-9_.]*)\[(?P<index>[0-9]+)\]$')
@@ -152,6 +165,8 @@ class Point:
         The shock (g, drive periods, deg).
     duration_s, output_rate_hz, window_s : float
         Run length, envelope input rate and envelope window.
+    envelopes : tuple of str
+        Envelope channels kept over time (``('all',)``: every one; empty: none).
 
     """
 
@@ -164,6 +179,7 @@ class Point:
     duration_s: float
     output_rate_hz: float
     window_s: float
+    envelopes: Tuple[str, ...] = ()
 
     def case_spec(self) -> cases.CaseSpec:
         """Return the :class:`~ring_gyro_sim.analysis.cases.CaseSpec` of this point."""
@@ -207,6 +223,8 @@ class SweepSpec:
         Run length (s), envelope input rate (Hz), envelope window (s).
     metrics : tuple of str
         Metrics kept in the results.
+    envelopes : tuple of str
+        Envelope channels kept over time per point (``('all',)``: every one; empty: none).
     plot_axes : tuple of str
         The two axes of the maps (one for a one-axis sweep).
     source : str
@@ -222,6 +240,7 @@ class SweepSpec:
     output_rate_hz: float = cases.DEFAULT_OUTPUT_RATE_HZ
     window_s: float = env.DEFAULT_WINDOW_S
     metrics: Tuple[str, ...] = ()
+    envelopes: Tuple[str, ...] = ()
     plot_axes: Tuple[str, ...] = ()
     source: str = '<text>'
     raw: Dict[str, Any] = field(default_factory=dict, compare=False)
@@ -253,12 +272,15 @@ class SweepSpec:
         payload = {'version': __version__, 'overrides': overrides, 'shock': scenario,
                    'duration_s': self.duration_s, 'output_rate_hz': self.output_rate_hz,
                    'window_s': self.window_s}
+        if self.envelopes:  # only then: the keys of points without envelopes stay as they were
+            payload['envelopes'] = list(self.envelopes)
         text = json.dumps(payload, sort_keys=True, allow_nan=False)
         key = hashlib.sha256(text.encode('utf-8')).hexdigest()[:KEY_DIGITS]
         return Point(key=key, coords=coords, overrides=tuple(sorted(overrides.items())),
                      shock_g=scenario['shock.peak_g'], shock_phase=scenario['shock.phase'],
                      shock_angle_deg=scenario['shock.angle_deg'], duration_s=self.duration_s,
-                     output_rate_hz=self.output_rate_hz, window_s=self.window_s)
+                     output_rate_hz=self.output_rate_hz, window_s=self.window_s,
+                     envelopes=self.envelopes)
 
     def points(self) -> List[Point]:
         """Return every point, the last axis fastest (C order of the result arrays)."""
@@ -271,7 +293,8 @@ class SweepSpec:
                 'spacing': {a.name: a.spacing for a in self.axes},
                 'set': self.fixed, 'duration_s': self.duration_s,
                 'output_rate_hz': self.output_rate_hz, 'window_s': self.window_s,
-                'metrics': list(self.metrics), 'plot_axes': list(self.plot_axes)}
+                'metrics': list(self.metrics), 'envelopes': list(self.envelopes),
+                'plot_axes': list(self.plot_axes)}
 
 
 def _differences(flat: Mapping[str, Any]) -> Dict[str, Any]:
@@ -405,7 +428,8 @@ def _positive(data: Mapping[str, Any], key: str, default: Optional[float], sourc
     return float(value)
 
 
-def parse_spec(data: Any, source: str = '<text>', directory: str = '.') -> SweepSpec:
+def parse_spec(data: Any, source: str = '<text>', directory: str = '.',
+               base_params: Optional[Mapping[str, Any]] = None) -> SweepSpec:
     """
     Check and resolve a spec mapping (as read from YAML); see the module docstring.
 
@@ -417,6 +441,9 @@ def parse_spec(data: Any, source: str = '<text>', directory: str = '.') -> Sweep
         Name of the spec in error messages.
     directory : str
         Directory a relative ``base`` path is taken from (the spec file's).
+    base_params : mapping, optional
+        Flat parameters (ROS names) under a spec that names no ``base`` file: a caller's
+        own base, e.g. ``ring_gyro report``'s (refused together with ``base``).
 
     Raises
     ------
@@ -439,9 +466,17 @@ def parse_spec(data: Any, source: str = '<text>', directory: str = '.') -> Sweep
         if not isinstance(base_path, str) or not base_path:
             raise SweepSpecError(f'{_where(source, "base")}: expected a file path, got '
                                  f'{base_path!r}')
+        if base_params is not None:
+            raise SweepSpecError(f'{_where(source, "base")}: a base file and base parameters '
+                                 f'given together')
         base_path = os.path.normpath(os.path.join(directory, os.path.expanduser(base_path)))
         base = dict(check_params_file(base_path, node))
-    base_config = build_config(base)
+    elif base_params is not None:
+        base = {str(k): v for k, v in base_params.items()}
+    try:
+        base_config = build_config(base)
+    except ParameterError as exc:
+        raise SweepSpecError(f'{_where(source, "base")}: {exc}') from None
     if base_config.run.shock_times:
         raise SweepSpecError(f'{_where(source, "base")}: {base_path} schedules shocks '
                              f'(scenario.shock_times): the sweep applies its own shock '
@@ -482,6 +517,7 @@ def parse_spec(data: Any, source: str = '<text>', directory: str = '.') -> Sweep
     if bad:
         raise SweepSpecError(f'{_where(source, "metrics")}: unknown {bad} (known: '
                              f'{", ".join(METRICS)})')
+    envelopes = _envelope_names(data.get('envelopes'), source)
     names = [a.name for a in axes]
     plot = data.get('plot') or {}
     if not isinstance(plot, dict) or set(plot) - {'x', 'y'}:
@@ -497,10 +533,28 @@ def parse_spec(data: Any, source: str = '<text>', directory: str = '.') -> Sweep
         raise SweepSpecError(f'{_where(source, "plot")}: x and y are the same axis')
     spec = SweepSpec(axes=tuple(axes), base=base, base_path=base_path, fixed=fixed,
                      duration_s=duration, output_rate_hz=rate, window_s=window,
-                     metrics=tuple(metrics), plot_axes=tuple(plot_axes), source=source,
-                     raw=dict(data))
+                     metrics=tuple(metrics), envelopes=envelopes,
+                     plot_axes=tuple(plot_axes), source=source, raw=dict(data))
     _check_axis_values(spec)
     return spec
+
+
+def _envelope_names(raw: Any, source: str) -> Tuple[str, ...]:
+    """Check the ``envelopes`` key: ``all``, or a list of distinct channel names."""
+    where = _where(source, 'envelopes')
+    if raw is None:
+        return ()
+    if raw == ALL_ENVELOPES:
+        return (ALL_ENVELOPES,)
+    if not isinstance(raw, list) or not all(isinstance(n, str) and n for n in raw):
+        raise SweepSpecError(f'{where}: expected {ALL_ENVELOPES!r} or a list of envelope '
+                             f'channels (q1, q2, ..., w0, wmax), got {raw!r}')
+    if ALL_ENVELOPES in raw:
+        raise SweepSpecError(f'{where}: {ALL_ENVELOPES!r} is not a channel: give it alone, '
+                             f'not in a list')
+    if len(set(raw)) != len(raw):
+        raise SweepSpecError(f'{where}: a channel is given twice: {raw!r}')
+    return tuple(raw)
 
 
 def _check_axis_values(spec: SweepSpec) -> None:
@@ -523,6 +577,12 @@ def _check_axis_values(spec: SweepSpec) -> None:
             if point.shock_phase and config.drive.frequency <= 0.0:
                 raise SweepSpecError(f'{_where(spec.source, "axes")}: shock.phase needs a '
                                      f'drive frequency (drive.frequency > 0)')
+            channels = cases.envelope_channels(config)
+            unknown = [n for n in spec.envelopes if n != ALL_ENVELOPES and n not in channels]
+            if unknown:
+                raise SweepSpecError(f'{_where(spec.source, "envelopes")}: {unknown}: not an '
+                                     f'envelope channel of the points (with {axis.name} = '
+                                     f'{value!r}: {", ".join(channels)})')
 
 
 def load_spec(path: str) -> SweepSpec:

@@ -25,6 +25,14 @@ reproduces it bit for bit. Run ``python test/data/make_demo_reference.py`` only 
 physics is meant to change, and say why in the commit. (The file was written through the
 Simulator directly; it is now computed through :class:`ring_gyro_sim.run.Run`, the one run
 path, which must give the same samples.)
+
+The samples depend on the numerical libraries in their last bits (the start state is a
+shooting solve through scipy; numba compiles the kernel through LLVM), so the file records
+the versions it was made with (:func:`versions`). It was regenerated on 2026-12-02 with the
+tree of commit fd02a0a when new wheels (numpy 2.4.6, scipy 1.17.1, numba 0.68.1, llvmlite
+0.50.0) moved the 14aa740 reference by up to 8.6e-11 of a channel's peak (1e-12 in the first
+sample, the start state; the 10 000 g shock amplifies it); fd02a0a and the tree of issue 14
+give the same samples bit for bit under those versions.
 """
 
 import hashlib
@@ -57,6 +65,14 @@ def compute():
             for name in CHANNELS}
 
 
+def versions():
+    """Return the versions the samples depend on, one string (``name=version`` joined by ``;``)."""
+    import llvmlite
+    import numba
+    import scipy
+    return ';'.join(f'{m.__name__}={m.__version__}' for m in (np, scipy, numba, llvmlite))
+
+
 def digest(array):
     """Return the SHA-256 (hex) of a float64 array's bytes."""
     return hashlib.sha256(np.ascontiguousarray(array, dtype=np.float64).tobytes()).hexdigest()
@@ -66,4 +82,5 @@ if __name__ == '__main__':
     channels = compute()
     stored = {name: a[::DECIMATION] for name, a in channels.items()}
     stored.update({f'sha256_{name}': np.array(digest(a)) for name, a in channels.items()})
+    stored['versions'] = np.array(versions())
     np.savez_compressed(HERE / 'demo_reference.npz', **stored)

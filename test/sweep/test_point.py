@@ -18,6 +18,8 @@ from dataclasses import replace
 import json
 import math
 
+import numpy as np
+import pytest
 from ring_gyro_sim.analysis import cases
 from ring_gyro_sim.core.params import build_config
 from ring_gyro_sim.sweep import load_spec, point
@@ -80,3 +82,36 @@ def test_store_writes_whole_records_and_nan_as_null(tmp_path):
     assert store.read_failure('def')['error'] == 'E: boom' and list(store.keys()) == ['abc']
     store.write({'key': 'def', 'metrics': {}, 'error': None})   # a retry that succeeded
     assert store.read_failure('def') is None
+
+
+def test_kept_envelopes_fill_the_results_over_time_and_stay_out_of_the_csv(tmp_path):
+    """A run stopped by contact keeps fewer windows: nan after it; a failed point: all nan."""
+    from ring_gyro_sim.sweep import parse_spec, results
+    spec = parse_spec({'duration': 0.004, 'axes': {'shock.peak_g': [1.0, 2.0, 3.0]},
+                       'envelopes': ['q2']})
+    p = spec.points()
+    t = [0.0005, 0.0015, 0.0025, 0.0035]
+
+    def record(at, n, q2):
+        return {'key': at.key, 'metrics': {m: None for m in point.METRICS}, 'error': None,
+                'wall_time_s': 1.0, 'envelope': {'names': ['q2'], 'complete': False,
+                                                 'window_s': 0.001, 't_s': t[:n],
+                                                 'values': {'q2': q2}}}
+
+    records = {p[0].key: record(p[0], 4, [1e-7, 2e-7, None, 4e-7]),
+               p[1].key: record(p[1], 2, [5e-7, 6e-7]), p[2].key: None}
+    ds = results.build_dataset(spec, p, records, {p[2].key: {'error': 'E: boom'}})
+    np.testing.assert_array_equal(ds['time'].values, t)
+    q2 = ds['envelope_q2_m'].values
+    assert q2.shape == (3, 4) and ds['envelope_q2_m'].attrs['units'] == 'm'
+    np.testing.assert_array_equal(q2[0], [1e-7, 2e-7, np.nan, 4e-7])
+    np.testing.assert_array_equal(q2[1], [5e-7, 6e-7, np.nan, np.nan])
+    assert np.all(np.isnan(q2[2]))
+    files = results.write_results(ds, tmp_path)
+    assert len(open(files['csv']).read().splitlines()) == 1 + 3     # one row per point
+    np.testing.assert_array_equal(results.open_results(files['netcdf'])['envelope_q2_m'], q2)
+    from ring_gyro_sim.analysis import plotting
+    if plotting.available():   # Fig. 13 of a sweep: one line per point
+        assert plotting.plot_sweep_envelopes(ds, tmp_path) == [str(tmp_path / 'envelope_q2.png')]
+    with pytest.raises(ValueError, match='does not keep every envelope'):
+        point.case_result(records[p[0].key], cases.case4_specs((5000.0,), 0.004)[0])

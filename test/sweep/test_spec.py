@@ -74,6 +74,7 @@ def test_the_case4_example_is_the_papers_case4():
     assert spec.axes[0].name == 'modes.quality_factors[0]'
     assert spec.axes[0].values == (5000.0, 20000.0, 40000.0, 80000.0, 120000.0, 180000.0)
     assert spec.fixed['shock.peak_g'] == 10000.0 and spec.duration_s == 30.0
+    assert spec.envelopes == ('q2',)                     # Fig. 13: q2 over time per point
 
 
 @pytest.mark.parametrize('text, message', [
@@ -94,11 +95,40 @@ def test_the_case4_example_is_the_papers_case4():
     ('duration: 1\naxis: {shock.peak_g: [1.0]}', "unknown key(s) ['axis']"),
     ('axes: {shock.peak_g: [1.0]}', 'give the simulated time'),
     ('duration: 1\nset: {shock.peak_g: 1.0}\naxes: {shock.peak_g: [2.0]}', 'also under set'),
+    ('duration: 1\naxes: {shock.peak_g: [1.0]}\nenvelopes: [q4]', 'not an envelope channel'),
+    ('duration: 1\naxes: {shock.peak_g: [1.0]}\nenvelopes: [q2, q2]', 'given twice'),
+    ('duration: 1\naxes: {shock.peak_g: [1.0]}\nenvelopes: q2', "expected 'all'"),
+    ('duration: 1\naxes: {shock.peak_g: [1.0]}\nenvelopes: [all, q2]', 'give it alone'),
 ])
 def test_bad_specs_are_refused_naming_the_key(text, message):
     with pytest.raises(SweepSpecError, match=None) as info:
         spec_of(text)
     assert message in str(info.value), str(info.value)
+
+
+def test_kept_envelopes_make_another_point_and_none_keeps_the_key():
+    text = 'duration: 1.0\naxes:\n  modes.quality_factors[0]: [5000, 20000]\n'
+    plain = spec_of(text).points()[0]
+    assert spec_of(text + 'envelopes: []\n').points()[0].key == plain.key
+    kept = spec_of(text + 'envelopes: [q2, wmax]\n').points()[0]
+    assert kept.envelopes == ('q2', 'wmax') and kept.key != plain.key
+    every = spec_of(text + 'envelopes: all\n').points()[0]
+    assert every.envelopes == ('all',) and every.key not in (plain.key, kept.key)
+    companions = spec_of('duration: 1.0\nset: {modes.companions: true}\n'
+                         'axes: {shock.peak_g: [1.0]}\nenvelopes: [q2s]\n')
+    assert companions.envelopes == ('q2s',)
+
+
+def test_base_parameters_without_a_file_and_not_with_one(tmp_path):
+    data = {'duration': 1.0, 'axes': {'modes.quality_factors[0]': [5000.0]}}
+    spec = parse_spec(data, base_params={'drive.frequency': 15798.3})
+    assert spec.base == {'drive.frequency': 15798.3} and spec.base_path is None
+    assert dict(spec.points()[0].overrides)['drive.frequency'] == 15798.3
+    with pytest.raises(SweepSpecError, match='base: .*electrodes.gap'):
+        parse_spec(data, base_params={'electrodes.gap': -1.0})
+    base = write_spec(tmp_path, 'ring_gyro:\n  ros__parameters: {}\n', 'base.yaml')
+    with pytest.raises(SweepSpecError, match='given together'):
+        parse_spec(dict(data, base=base.name), directory=str(tmp_path), base_params={})
 
 
 def test_duplicate_keys_and_base_shocks_are_refused(tmp_path):
