@@ -290,3 +290,26 @@ def test_closed_needs_the_loop_parameter():
     assert ch.parse_loops('open') == ('open',)
     with pytest.raises(ValueError, match='--loops: give one or more'):
         ch.parse_loops(' , ')
+
+
+def test_closed_is_refused_without_the_loop_parameter(monkeypatch):
+    specs = {k: v for k, v in ch.SPECS.items() if k != ch.LOOP_PARAMETER}
+    monkeypatch.setattr(ch, 'SPECS', specs)
+    assert ch.available_loops() == ('open',)
+    with pytest.raises(ValueError, match="--loops: 'closed' needs the parameter "
+                                         'control.drive_loop'):
+        ch.parse_loops('open,closed')
+
+
+def test_the_drive_figures_tell_a_drive_that_stays_down_from_one_that_returns():
+    t = np.arange(1, 5001) * 1e-3  # 5 s at 1 kHz, a shock at 1 s
+    back = np.where(t <= 1.0, 2.0, np.where(t < 3.0, 0.2, 2.0))
+    down = np.where(t <= 1.0, 2.0, 0.2)
+    common = dict(t=t, rate=np.zeros_like(t), applied=np.zeros_like(t), scale_factor=1.0,
+                  drive_amplitude_m=1.0, electronics=None, summary=None, config=None)
+    returns = ch._drive_figures(ch._Record(drive=back, **common), 1.0)
+    assert returns['drive_ratio_end'] == pytest.approx(1.0)
+    assert returns['drive_recovery_s'] == pytest.approx(3.0 - 1.0 - 1e-3, abs=1.5e-3)
+    stays = ch._drive_figures(ch._Record(drive=down, **common), 1.0)
+    assert stays['drive_ratio_end'] == pytest.approx(0.1)
+    assert stays['drive_ratio_end'] < ch.JUMP_RATIO and stays['drive_recovery_s'] is None
