@@ -526,7 +526,7 @@ class PickOff:
         return np.matmul(capacitance - self.rest_capacitance, self.volts_per_farad, out=out)
 
     def noise(self, first_index: int, count: int) -> Optional[np.ndarray]:
-        """Return the amplifiers' noise (E2) at the given samples, V (None without noise)."""
+        """Return the white noise of the amplifiers at the given samples, V (E2); None: off."""
         if not self.noisy or count == 0:
             return None
         return noise.normals(self.noise_seed, noise.STREAM_PICKOFF, first_index, count,
