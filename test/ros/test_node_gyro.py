@@ -90,6 +90,8 @@ def test_gyro_node_offers_the_gyro_topics_and_records_them(ros, tmp_path):
         assert types[f'{NS}/demodulator'] == ['std_msgs/msg/Float64MultiArray']
         (rate_info,) = probe.get_publishers_info_by_topic(f'{NS}/rate')
         assert rate_info.qos_profile.reliability == ReliabilityPolicy.RELIABLE
+        # Open loop (control.drive_loop: open, the default): no ~/control (test_node_control).
+        assert not probe.get_publishers_info_by_topic(f'{NS}/control')
         probe.angular_rate(TEN_DEG_S, x=0.5)
         # Accepted (the physics merged) or refused (not yet): either way once, and counted.
         probe.spin_for(1.0)
@@ -114,6 +116,7 @@ def test_gyro_node_offers_the_gyro_topics_and_records_them(ros, tmp_path):
     assert types[f'{NS}/rate'] == 'sensor_msgs/msg/Imu'
     assert types[f'{NS}/demodulator'] == 'std_msgs/msg/Float64MultiArray'
     assert types[f'{NS}/angular_rate'] == 'geometry_msgs/msg/Vector3Stamped'
+    assert f'{NS}/control' not in types
 
 
 def test_a_resonator_node_refuses_angular_rates_and_has_no_rate_output(ros, tmp_path):
@@ -127,6 +130,7 @@ def test_a_resonator_node_refuses_angular_rates_and_has_no_rate_output(ros, tmp_
         # The probe subscribes to both, so the topics exist; nobody publishes them.
         assert not probe.get_publishers_info_by_topic(f'{NS}/rate')
         assert not probe.get_publishers_info_by_topic(f'{NS}/demodulator')
+        assert not probe.get_publishers_info_by_topic(f'{NS}/control')
         for _ in range(3):
             probe.angular_rate(TEN_DEG_S)
         counted(probe, 'rejected_inputs', 3)
