@@ -186,9 +186,13 @@ def test_rate_output_end_to_end(ros, tmp_path):
     assert len(series.t_ns) == 1500  # 1.5 s at 1 kHz, recorded whole
     settled = series.rate[series.t_ns > 1_000_000_000]
     assert np.mean(settled) == pytest.approx(TEN_DEG_S, rel=0.01)
-    # and what subscribers got live, with the electronics' predicted variance on z (REP-145)
+    # and what subscribers got live, with the electronics' predicted variance on z (REP-145):
+    # the recording's last samples from the moment the probe was discovered (under load the
+    # node may publish its first samples before discovery ends: seen 1 120 of 1 500 live).
     live = np.array([m.angular_velocity.z for m in probe.rate])
-    assert np.array_equal(live, series.rate)
+    assert len(live) >= 200, len(live)
+    assert stamps[-1] == series.t_ns[-1]
+    assert np.array_equal(live, series.rate[-len(live):])
     cov = probe.rate[-1].angular_velocity_covariance
     assert cov[8] > 0.0 and math.isinf(cov[0]) and math.isinf(cov[4])
     # /diagnostics carries the rate channel's state (issue 12, item 6)
