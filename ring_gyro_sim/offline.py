@@ -20,7 +20,8 @@ loop, in the node's blocks (``output.block_duration``), as fast as possible, and
 :class:`~ring_gyro_sim.run.RunSummary`. With an output path it records exactly what the node
 would (the same topic names, scheduled shocks on ``<ns>/shock`` at their times, the same
 diagnostics keys about once per simulated second; with ``gyro.enabled`` also ``<ns>/rate``,
-``<ns>/demodulator`` and the rates that acted on ``<ns>/angular_rate``). :func:`resimulate`
+``<ns>/demodulator`` and the rates that acted on ``<ns>/angular_rate``; with
+``control.drive_loop: closed`` the loops' updates on ``<ns>/control``). :func:`resimulate`
 re-runs a recording from its metadata and recorded inputs (angular rates included) and
 reproduces its outputs bit for bit.
 """

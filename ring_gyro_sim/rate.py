@@ -61,7 +61,7 @@ from ring_gyro_sim.core.electronics import DemodSamples, RateSamples, SenseElect
 from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.core.simulator import Samples, Simulator
 
-__all__ = ['GyroChannel', 'RateStats', 'drive_operating_point', 'RECOVERY_BAND',
+__all__ = ['DriveStats', 'GyroChannel', 'RateStats', 'drive_operating_point', 'RECOVERY_BAND',
            'RECOVERY_HOLD_S', 'RECOVERY_NOISE_SIGMAS']
 
 RECOVERY_BAND = 0.01
@@ -150,23 +150,43 @@ class GyroChannel:
         return self.electronics.diagnostics_values()
 
 
-class RateStats:
-    """Figures of the rate output over a run (module docstring)."""
+class _Recovery:
+    """The first shock, the last sample outside a band after it, and the recovery time."""
 
-    def __init__(self, output_rate_hz: float) -> None:
-        self.keep = max(1, int(round(MEAN_WINDOW_S * output_rate_hz)))
-        self.recent: Deque[Tuple[float, float]] = deque(maxlen=self.keep)
-        self._pre = [0, 0.0, 0.0]  # count, sum and sum of squares of the error before a shock
+    def __init__(self) -> None:
         self.shock_s: Optional[float] = None
-        self.error_peak = 0.0
         self.last_outside_s: Optional[float] = None
         self.last_t = math.nan
-        self.samples = 0
 
     def shock_at(self, t_s: float) -> None:
         """Note the first shock's start time, s."""
         if self.shock_s is None or t_s < self.shock_s:
             self.shock_s = float(t_s)
+
+    def recovery(self) -> Tuple[bool, Optional[float]]:
+        """
+        Return ``(recovered, seconds)`` after the first shock (module docstring).
+
+        Recovered when nothing was outside the band or the last :data:`RECOVERY_HOLD_S` were
+        inside it; the time from the shock's start to the last sample outside (0.0: none).
+        """
+        last = self.last_outside_s
+        recovered = last is None or self.last_t - last >= RECOVERY_HOLD_S
+        if not recovered:
+            return False, None
+        return True, 0.0 if last is None else last - self.shock_s
+
+
+class RateStats(_Recovery):
+    """Figures of the rate output over a run (module docstring)."""
+
+    def __init__(self, output_rate_hz: float) -> None:
+        super().__init__()
+        self.keep = max(1, int(round(MEAN_WINDOW_S * output_rate_hz)))
+        self.recent: Deque[Tuple[float, float]] = deque(maxlen=self.keep)
+        self._pre = [0, 0.0, 0.0]  # count, sum and sum of squares of the error before a shock
+        self.error_peak = 0.0
+        self.samples = 0
 
     def add(self, rate: RateSamples, applied: np.ndarray) -> None:
         """Add a block's rate samples and the applied rate at the same times (rad/s)."""
@@ -213,29 +233,20 @@ class RateStats:
             out['rate_true_mean_rad_s'] = float(np.mean(arr[:, 1]))
         if self.shock_s is not None and self.samples:
             out['rate_error_peak_rad_s'] = self.error_peak
-            last = self.last_outside_s
-            recovered = last is None or self.last_t - last >= RECOVERY_HOLD_S
-            out['rate_recovered'] = bool(recovered)
-            out['rate_recovery_s'] = (0.0 if last is None else last - self.shock_s) \
-                if recovered else None
+            recovered, seconds = self.recovery()
+            out['rate_recovered'] = recovered
+            out['rate_recovery_s'] = seconds
         return out
 
 
-class DriveStats:
+class DriveStats(_Recovery):
     """Figures of the closed-loop drive over a run (module docstring)."""
 
     def __init__(self, loop) -> None:
+        super().__init__()
         self.loop = loop
         self._column = CONTROL_CHANNELS.index('amplitude_m')
-        self.shock_s: Optional[float] = None
-        self.last_outside_s: Optional[float] = None
-        self.last_t = math.nan
         self.last_ratio = 1.0
-
-    def shock_at(self, t_s: float) -> None:
-        """Note the first shock's start time, s."""
-        if self.shock_s is None or t_s < self.shock_s:
-            self.shock_s = float(t_s)
 
     def add(self, t: np.ndarray, control: np.ndarray) -> None:
         """Add a block's sample times (s) and ``Samples.control`` rows."""
@@ -261,8 +272,5 @@ class DriveStats:
             'drive_amplitude_final_ratio': self.last_ratio,
         }
         if self.shock_s is not None:
-            last = self.last_outside_s
-            recovered = last is None or self.last_t - last >= RECOVERY_HOLD_S
-            out['drive_amplitude_recovery_s'] = (
-                (0.0 if last is None else last - self.shock_s) if recovered else None)
+            out['drive_amplitude_recovery_s'] = self.recovery()[1]
         return out

@@ -422,9 +422,12 @@ def gyro_recording(tmp_path_factory):
     Record a gyroscope run whose blocks carry synthetic rate and demodulator samples.
 
     The sense electronics are not what is tested here (they fill Block.rate / Block.demod);
-    the sink and recorder write what a gyroscope run writes, including an angular rate.
+    the sink and recorder write what a gyroscope run writes, including an angular rate. The
+    drive is the closed loop, so the blocks also carry the loops' updates (``~/control``, the
+    simulator's own rows, 50 per block of 50 ms at 1 kHz).
     """
     from ring_gyro_sim import run as run_mod
+    from ring_gyro_sim.core.control import update_rows
     from ring_gyro_sim.core.electronics import DemodSamples, RateSamples
     from ring_gyro_sim.core.simulator import Simulator
     from ring_gyro_sim.ros.recorder import RunRecorder
@@ -432,7 +435,7 @@ def gyro_recording(tmp_path_factory):
     path = tmp_path_factory.mktemp('replay_gyro') / 'gyro.mcap'
     config = build_config({'drive.start_on': 'rest', 'modes.companions': True,
                            'gyro.enabled': True, 'output.rate': 20000.0,
-                           'output.block_duration': BLOCK_S})
+                           'output.block_duration': BLOCK_S, 'control.drive_loop': 'closed'})
     sim = Simulator(config)
     sink = RosSink(sim.channel_names, NS,
                    recorder=RunRecorder(str(path), config, sim.channel_names, NS),
@@ -445,8 +448,9 @@ def gyro_recording(tmp_path_factory):
         rate = RateSamples(t=rate_t, rate=0.17 + 1e-5 * np.arange(50 * k, 50 * k + 50),
                            quadrature=np.zeros(50))
         demod = DemodSamples(t=s.t, values=np.full((1000, 4), float(k)))
+        control = update_rows(first, s.t, s.control, sim.loop.window, sim.period_s)
         sink.block(run_mod.Block(samples=s, end_ns=sim.time_ns, first_index=first,
-                                 rate=rate, demod=demod))
+                                 rate=rate, demod=demod, control=control))
     sink.close()
     return path
 
@@ -471,6 +475,15 @@ def test_replay_publishes_the_gyro_topics_with_their_timing(gyro_recording):
     print(f'rate: largest deviation from the schedule {deviation * 1e3:.1f} ms')
     assert deviation < JITTER_S
     assert got.count(f'{NS}/demodulator') == GYRO_BLOCKS
+    # The closed loop's block topic, as the other block topics: every block, as recorded.
+    control = [(m.log_time_ns, decode(m)) for m in read_messages(gyro_recording,
+                                                                 f'{NS}/control')]
+    received = got.topic(f'{NS}/control')
+    assert len(control) == len(received) == GYRO_BLOCKS
+    for (_, msg), (_, original) in zip(received, control):
+        assert msg.layout == original.layout
+        assert np.array_equal(np.array(msg.data), np.array(original.data))
+    assert sum(msg.layout.dim[0].size for _, msg in received) == 50 * GYRO_BLOCKS - 1
     assert got.count(f'{NS}/angular_rate') == 1
     (_, acted), = got.topic(f'{NS}/angular_rate')
     assert acted.vector.z == 0.174533

@@ -284,29 +284,30 @@ class DriveLoop:
                          self.rebalance_rate, self.rebalance_quadrature,
                          1.0 if self.locked else 0.0])
 
-    def update(self, first_index: int, capacitance: np.ndarray, phase: np.ndarray,
-               t_end_s: float) -> None:
+    def update(self, volts: np.ndarray, phase: np.ndarray, t_end_s: float) -> None:
         """
         Measure one loop period and set the commands of the next (C2-C7).
 
         Parameters
         ----------
-        first_index : int
-            Global index of the period's first sample.
-        capacitance : ndarray, shape (N, E)
-            The outer electrodes' capacitances over the period, F.
+        volts : ndarray, shape (N, 2)
+            The pick-off amplifiers' outputs over the period (``electronics.PickOff``:
+            sense, drive), V.
         phase : ndarray, shape (N,)
             The NCO phase ``phi`` of the drive force at each sample, rad.
         t_end_s : float
             Time at the end of the period, s (the lock detector's time stamps).
 
         """
-        if capacitance.shape[0] != self.window or phase.shape != (self.window,):
-            raise InputError(f'capacitance: one loop period of {self.window} samples '
-                             f'expected, got {capacitance.shape[0]}')
-        volts = self.pickoff.volts(first_index, capacitance)
-        basis = np.stack([np.cos(phase), np.sin(phase), np.ones_like(phase)], axis=1)
-        coef = np.linalg.lstsq(basis, volts, rcond=None)[0]  # (3, 2): sense, drive
+        if volts.shape != (self.window, 2) or phase.shape != (self.window,):
+            raise InputError(f'volts: one loop period of {self.window} samples expected, '
+                             f'got shape {volts.shape}')
+        # (C2) least squares on cos, sin, 1 through the normal equations (3 x 3)
+        basis = np.empty((3, self.window))
+        np.cos(phase, out=basis[0])
+        np.sin(phase, out=basis[1])
+        basis[2] = 1.0
+        coef = np.linalg.solve(basis @ basis.T, basis @ volts)  # (3, 2): sense, drive
         x_c, x_s = coef[0, 1] / self.pickoff.drive_gain, coef[1, 1] / self.pickoff.drive_gain
         dt = self.period_s
         self.updates += 1
@@ -345,12 +346,12 @@ class DriveLoop:
             gain = self.pickoff.sense_gain
             y_c, y_s = coef[0, 0] / gain, coef[1, 0] / gain
             kp, ki = self.rebalance_gains
-            self.rb_integral[0] -= ki * y_s * dt
-            self.rb_integral[1] += ki * y_c * dt
             lim = self.drive_limit
-            self.rb_integral[:] = np.clip(self.rb_integral, -lim, lim)
-            self.rebalance_force[0] = min(max(self.rb_integral[0] - kp * y_s, -lim), lim)
-            self.rebalance_force[1] = min(max(self.rb_integral[1] + kp * y_c, -lim), lim)
+            i_c = min(max(float(self.rb_integral[0]) - ki * y_s * dt, -lim), lim)
+            i_s = min(max(float(self.rb_integral[1]) + ki * y_c * dt, -lim), lim)
+            self.rb_integral[:] = (i_c, i_s)
+            self.rebalance_force[:] = (min(max(i_c - kp * y_s, -lim), lim),
+                                       min(max(i_s + kp * y_c, -lim), lim))
             scale = 2.0 * KAPPA_2 * self.omega * amp
             self.rebalance_rate = self.rebalance_force[0] / scale if amp > 0.0 else 0.0
             self.rebalance_quadrature = self.rebalance_force[1] / scale if amp > 0.0 else 0.0

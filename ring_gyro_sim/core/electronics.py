@@ -520,6 +520,18 @@ class PickOff:
         cap = sim.outputs_for(q).capacitance
         return float((cap[0] - cap[1]) @ self.volts_per_farad[:, amp] / (2.0 * step))
 
+    def clean_volts(self, capacitance: np.ndarray, out: Optional[np.ndarray] = None
+                    ) -> np.ndarray:
+        """Return the amplifiers' outputs without noise (E1), V, shape (K, 2)."""
+        return np.matmul(capacitance - self.rest_capacitance, self.volts_per_farad, out=out)
+
+    def noise(self, first_index: int, count: int) -> Optional[np.ndarray]:
+        """Return the white noise of the amplifiers at the given samples, V (E2); None: off."""
+        if not self.noisy or count == 0:
+            return None
+        return noise.normals(self.noise_seed, noise.STREAM_PICKOFF, first_index, count,
+                             2) * self._noise_std
+
     def volts(self, first_index: int, capacitance: np.ndarray) -> np.ndarray:
         """
         Return the amplifiers' outputs (V), shape (K, 2): columns sense, drive (E1, E2).
@@ -527,11 +539,10 @@ class PickOff:
         ``capacitance`` (K, E) are the outer electrodes' at global samples
         ``first_index .. first_index + K - 1``; the noise is that of those sample indices.
         """
-        volts = (capacitance - self.rest_capacitance) @ self.volts_per_farad
-        count = volts.shape[0]
-        if self.noisy and count:
-            volts += noise.normals(self.noise_seed, noise.STREAM_PICKOFF, first_index, count,
-                                   2) * self._noise_std
+        volts = self.clean_volts(capacitance)
+        extra = self.noise(first_index, volts.shape[0])
+        if extra is not None:
+            volts += extra
         return volts
 
 

@@ -248,6 +248,8 @@ class Simulator:
         # The angular-rate profile: knots (ns, non-decreasing) and rates (rad/s).
         self._rate_t: List[int] = []
         self._rate_w: List[float] = []
+        self._rate_cache = None
+        self._rate_version = 0  # counts the changes of the knots (rates_at's cache)
         for t_s, w in zip(config.run.rate_times, config.run.rate_values):
             self._rate_t.append(int(round(t_s * 1e9)))
             self._rate_w.append(float(w))
@@ -258,12 +260,12 @@ class Simulator:
         self._drive_t_ref = 0.0
         self._drive_phase = 0.0
         self.loop: Optional[control.DriveLoop] = None
-        self._loop_cap: Optional[np.ndarray] = None
+        self._loop_volts: Optional[np.ndarray] = None
         self._loop_phase: Optional[np.ndarray] = None
         if config.control.closed:
             pickoff = electronics.PickOff(config, self, noisy=config.gyro.enabled)
             self.loop = control.DriveLoop(config, pickoff)
-            self._loop_cap = np.empty((self.loop.window, self._n_electrodes))
+            self._loop_volts = np.empty((self.loop.window, 2))
             self._loop_phase = np.empty(self.loop.window)
             self._drive_phase = self.loop.start(self.q, self.v, self._rate_at_start())
         self._drive = self._drive_args()
@@ -532,6 +534,7 @@ class Simulator:
         del self._rate_w[keep:]
         self._rate_t += [at_ns, at_ns]
         self._rate_w += [before, float(rate)]
+        self._rate_version += 1
 
     def set_drive(self, amplitude: Optional[float] = None, frequency_hz: Optional[float] = None,
                   at_ns: Optional[int] = None) -> None:
@@ -653,9 +656,14 @@ class Simulator:
         if self.gyro or loop is not None:
             phase = np.empty(n_samples)
             rate = np.empty(n_samples)
+        force_noise = pickoff_noise = None
         if loop is not None:
             rows = np.empty((n_samples, len(control.CONTROL_CHANNELS)))
             channels = self._channel_arrays(n_samples)
+            # The noise of the whole call at once (addressed by sample index, so the same
+            # as per stretch): a generator per 1 ms stretch cost more than its numbers.
+            force_noise = self._force_noise(n_samples)
+            pickoff_noise = loop.pickoff.noise(self.sample_index, n_samples)
         done = 0
         while done < n_samples:
             self._run_due_events()
@@ -669,12 +677,17 @@ class Simulator:
                 self._reference(self.sample_index, stop, phase[done:done + stop],
                                 rate[done:done + stop])
             first = self.sample_index
-            self._integrate(stop, out_q[done:done + stop], out_v[done:done + stop])
+            noise_part = None
+            if loop is not None and force_noise.size:
+                noise_part = force_noise[done * self.n_sub:(done + stop) * self.n_sub]
+            self._integrate(stop, out_q[done:done + stop], out_v[done:done + stop],
+                            noise_part)
             if loop is not None and stop > 0:
                 part = slice(done, done + stop)
                 self._channels(out_q[part], *(c[part] for c in channels))
                 rows[part] = loop.row()
-                self._feed_loop(first, channels[2][part], phase[part])
+                self._feed_loop(first, channels[2][part], phase[part],
+                                pickoff_noise[part] if pickoff_noise is not None else None)
             done += stop
         self._run_due_events()
         t = (np.arange(self.sample_index - n_samples, self.sample_index) + 1) * self.period_s
@@ -684,17 +697,20 @@ class Simulator:
         return Samples(t=t, q=out_q, v=out_v, gap=gap, min_gap=min_gap, capacitance=cap,
                        drive_phase=phase, rate=rate if self.gyro else None, control=rows)
 
-    def _feed_loop(self, first: int, cap: np.ndarray, phase: np.ndarray) -> None:
-        """Collect a stretch into the loop period; at its end, update the loop (C1)."""
+    def _feed_loop(self, first: int, cap: np.ndarray, phase: np.ndarray,
+                   pickoff_noise: Optional[np.ndarray]) -> None:
+        """Collect a stretch into the loop period; at its end, update the loop (C1, C2)."""
         loop = self.loop
         at = first % loop.window
         count = cap.shape[0]
-        self._loop_cap[at:at + count] = cap
+        volts = self._loop_volts[at:at + count]
+        loop.pickoff.clean_volts(cap, out=volts)
+        if pickoff_noise is not None:
+            volts += pickoff_noise
         self._loop_phase[at:at + count] = phase
         if at + count < loop.window or self.status != Status.RUNNING:
             return
-        loop.update(first + count - loop.window, self._loop_cap, self._loop_phase,
-                    self.time_s)
+        loop.update(self._loop_volts, self._loop_phase, self.time_s)
         self._rephase_drive()
         self._drive = self._drive_args()
 
@@ -703,7 +719,8 @@ class Simulator:
             _, _, action = self._events.pop(0)
             action()
 
-    def _integrate(self, count: int, out_q: np.ndarray, out_v: np.ndarray) -> None:
+    def _integrate(self, count: int, out_q: np.ndarray, out_v: np.ndarray,
+                   force_noise: Optional[np.ndarray] = None) -> None:
         # Cut at events (advance_samples), so the configuration is constant over the call.
         if count <= 0:
             return
@@ -733,7 +750,8 @@ class Simulator:
                                   profile_t=prof_t, profile_x=prof_x, profile_y=prof_y,
                                   y_index=self._y_index, rate_t=rate_t, rate_w=rate_w,
                                   pair_c=self._pair_c, pair_s=self._pair_s, kappa=self._kappa,
-                                  noise=self._force_noise(count))
+                                  noise=(self._force_noise(count) if force_noise is None
+                                         else force_noise))
         scratch = self._scratch
         if scratch.cuts.size < 2 * len(active) + 2:
             scratch = self._scratch = scratch._replace(cuts=np.empty(2 * len(active) + 2))
@@ -769,6 +787,7 @@ class Simulator:
         if keep > 64:  # knots before the last one at or before now are over
             del self._rate_t[:keep]
             del self._rate_w[:keep]
+            self._rate_version += 1
             keep = 0
         end = min(len(times), bisect.bisect_right(times, int(round(t_end * 1e9))) + 1)
         return (np.array(times[keep:end], dtype=np.float64) * 1e-9,
@@ -855,8 +874,12 @@ class Simulator:
         t_ns = np.asarray(t_ns, dtype=np.int64)
         if not self._rate_t:
             return np.zeros(t_ns.shape)
-        times = np.asarray(self._rate_t, dtype=np.int64)
-        rates = np.asarray(self._rate_w, dtype=np.float64)
+        key = self._rate_version
+        if self._rate_cache is None or self._rate_cache[0] != key:
+            # The knots change rarely (a streamed rate, a compaction); a loop asks per period.
+            self._rate_cache = (key, np.asarray(self._rate_t, dtype=np.int64),
+                                np.asarray(self._rate_w, dtype=np.float64))
+        times, rates = self._rate_cache[1], self._rate_cache[2]
         k = np.searchsorted(times, t_ns, side='right') - 1  # the value after a step at t
         inside = (k >= 0) & (k < times.size - 1)
         kk = np.clip(k, 0, max(0, times.size - 2))

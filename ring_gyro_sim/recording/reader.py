@@ -30,9 +30,9 @@ naming the file and the reason; nothing else escapes the reader.
 :class:`ring_gyro_sim.ros.recorder.RunRecorder` ended, which a re-simulation needs to cut the
 run the same way (the block messages of a decimated recording hold fewer samples).
 
-Series of a run, as arrays: :func:`read_block_topic` (any block topic, e.g. ``demodulator``:
-the blocks stacked), :func:`read_rate` (the gyroscope's ``rate``: stamps, rate about z,
-frame) and :func:`read_angular_rate` (the rotation inputs as they acted).
+Series of a run, as arrays: :func:`read_block_topic` (any block topic, e.g. ``demodulator`` or
+``control``: the blocks stacked), :func:`read_rate` (the gyroscope's ``rate``: stamps, rate
+about z, frame) and :func:`read_angular_rate` (the rotation inputs as they acted).
 """
 
 import dataclasses

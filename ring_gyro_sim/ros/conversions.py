@@ -46,6 +46,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import AccelStamped, Vector3Stamped
 import numpy as np
+from ring_gyro_sim.core.control import CONTROL_CHANNELS
 from ring_gyro_sim.core.electronics import DEMOD_CHANNELS
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
@@ -55,6 +56,9 @@ OUTPUT_TOPICS = ('modal_displacement', 'radial_gap', 'sense_electrodes')
 """Block topics, relative to the node's private namespace (``~/``)."""
 DEMODULATOR_TOPIC = 'demodulator'
 """The gyroscope's block topic (``gyro.enabled``): ``t`` and the demodulator channels."""
+CONTROL_TOPIC = 'control'
+"""The closed loop's block topic (``control.drive_loop: closed``): ``t`` and the
+``core.control.CONTROL_CHANNELS``, one row per loop update (at ``control.rate``)."""
 RATE_TOPIC = 'rate'
 """The gyroscope's rate output (``gyro.enabled``): sensor_msgs/Imu, one per rate sample."""
 ANGULAR_RATE_TOPIC = 'angular_rate'
@@ -115,6 +119,21 @@ def demodulator_block(demod) -> Float64MultiArray:
         raise ValueError(f'demodulator values have shape {values.shape}, expected '
                          f'({len(demod.t)}, {len(DEMOD_CHANNELS)})')
     return block_message([demod.t, values], ('t',) + DEMOD_CHANNELS)
+
+
+def control_block(control) -> Float64MultiArray:
+    """
+    Build the ``~/control`` block of a ``core.control.ControlSamples``.
+
+    One row per loop update in the block (``t`` = the update time, then the
+    ``CONTROL_CHANNELS``); a block without an update (shorter than a loop period) gives a
+    message with no rows, laid out as the others.
+    """
+    values = np.asarray(control.values, dtype=np.float64)
+    if values.shape != (len(control.t), len(CONTROL_CHANNELS)):
+        raise ValueError(f'control values have shape {values.shape}, expected '
+                         f'({len(control.t)}, {len(CONTROL_CHANNELS)})')
+    return block_message([control.t, values], ('t',) + CONTROL_CHANNELS)
 
 
 #: Covariance element 0 of an estimate the message does not carry (sensor_msgs/Imu comments).

@@ -73,7 +73,10 @@ QoS
     ``/diagnostics`` and ``/clock``: reliable, keep last 10. The gyroscope (``gyro.enabled``;
     the publishers exist only then): ``~/demodulator`` as the block topics, ``~/rate``
     (sensor_msgs/Imu, one message per rate sample, published with its block) reliable, keep
-    last 500; ``~/angular_rate`` reliable, keep last 1000 (:mod:`ring_gyro_sim.ros.qos`).
+    last 500; ``~/angular_rate`` reliable, keep last 1000. The closed loop
+    (``control.drive_loop: closed``; the publisher exists only then): ``~/control``, the
+    loops' updates (one row per update, at ``control.rate``), as the block topics
+    (:mod:`ring_gyro_sim.ros.qos`).
 
 Diagnostics (about 1 Hz)
     One status named ``<node>: simulator``, ``hardware_id`` ``ring_gyro_sim:<fully
@@ -163,6 +166,10 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
             self.block_pubs[name] = self.create_publisher(Float64MultiArray, f'~/{name}',
                                                           qos.BLOCK_QOS)
             rate_pub = self.create_publisher(Imu, f'~/{conversions.RATE_TOPIC}', qos.RATE_QOS)
+        if config.control.closed:
+            name = conversions.CONTROL_TOPIC
+            self.block_pubs[name] = self.create_publisher(Float64MultiArray, f'~/{name}',
+                                                          qos.BLOCK_QOS)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics',
                                               qos.DIAGNOSTICS_QOS)
         clock_pub = (self.create_publisher(ClockMsg, '/clock', qos.CLOCK_QOS)

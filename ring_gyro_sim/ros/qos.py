@@ -43,6 +43,8 @@ topic (relative to the node)  QoS
 ``angular_rate``              :data:`ANGULAR_RATE_QOS`: reliable, volatile, keep last 1000
                               (a streamed rate profile comes in bursts, as
                               ``base_acceleration``)
+``control``                   :data:`BLOCK_QOS` (a block topic; with
+                              ``control.drive_loop: closed``)
 ============================  ==========================================================
 
 The inputs are subscriptions in the node; their recorded profile is the subscription's (a
@@ -65,7 +67,8 @@ def _reliable_keep_last(depth: int) -> QoSProfile:
                       durability=DurabilityPolicy.VOLATILE)
 
 
-#: Block topics (``~/modal_displacement``, ``~/radial_gap``, ``~/sense_electrodes``).
+#: Block topics (``~/modal_displacement``, ``~/radial_gap``, ``~/sense_electrodes``; also
+#: ``~/demodulator`` and ``~/control``).
 BLOCK_QOS = _reliable_keep_last(50)
 #: ``/diagnostics``.
 DIAGNOSTICS_QOS = _reliable_keep_last(10)
@@ -100,6 +103,7 @@ TOPIC_QOS: Dict[str, QoSProfile] = {
     'demodulator': BLOCK_QOS,
     'rate': RATE_QOS,
     'angular_rate': ANGULAR_RATE_QOS,
+    'control': BLOCK_QOS,
 }
 
 

@@ -30,6 +30,9 @@ What a recording holds (interface.md, Recording):
   its header stamp, so ``ring_gyro replay`` publishes them at their rate), the block topic
   ``<ns>/demodulator`` (as the other block topics), and the rotation input
   ``<ns>/angular_rate`` (Vector3Stamped, stamped and logged at the time it acted);
+* with ``control.drive_loop: closed`` (and only then): the block topic ``<ns>/control``, the
+  loops' updates of each block (one row per update, ``t`` and
+  ``core.control.CONTROL_CHANNELS``), logged at the block's end as the other block topics;
 * a metadata record ``ring_gyro_sim`` with the full resolved parameters (YAML), the package
   version, the git revision, the namespace, the exact initial state (JSON, repr floats), and
   how the recording was cut: ``output_period_ns``, ``block_samples`` (samples per block of
@@ -44,21 +47,25 @@ Controls (parameters ``record.*``, read from the configuration):
 
 ``record.topics``
     The topics to record, as the node names them: ``modal_displacement``, ``radial_gap``,
-    ``sense_electrodes``, ``demodulator``, ``rate``, ``/diagnostics``, ``/clock``, and the
-    inputs ``shock``, ``base_acceleration``, ``drive/amplitude``, ``drive/frequency``,
-    ``events/reset``, ``events/parameters``, ``angular_rate`` (fully qualified names
-    ``<ns>/modal_displacement`` work too). Empty = all. The inputs and events, and the
-    metadata record, are always recorded whatever the list says: they are what a
+    ``sense_electrodes``, ``demodulator``, ``control``, ``rate``, ``/diagnostics``,
+    ``/clock``, and the inputs ``shock``, ``base_acceleration``, ``drive/amplitude``,
+    ``drive/frequency``, ``events/reset``, ``events/parameters``, ``angular_rate`` (fully
+    qualified names ``<ns>/modal_displacement`` work too). Empty = all. The inputs and events,
+    and the metadata record, are always recorded whatever the list says: they are what a
     re-simulation needs (:data:`ALWAYS_RECORDED`). An unknown name is refused
     (``ParameterError`` naming ``record.topics``). The gyroscope's topics (:data:`GYRO_TOPICS`)
-    are left out of a run without ``gyro.enabled``, as ``/clock`` is without
-    ``publish_clock``, whatever the list says (one list serves both kinds of run).
+    are left out of a run without ``gyro.enabled``, the closed loop's (:data:`CONTROL_TOPICS`)
+    out of a run without ``control.drive_loop: closed``, as ``/clock`` is without
+    ``publish_clock``, whatever the list says (one list serves every kind of run).
 ``record.decimation``
     N >= 1: the block topics keep the samples whose global sample index is a multiple of N
     (sample i is at t = i * output period, i = 1 for the first sample after the start), so
     what is kept does not depend on how the run is cut into blocks; every block message is
     still written, at the block's end time, with the same layout and fewer rows (possibly
     none). This holds for ``demodulator`` too (a block topic, at every output sample).
+    ``control`` is not decimated (:data:`UNDECIMATED_BLOCK_TOPICS`): its rows are the loop
+    updates, already at ``control.rate`` (1 kHz by default, every 200th output sample), not
+    output samples; every update is kept, in every block message.
     ``rate`` is never decimated: it is already the gyroscope's own, slower output
     (``gyro.output_rate``) and what an estimator consumes; to record less of it, leave it out
     of ``record.topics``. ``/diagnostics``, ``/clock`` and the inputs are not decimated. The
@@ -121,8 +128,12 @@ INPUT_TOPICS = {
     conversions.ANGULAR_RATE_TOPIC: 'geometry_msgs/msg/Vector3Stamped',
 }
 RATE_TYPE = 'sensor_msgs/msg/Imu'
-#: Block topics, by the name ``record.topics`` takes (decimated by ``record.decimation``).
-BLOCK_TOPICS = conversions.OUTPUT_TOPICS + (conversions.DEMODULATOR_TOPIC,)
+#: Block topics, by the name ``record.topics`` takes (decimated by ``record.decimation``,
+#: except :data:`UNDECIMATED_BLOCK_TOPICS`), one message per block, logged at its end.
+BLOCK_TOPICS = conversions.OUTPUT_TOPICS + (conversions.DEMODULATOR_TOPIC,
+                                            conversions.CONTROL_TOPIC)
+#: Block topics whose rows are not output samples (the loop updates): never decimated.
+UNDECIMATED_BLOCK_TOPICS = (conversions.CONTROL_TOPIC,)
 OTHER_TOPICS = {
     conversions.RATE_TOPIC: RATE_TYPE,
     '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
@@ -136,16 +147,20 @@ ALWAYS_RECORDED = tuple(INPUT_TOPICS)
 #: The topics of the gyroscope: recorded only with ``gyro.enabled``.
 GYRO_TOPICS = (conversions.DEMODULATOR_TOPIC, conversions.RATE_TOPIC,
                conversions.ANGULAR_RATE_TOPIC)
+#: The topics of the closed loop: recorded only with ``control.drive_loop: closed``.
+CONTROL_TOPICS = (conversions.CONTROL_TOPIC,)
 
 
 def recorded_topic_names(record_topics: Iterable[str], namespace: str = '/ring_gyro',
-                         publish_clock: bool = True, gyro: bool = False) -> list:
+                         publish_clock: bool = True, gyro: bool = False,
+                         control: bool = False) -> list:
     """
     Return the names (as ``record.topics`` takes them) that a recording holds.
 
     ``record_topics`` empty means every topic; the inputs and events are always added.
     ``/clock`` is recorded only when it is published, the :data:`GYRO_TOPICS` only with
-    ``gyro`` (``gyro.enabled``).
+    ``gyro`` (``gyro.enabled``), the :data:`CONTROL_TOPICS` only with ``control``
+    (``control.drive_loop: closed``).
 
     Raises
     ------
@@ -175,6 +190,8 @@ def recorded_topic_names(record_topics: Iterable[str], namespace: str = '/ring_g
         wanted.discard('/clock')
     if not gyro:
         wanted.difference_update(GYRO_TOPICS)
+    if not control:
+        wanted.difference_update(CONTROL_TOPICS)
     return [name for name in RECORDABLE_TOPICS if name in wanted]
 
 
@@ -309,7 +326,8 @@ class RunRecorder:
         self.config = config
         self.publish_clock = publish_clock
         self.names = recorded_topic_names(run.record_topics, self.namespace or '/',
-                                          publish_clock, config.gyro.enabled)
+                                          publish_clock, config.gyro.enabled,
+                                          config.control.closed)
         self.decimation = int(run.record_decimation)
         self.period_ns = run.output_period_ns
         self.block_samples = max(1, int(round(run.block_duration / (self.period_ns * 1e-9))))
@@ -531,7 +549,7 @@ class RunRecorder:
         for name, msg in blocks.items():
             if name not in self._topics:
                 continue
-            if self.decimation > 1:
+            if self.decimation > 1 and name not in UNDECIMATED_BLOCK_TOPICS:
                 msg = self._decimated(msg, t_ns)
             self._put(self._topics[name], msg, t_ns)
 

@@ -27,6 +27,12 @@ stamp = sample time, ``frame_id``, covariance from :attr:`RosSink.rate_variance`
 before the block messages and recorded at their sample times; the demodulator channels become
 the block topic ``~/demodulator`` next to the other three.
 
+The closed loop (a block with ``control``, i.e. ``control.drive_loop: closed``): the loops'
+updates in the block become the block topic ``~/control`` (:func:`conversions.control_block`:
+one row per update, ``t`` and ``core.control.CONTROL_CHANNELS``; no rows in a block shorter
+than a loop period), published and recorded with the other block messages, at the block's
+end time.
+
 Diagnostics: one status named ``<node>: simulator`` (the node's fully qualified name without
 the leading slash, e.g. ``ring_gyro: simulator`` or ``left/gyro: simulator``) and
 ``hardware_id`` ``ring_gyro_sim:<fully qualified name>``, so two instances are told apart.
@@ -92,7 +98,12 @@ class NullRecorder:
 
 
 class Publishers:
-    """The node's output publishers: block topics, ``/clock``, ``/diagnostics``, ``~/rate``."""
+    """
+    The node's output publishers: block topics, ``/clock``, ``/diagnostics``, ``~/rate``.
+
+    ``blocks`` maps every block topic the node has (the gyroscope's ``demodulator`` and the
+    closed loop's ``control`` only when it has them) to its publisher.
+    """
 
     def __init__(self, blocks: Mapping[str, object], diagnostics, clock=None,
                  rate=None) -> None:
@@ -226,6 +237,8 @@ class RosSink(run_mod.Sink):
             self.recorder.rate(rate)
         if block.demod is not None:
             msgs[conversions.DEMODULATOR_TOPIC] = conversions.demodulator_block(block.demod)
+        if block.control is not None:
+            msgs[conversions.CONTROL_TOPIC] = conversions.control_block(block.control)
         self.publishers.blocks(msgs)
         clock = conversions.clock_message(block.end_ns)
         self.publishers.clock(clock)

@@ -90,6 +90,8 @@ def test_gyro_node_offers_the_gyro_topics_and_records_them(ros, tmp_path):
         assert types[f'{NS}/demodulator'] == ['std_msgs/msg/Float64MultiArray']
         (rate_info,) = probe.get_publishers_info_by_topic(f'{NS}/rate')
         assert rate_info.qos_profile.reliability == ReliabilityPolicy.RELIABLE
+        # Open loop (control.drive_loop: open, the default): no ~/control (test_node_control).
+        assert not probe.get_publishers_info_by_topic(f'{NS}/control')
         probe.angular_rate(TEN_DEG_S, x=0.5)
         # Accepted (the physics merged) or refused (not yet): either way once, and counted.
         probe.spin_for(1.0)
@@ -114,6 +116,7 @@ def test_gyro_node_offers_the_gyro_topics_and_records_them(ros, tmp_path):
     assert types[f'{NS}/rate'] == 'sensor_msgs/msg/Imu'
     assert types[f'{NS}/demodulator'] == 'std_msgs/msg/Float64MultiArray'
     assert types[f'{NS}/angular_rate'] == 'geometry_msgs/msg/Vector3Stamped'
+    assert f'{NS}/control' not in types
 
 
 def test_a_resonator_node_refuses_angular_rates_and_has_no_rate_output(ros, tmp_path):
@@ -127,6 +130,7 @@ def test_a_resonator_node_refuses_angular_rates_and_has_no_rate_output(ros, tmp_
         # The probe subscribes to both, so the topics exist; nobody publishes them.
         assert not probe.get_publishers_info_by_topic(f'{NS}/rate')
         assert not probe.get_publishers_info_by_topic(f'{NS}/demodulator')
+        assert not probe.get_publishers_info_by_topic(f'{NS}/control')
         for _ in range(3):
             probe.angular_rate(TEN_DEG_S)
         counted(probe, 'rejected_inputs', 3)
@@ -182,9 +186,13 @@ def test_rate_output_end_to_end(ros, tmp_path):
     assert len(series.t_ns) == 1500  # 1.5 s at 1 kHz, recorded whole
     settled = series.rate[series.t_ns > 1_000_000_000]
     assert np.mean(settled) == pytest.approx(TEN_DEG_S, rel=0.01)
-    # and what subscribers got live, with the electronics' predicted variance on z (REP-145)
+    # and what subscribers got live, with the electronics' predicted variance on z (REP-145):
+    # the recording's last samples from the moment the probe was discovered (under load the
+    # node may publish its first samples before discovery ends: seen 1 120 of 1 500 live).
     live = np.array([m.angular_velocity.z for m in probe.rate])
-    assert np.array_equal(live, series.rate)
+    assert len(live) >= 200, len(live)
+    assert stamps[-1] == series.t_ns[-1]
+    assert np.array_equal(live, series.rate[-len(live):])
     cov = probe.rate[-1].angular_velocity_covariance
     assert cov[8] > 0.0 and math.isinf(cov[0]) and math.isinf(cov[4])
     # /diagnostics carries the rate channel's state (issue 12, item 6)

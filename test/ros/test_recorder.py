@@ -186,8 +186,9 @@ def qos_of_channel(channel):
     return profiles[0]['depth'], profiles[0]['reliability'], profiles[0]['durability']
 
 
-# The gyroscope's topics exist only with gyro.enabled (which needs the companions).
-GYRO = {'gyro.enabled': True, 'modes.companions': True}
+# The gyroscope's topics exist only with gyro.enabled (which needs the companions), the closed
+# loop's (~/control) only with control.drive_loop: closed.
+GYRO = {'gyro.enabled': True, 'modes.companions': True, 'control.drive_loop': 'closed'}
 
 
 def test_recorded_qos_is_the_qos_module(tmp_path):
@@ -207,7 +208,9 @@ def test_recorded_qos_is_the_qos_module(tmp_path):
                        'drive/frequency': 10, 'events/reset': 10, 'events/parameters': 10,
                        # Gyroscope: a block topic; 50 blocks of 10 rate samples (1 kHz rate
                        # output in 10 ms blocks); a rate profile streamed like base_acceleration.
-                       'demodulator': 50, 'rate': 500, 'angular_rate': 1000}
+                       'demodulator': 50, 'rate': 500, 'angular_rate': 1000,
+                       # Closed loop: a block topic (its updates in each block).
+                       'control': 50}
     assert sorted(expected_depths) == sorted(RECORDABLE_TOPICS)
     for name, depth in expected_depths.items():
         topic = name if name.startswith('/') else f'{NS}/{name}'
@@ -282,11 +285,21 @@ def test_record_topics_selects_topics_and_keeps_the_inputs(tmp_path, shocked_sam
 
 
 def test_empty_record_topics_means_every_topic():
-    assert recorded_topic_names([], NS, gyro=True) == list(RECORDABLE_TOPICS)
+    assert recorded_topic_names([], NS, gyro=True, control=True) == list(RECORDABLE_TOPICS)
     assert '/clock' not in recorded_topic_names([], NS, publish_clock=False)
-    # Without gyro.enabled the node has no gyroscope topics, so no recording holds them.
-    assert recorded_topic_names([], NS) == [n for n in RECORDABLE_TOPICS
-                                            if n not in ('demodulator', 'rate', 'angular_rate')]
+    # Without gyro.enabled the node has no gyroscope topics, so no recording holds them; nor
+    # ~/control without the closed loop.
+    assert recorded_topic_names([], NS) == [
+        n for n in RECORDABLE_TOPICS if n not in ('demodulator', 'rate', 'angular_rate',
+                                                  'control')]
+    assert recorded_topic_names([], NS, gyro=True) == [n for n in RECORDABLE_TOPICS
+                                                       if n != 'control']
+    assert recorded_topic_names([], NS, control=True) == [
+        n for n in RECORDABLE_TOPICS if n not in ('demodulator', 'rate', 'angular_rate')]
+    assert recorded_topic_names(['control', '~/radial_gap'], NS) == [
+        'radial_gap', *RESONATOR_INPUTS]
+    assert recorded_topic_names([f'{NS}/control'], NS, control=True) == [
+        'control', *RESONATOR_INPUTS]
     assert recorded_topic_names(['~/sense_electrodes'], NS) == [
         'sense_electrodes', *RESONATOR_INPUTS]
     assert recorded_topic_names(['~/sense_electrodes'], NS, gyro=True) == [
