@@ -25,7 +25,7 @@ replaced by each test's own; everything else (drive, modes, electronics, noise, 
 device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
 
 1. Drift (12.11, with IEEE 952 annex C) and bandwidth (12.15), one run: the device at zero
-   rate for 310 s / 8 s, then a rate step of 10 deg/s held for 12 s / 3 s.
+   rate for 310 s / 8 s, then a rate step of 10 deg/s held for 12 s / 2.5 s.
 
    * **Bias**: the mean of the zero-rate output after the first 10 s / 2 s (the noise
      starts from a ring at rest: the thermomechanical response needs a few sense time
@@ -89,7 +89,7 @@ device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
 
 3. Shock (12.17, the environment series): per shock amplitude (1 000, 3 000, 10 000 g, a
    half-sine along x, ``shock.duration``) and per loop mode, one run at 10 deg/s with the
-   shock at 1 s, 40 s after it (``--quick``: 1 000 and 10 000 g at 0.2 s, 1 s after).
+   shock at 1 s, 40 s after it (``--quick``: 1 000 and 10 000 g at 0.2 s, 0.6 s after).
    **Peak rate error** and **recovery** are the run's own figures (``rate.RateStats``: back
    within ``max(1 % of the rate, 4 sigma of the pre-shock error)`` for good, ``None`` if not
    by the end). **Jumped**: the drive pick-off over the last 0.5 s is below half its mean
@@ -100,17 +100,19 @@ device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
    **Lost lock**: the PLL's ``pll_lost_lock`` of the closed loop (``None`` open loop: there
    is no loop to lose). **Contact**: the run summary's (the run stops there).
 
-Loop modes: the shock table has one entry per amplitude and per mode of ``loops``
-(``open``, ``closed``), each set by the parameter ``control.drive_loop``; ``closed`` needs
-that parameter in the table (:func:`available_loops`), the other tests run the file's own
-setting.
+Loop modes: the shock table has one entry per amplitude and per mode of ``loops``:
+``open`` (the paper's fixed drive), ``closed`` (``control.drive_loop: closed``: PLL and AGC,
+the sense mode read open loop) and ``rebalance`` (closed with ``control.rebalance: true``,
+the rate read from the force-to-rebalance loop), each set by those two parameters; the closed
+modes need them in the table (:func:`available_loops`). The other tests run the file's own
+setting (a file with ``control.rebalance: true`` gets the datasheet of that readout).
 
 Why sequential runs, not the sweep engine: a sweep point (``sweep.point.evaluate``) is a
 paper case that keeps scalar metrics of the 100 kHz modal envelopes (and, on request, the
 envelopes); these tests need the 1 kHz rate records themselves (the Allan deviation, the
 step, the error curves of the shock plot) and the electronics' calibration of each run. The
-runs are cheap beside a sweep (the full characterization is 724 simulated s with both loop
-modes, 12.5 min wall on this loaded 2-core machine), and a local Dask cluster here bought
+runs are cheap beside a sweep (the full characterization is 847 simulated s with the three
+loop modes, ~15 min wall on this loaded 2-core machine), and a local Dask cluster here bought
 1.0-1.6x (doc/sweeps.md) for a second process tree; one process keeps the numba kernels, the
 one orbit shooting per device and the progress bar in one place.
 """
@@ -136,7 +138,13 @@ __all__ = ['FULL', 'LOOP_PARAMETER', 'Plan', 'QUICK', 'allan_fit', 'available_lo
 
 LOOP_PARAMETER = 'control.drive_loop'
 """The parameter that selects the drive loop (``open`` / ``closed``)."""
-LOOP_MODES = ('open', 'closed')
+REBALANCE_PARAMETER = 'control.rebalance'
+LOOP_MODES = {'open': {LOOP_PARAMETER: 'open', REBALANCE_PARAMETER: False},
+              'closed': {LOOP_PARAMETER: 'closed', REBALANCE_PARAMETER: False},
+              'rebalance': {LOOP_PARAMETER: 'closed', REBALANCE_PARAMETER: True}}
+"""Loop modes of the shock table: the parameters each sets (those the build has)."""
+LOOP_TITLES = {'open': 'open loop', 'closed': 'closed loop (PLL + AGC)',
+               'rebalance': 'closed loop + force-to-rebalance'}
 DEG = math.pi / 180.0
 RAD_S_TO_DEG_H = 180.0 / math.pi * 3600.0
 RAD_SQRT_S_TO_DEG_SQRT_H = 180.0 / math.pi * 60.0
@@ -204,21 +212,27 @@ FULL = Plan(zero_rate_s=310.0, zero_rate_skip_s=10.0, step_rate_dps=10.0, step_s
             rate_points_dps=tuple(float(r) for r in range(-300, 301, 50)), rate_point_s=12.0,
             rate_average_s=4.0, shock_peaks_g=(1000.0, 3000.0, 10000.0), shock_rate_dps=10.0,
             shock_at_s=1.0, shock_after_s=40.0, bootstrap=50)
-"""The full characterization: 601 simulated s, 724 with both loop modes' shocks."""
-QUICK = Plan(zero_rate_s=8.0, zero_rate_skip_s=2.0, step_rate_dps=10.0, step_s=3.0,
+"""The full characterization: 847 simulated s with the three loop modes' shocks."""
+QUICK = Plan(zero_rate_s=8.0, zero_rate_skip_s=2.0, step_rate_dps=10.0, step_s=2.5,
              rate_points_dps=(-300.0, -100.0, 0.0, 100.0, 300.0), rate_point_s=0.5,
              rate_average_s=0.4, shock_peaks_g=(1000.0, 10000.0), shock_rate_dps=10.0,
-             shock_at_s=0.2, shock_after_s=1.0, bootstrap=200)
-"""``--quick``: 18 simulated s with both loop modes (short records; the tests use it)."""
+             shock_at_s=0.2, shock_after_s=0.6, bootstrap=200)
+"""``--quick``: 17.8 simulated s with the three loop modes (short records; the tests)."""
 
 
 # ----------------------------------------------------------------------------- the device
 def available_loops() -> Tuple[str, ...]:
-    """Return the loop modes this build can run: ``('open', 'closed')`` or ``('open',)``."""
-    spec = SPECS.get(LOOP_PARAMETER)
-    if spec is None:
+    """Return the loop modes this build has: ``open``, and ``closed``, ``rebalance`` if so."""
+    if LOOP_PARAMETER not in SPECS:
         return ('open',)
-    return tuple(m for m in LOOP_MODES if not spec.choices or m in spec.choices)
+    if REBALANCE_PARAMETER not in SPECS:
+        return ('open', 'closed')
+    return tuple(LOOP_MODES)
+
+
+def _loop_parameters(loop: str) -> Dict[str, Any]:
+    """Return the parameters that select ``loop`` (none the build does not have)."""
+    return {k: v for k, v in LOOP_MODES[loop].items() if k in SPECS}
 
 
 def parse_loops(text: Optional[str]) -> Tuple[str, ...]:
@@ -228,7 +242,8 @@ def parse_loops(text: Optional[str]) -> Tuple[str, ...]:
     Raises
     ------
     ParameterError
-        An unknown mode, none, or ``closed`` without the ``control.drive_loop`` parameter.
+        An unknown mode, none, or ``closed`` / ``rebalance`` without the ``control.*``
+        parameters that select them.
 
     """
     have = available_loops()
@@ -236,13 +251,15 @@ def parse_loops(text: Optional[str]) -> Tuple[str, ...]:
         return have
     modes = tuple(m.strip() for m in text.split(',') if m.strip())
     if not modes:
-        raise ParameterError('--loops: give one or more of open, closed')
+        raise ParameterError('--loops: give one or more of open, closed, rebalance')
     for m in modes:
         if m not in LOOP_MODES:
-            raise ParameterError(f'--loops: unknown loop mode {m!r} (open, closed)')
+            raise ParameterError(f'--loops: unknown loop mode {m!r} (open, closed, '
+                                 f'rebalance)')
         if m not in have:
-            raise ParameterError(f'--loops: {m!r} needs the parameter {LOOP_PARAMETER} '
-                                 f'(the closed-loop drive), which this build does not have')
+            missing = ', '.join(k for k in LOOP_MODES[m] if k not in SPECS)
+            raise ParameterError(f'--loops: {m!r} needs the parameter {missing} (the '
+                                 f'closed-loop drive), which this build does not have')
     return tuple(dict.fromkeys(modes))
 
 
@@ -730,7 +747,9 @@ def _rate_table(flat, plan: Plan, bar: _Bar, drift) -> Dict[str, Any]:
                                       'scenario.rate_values': [rate]} if rate else {}))
         rec = _simulate(values, plan.rate_point_s, bar, f'rate table {dps:+g} deg/s')
         window = rec.t > plan.rate_point_s - plan.rate_average_s
-        recalibrate = (rec.scale_factor / rec.drive_amplitude_m) / drift['calibration']
+        # E14: the rebalance readout is not divided by the electronics' scale factor.
+        recalibrate = (1.0 if rec.config.control.rebalance else
+                       (rec.scale_factor / rec.drive_amplitude_m) / drift['calibration'])
         amplitude_ratio = rec.drive_amplitude_m / drift['drive_amplitude_m']
         rows.append({'rate_deg_per_s': dps, 'rate_rad_s': rate,
                      'output_rad_s': float(np.mean(rec.rate[window])) * recalibrate,
@@ -753,7 +772,7 @@ def _rate_table(flat, plan: Plan, bar: _Bar, drift) -> Dict[str, Any]:
 def _shock(flat, plan: Plan, bar: _Bar, peak_g: float, loop: str) -> Dict[str, Any]:
     rate = plan.shock_rate_dps * DEG
     length = plan.shock_at_s + plan.shock_after_s
-    extra = {LOOP_PARAMETER: loop} if LOOP_PARAMETER in SPECS else {}
+    extra = _loop_parameters(loop)
     values = _test_parameters(flat, length, **{
         'scenario.rate_times': [0.0], 'scenario.rate_values': [rate],
         'scenario.shock_times': [plan.shock_at_s],
@@ -764,13 +783,14 @@ def _shock(flat, plan: Plan, bar: _Bar, peak_g: float, loop: str) -> Dict[str, A
     contact = bool(s.contact)
     drive = _drive_figures(rec, plan.shock_at_s)
     jumped = None if contact else bool(drive['drive_ratio_end'] < JUMP_RATIO)
-    lost = fig.get('pll_lost_lock') if loop == 'closed' else None
+    lost = fig.get('pll_lost_lock') if loop != 'open' else None
     peak_err = fig.get('rate_error_peak_rad_s')
     return {'peak_g': float(peak_g), 'loop': loop,
             'peak_rate_error_deg_per_s': None if peak_err is None else peak_err / DEG,
             'recovery_s': fig.get('rate_recovery_s'), 'recovered': fig.get('rate_recovered'),
             'jumped': jumped, 'lost_lock': None if lost is None else bool(lost),
-            'lost_lock_at_s': fig.get('pll_lock_lost_at_s') if loop == 'closed' else None,
+            'lost_lock_at_s': fig.get('pll_lock_lost_at_s') if loop != 'open' else None,
+            'relocked_at_s': fig.get('pll_relocked_at_s') if loop != 'open' else None,
             'contact': contact, 'status': s.status, 'min_gap_um': s.min_gap_m * 1e6,
             'drive_amplitude_recovery_s': fig.get('drive_amplitude_recovery_s'),
             **drive, 'rate_deg_per_s': plan.shock_rate_dps, 'shock_at_s': plan.shock_at_s,
@@ -891,7 +911,7 @@ def _write(out: Path, sheet, drift, table, shocks, loops) -> List[str]:
     for loop in LOOP_MODES:
         curves = [(f'{s["peak_g"]:g} g', s['_series'][0], s['_series'][1] / DEG,
                    s['_series'][2] / DEG) for s in shocks if s['loop'] == loop]
-        panels.append((loop, curves, loop in loops))
+        panels.append((LOOP_TITLES[loop], curves, loop in available_loops()))
     if plotting.plot_shock_recovery(panels, out / 'shock_recovery.png'):
         pngs['shock_recovery'] = 'shock_recovery.png'
     files += [str(out / name) for name in pngs.values()]
@@ -991,11 +1011,12 @@ def _markdown(sheet, pngs: Mapping[str, str]) -> str:
             f'{_fmt(s["recovery_s"], 4) if s["recovery_s"] is not None else "not yet"} | '
             f'{_fmt(s["drive_recovery_s"], 4) if s["drive_recovery_s"] is not None else "no"} | '
             f'{_fmt(s["drive_ratio_end"], 3)} | {_fmt(s["jumped"])} | '
-            f'{_fmt(s["lost_lock"]) if s["loop"] == "closed" else "n/a (no loop)"} | '
+            f'{_fmt(s["lost_lock"]) if s["loop"] != "open" else "n/a (no loop)"} | '
             f'{_fmt(s["contact"])} | {_fmt(s["min_gap_um"], 3)} |')
-    if 'closed' not in sheet['loops']:
-        lines += ['', f'Closed loop: not measured (this build has no `{LOOP_PARAMETER}`, or '
-                      f'`--loops` left it out).']
+    missing = [m for m in LOOP_MODES if m not in sheet['loops']]
+    if missing:
+        lines += ['', f'Not measured: {", ".join(missing)} (not in this build, or `--loops` '
+                      f'left it out).']
     lines += ['', '## Rate table', '',
               '| rate (deg/s) | output (deg/s) | residual (ppm FS) | +- 1 s.e. (ppm FS) | '
               'model residual (ppm FS) | drive amplitude / rest |', '|---|---|---|---|---|---|']

@@ -789,9 +789,10 @@ def plot_shock_recovery(panels, path, band=0.01) -> bool:
 
     Parameters
     ----------
-    panels : sequence of (name, curves, measured)
-        Per loop mode: its name, ``[(label, t_since_shock_s, error_deg_s, applied_deg_s)]``
-        (one per shock amplitude) and whether it was measured (False: the panel says so).
+    panels : sequence of (title, curves, available)
+        Per loop mode: its title, ``[(label, t_since_shock_s, error_deg_s, applied_deg_s)]``
+        (one per shock amplitude; none: the panel says it was not measured) and whether the
+        build has that mode.
     path : str or Path
         PNG file to write.
     band : float
@@ -801,10 +802,10 @@ def plot_shock_recovery(panels, path, band=0.01) -> bool:
     plt = _pyplot()
     if plt is None:
         return False
-    fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels), 4.4), sharey=True,
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.0 * len(panels), 4.4), sharey=True,
                              squeeze=False)
     try:
-        for ax, (name, curves, measured) in zip(axes[0], panels):
+        for ax, (title, curves, available) in zip(axes[0], panels):
             for label, t, err, applied in curves:
                 ax.semilogy(t, np.maximum(np.abs(err), 1e-9), lw=0.6, label=label)
             if curves:
@@ -813,11 +814,11 @@ def plot_shock_recovery(panels, path, band=0.01) -> bool:
                             label=f'{100 * band:g} % of the rate')
                 ax.legend(fontsize=7)
             else:
-                ax.text(0.5, 0.5, f'{name} loop: not measured' + (
-                    '' if measured else '\n(not available in this build)'),
+                ax.text(0.5, 0.5, 'not measured' + (
+                    '' if available else '\n(not available in this build)'),
                     ha='center', va='center', transform=ax.transAxes)
             ax.axvline(0.0, color='k', lw=0.5)
-            ax.set_title(f'{name} loop')
+            ax.set_title(title)
             ax.set_xlabel('time since the shock (s)')
             ax.grid(True, which='both', lw=0.3)
         axes[0][0].set_ylabel('|rate error| (deg/s)')
