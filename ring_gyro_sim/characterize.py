@@ -45,13 +45,15 @@ device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
      ``Tc`` (the measured one, from the step below), ``b`` white rate noise that bypasses
      the pole (the pick-off's) and ``c`` the flicker floor; each term only when the device
      has that source (``gyro.temperature``, ``gyro.input_noise_density``,
-     ``gyro.bias_instability`` > 0). **ARW** = the -1/2 asymptote ``sqrt(a + b) / sqrt(tau)``
-     read at ``tau = 1 s``, in deg/sqrt(h). Beside it, where the record reaches
-     ``tau >= 10 Tc`` over a factor 2 of tau (the full form: 13 to 37 s), the plain -1/2 line
-     fitted there (``arw_slope_only``; the pole still lowers the curve there by 3-6 % in
-     deviation, and 8 clusters of 37 s make it noisy). The **standard error** of the ARW is
-     that of the same estimator on 200 / 50 records of the fitted noise model with the same
-     length and start (a parametric bootstrap, Gaussian first-order noise:
+     ``gyro.bias_instability`` > 0; with ``control.rebalance`` the fit starts at 10 Tc, the
+     loop's response not being first-order). **ARW** = the -1/2 asymptote
+     ``sqrt(a + b) / sqrt(tau)`` read at ``tau = 1 s``, in deg/sqrt(h). Beside it, where
+     the record reaches ``tau >= 10 Tc`` over a factor 2 of tau (the full form: 15.6 to
+     37.5 s), the plain -1/2 line fitted there (``arw_slope_only``; the pole still lowers
+     the curve there by 3-6 % in deviation, and 8 clusters of 37 s make it noisy). The
+     **standard error** of the ARW is that of the same estimator on 200 / 50 records of the
+     fitted noise model with the same length and start (a parametric bootstrap, Gaussian
+     first-order noise:
      ``arw_relative_standard_error``; ``arw_bootstrap`` holds the bias and spread of both
      estimators).
    * **Bias instability**: the minimum of the Allan deviation / 0.664 (the flicker floor of
@@ -723,6 +725,10 @@ def _drift_and_step(flat, plan: Plan, bar: _Bar) -> Dict[str, Any]:
     rate_hz = rec.config.gyro.output_rate
     terms = _noise_terms(rec.config)
     tau_min = max(0.01, 1.0 / rec.config.gyro.filter_bandwidth)
+    if rec.config.control.rebalance:
+        # The rebalance loop (a PI with a delay) is not a first-order pole: its response
+        # peaks near its crossover, so the fit starts where the noise is white again.
+        tau_min = max(tau_min, SLOPE_ONLY_TC * tc)
     allan = allan_fit(x, rate_hz, tc, terms, tau_min)
     skip = int(round(plan.zero_rate_skip_s * rate_hz))
     allan['bootstrap'] = _bootstrap_arw(allan['coefficients'], tc, rate_hz, x.size, skip,
