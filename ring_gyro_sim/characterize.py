@@ -880,7 +880,7 @@ def _assemble(path, flat, plan: Plan, quick: bool, loops, drift, table,
 
 def _write(out: Path, sheet, drift, table, shocks, loops) -> List[str]:
     from ring_gyro_sim.analysis import plotting
-    files = [str(out / 'datasheet.json'), str(out / 'datasheet.md')]
+    files = ['datasheet.json', 'datasheet.md']
     allan = drift['allan']
     pngs = {}
     if plotting.plot_allan(
@@ -920,7 +920,7 @@ def _write(out: Path, sheet, drift, table, shocks, loops) -> List[str]:
         panels.append((LOOP_TITLES[loop], curves, loop in available_loops()))
     if plotting.plot_shock_recovery(panels, out / 'shock_recovery.png'):
         pngs['shock_recovery'] = 'shock_recovery.png'
-    files += [str(out / name) for name in pngs.values()]
+    files += list(pngs.values())
     (out / 'datasheet.md').write_text(_markdown(sheet, pngs), encoding='utf-8')
     return files
 

@@ -316,6 +316,7 @@ def cmd_report(args) -> int:
 
 def cmd_characterize(args) -> int:
     """``ring_gyro characterize``."""
+    from pathlib import Path
     from ring_gyro_sim.characterize import characterize, parse_loops
     loops = parse_loops(args.loops)
     peaks = None
@@ -337,7 +338,7 @@ def cmd_characterize(args) -> int:
         'bias_instability_deg_per_h': sheet['bias_instability_deg_per_h'],
         'bandwidth_hz': sheet['bandwidth_hz'], 'shock_entries': len(sheet['shock']),
         'agreement': sheet['agreement'], 'wall_time_s': sheet['wall_time_s'],
-        'files': sheet['files']}, sort_keys=True))
+        'files': [str(Path(args.out) / name) for name in sheet['files']]}, sort_keys=True))
     return 0
 
 
