@@ -85,6 +85,13 @@ Force-to-rebalance (C6-C8)
     quadrature force. The integrators start at the values that hold the start state
     (``S_c = 2 kappa Omega_0 omega X``, ``Omega_0`` the rate at t = 0). (C8) The rate's
     bandwidth is that of the loop, ``B_rb``, against ``omega / (2 Q)`` open loop (0.12 Hz).
+    (C8b) While the PLL is out of lock, or the drive amplitude below
+    :data:`REBALANCE_QUALIFY` of its set-point, the rebalance force is off (0) and its
+    integrators hold: referenced to an NCO that no longer follows the drive, the loop pumped
+    up to ``control.drive_limit`` into the sense mode (a 10 000 g shock at
+    ``config/gyro.yaml`` kept the PLL out of lock for 9.6 s with it against 3.8 s without),
+    and (C7) divides by the amplitude, which a shock collapses. The rebalance rate reads 0
+    then, and ``/diagnostics`` says why (``pll_locked``, ``drive_amplitude_m``).
 
 Outputs (C9)
     :data:`CONTROL_CHANNELS`, held over each period at the values in force during it (the
@@ -114,6 +121,8 @@ amplitude (m), drive force amplitude (m/s^2), rebalance forces (m/s^2), the reba
 and quadrature (rad/s, C7; 0 without it) and 1.0 while locked."""
 
 KAPPA_2 = structure.gyroscopic_coefficient(2)
+REBALANCE_QUALIFY = 0.5
+"""The rebalance loop runs while the drive amplitude is at least this part of its set-point."""
 
 
 @dataclass(frozen=True)
@@ -341,8 +350,11 @@ class DriveLoop:
         if not ((raw > self.drive_limit and err > 0.0) or (raw < 0.0 and err < 0.0)):
             self.agc_integral += ki * err * dt
         self.force = min(max(kp * err + self.agc_integral, 0.0), self.drive_limit)
-        # (C6, C7) force-to-rebalance
-        if self.rebalance:
+        # (C6, C7) force-to-rebalance; (C8b) off until the drive is locked and qualified
+        if self.rebalance and not (locked and amp >= REBALANCE_QUALIFY * self.setpoint_m):
+            self.rebalance_force[:] = 0.0
+            self.rebalance_rate = self.rebalance_quadrature = 0.0
+        elif self.rebalance:
             gain = self.pickoff.sense_gain
             y_c, y_s = coef[0, 0] / gain, coef[1, 0] / gain
             kp, ki = self.rebalance_gains
