@@ -19,19 +19,26 @@ Where it runs
     Without ``scheduler``: a ``LocalCluster`` of ``workers`` processes (default: the
     machine's cores), one thread each (the numba kernels release no GIL worth sharing: one
     point per process keeps it simple), each started by a nanny that restarts it if it
-    dies. With ``scheduler`` (``tcp://host:port``): that cluster, as it is; nothing else
+    dies; its background work (profiler, watchdogs, monitors) is turned down so that it
+    takes little from the points' cores (:func:`local_cluster_config`). With
+    ``scheduler`` (``tcp://host:port``): that cluster, as it is; nothing else
     changes. The Dask dashboard address is printed when the scheduler serves one (it needs
     ``bokeh``: without it the line says so).
 
 What is computed
     Every point of the spec whose record is not in ``DIR/points`` (:mod:`.store`): one
     task per point (:func:`ring_gyro_sim.sweep.point.compute`), keyed by the point's hash,
-    submitted at once; the scheduler balances them. A point's record is stored by its
-    worker as soon as it is computed (when the worker sees ``DIR``) and again by the client
-    on receipt, atomically. A point that raises, or whose task the scheduler gives up on
-    (its workers died ``distributed.scheduler.allowed-failures`` times), is a failure: it is
-    reported with its parameters on stderr and in ``DIR/failures.json``, and the sweep goes
-    on. A worker killed mid-point costs that point's time only: Dask runs it again elsewhere.
+    submitted at once; the scheduler balances them. Each point depends on the drive setup
+    of its configuration (the point without its shock: branches and start state, ~1.7 s of
+    shooting), one task per configuration (:func:`ring_gyro_sim.sweep.point.setup_task`),
+    computed once on the cluster and sent to whichever worker computes a point of it (a
+    few hundred bytes); a setup lost with its worker is computed again. A point's record
+    is stored by its worker as soon as it is computed (when the worker sees ``DIR``) and
+    again by the client on receipt, atomically. A point that raises, or whose task the
+    scheduler gives up on (its workers died ``distributed.scheduler.allowed-failures``
+    times), is a failure: it is reported with its parameters on stderr and in
+    ``DIR/failures.json``, and the sweep goes on. A worker killed mid-point costs that
+    point's time only: Dask runs it again elsewhere.
 
 Resume
     A new sweep refuses a ``DIR`` that already holds computed points; ``resume=True``
@@ -62,11 +69,26 @@ from ring_gyro_sim.sweep import point as point_mod
 from ring_gyro_sim.sweep.spec import describe, SweepSpec
 from ring_gyro_sim.sweep.store import PointStore
 
-__all__ = ['SweepError', 'SweepOutcome', 'TASK_PREFIX', 'run_sweep']
+__all__ = ['LOCAL_CLUSTER_CONFIG', 'SETUP_PREFIX', 'SweepError', 'SweepOutcome', 'TASK_PREFIX',
+           'local_cluster_config', 'run_sweep']
 
 TASK_PREFIX = 'ring_gyro_point-'
 """Dask key of a point's task: this prefix and the point's hash."""
+SETUP_PREFIX = 'ring_gyro_setup-'
+"""Dask key of a configuration's drive setup: this prefix and :func:`.point.setup_key`."""
 DASHBOARD_PROBE_S = 3.0
+LOCAL_CLUSTER_CONFIG: Dict[str, Any] = {
+    'distributed.worker.profile.enabled': False,
+    'distributed.admin.tick.interval': '1s',
+    'distributed.admin.system-monitor.interval': '2s',
+    'distributed.worker.memory.monitor-interval': '1s',
+}
+"""Dask settings of the local cluster (not of one given by ``--scheduler``): the
+background work of the client, scheduler, nannies and workers, which shares the cores with
+the points, at a fifth (0.11 -> 0.02 cores with 2 workers, doc/sweeps.md): no statistical
+profiler in the workers (a stack sample every 10 ms: the dashboard's profile page stays
+empty), the event-loop watchdog every 1 s instead of 20 ms, the system monitor every 2 s
+(0.5 s), the nannies' memory check every 1 s (0.1 s)."""
 
 
 class SweepError(RingGyroError, RuntimeError):
@@ -139,6 +161,7 @@ def _dashboard_line(client, local: bool, disabled: bool = False) -> str:
 @contextmanager
 def _client(scheduler: Optional[str], workers: Optional[int], dashboard_address):
     """Yield ``(client, local)`` connected to ``scheduler`` or to a new LocalCluster."""
+    import dask
     from distributed import Client, LocalCluster
     if scheduler:
         try:
@@ -151,23 +174,41 @@ def _client(scheduler: Optional[str], workers: Optional[int], dashboard_address)
             client.close()
         return
     n = workers if workers else (os.cpu_count() or 1)
-    with warnings.catch_warnings():
-        if dashboard_address is None:
-            # no dashboard: the scheduler's plain HTTP server (health, metrics) then tries
-            # :8787 all the same and warns when it is taken; it moves to a free port
-            warnings.filterwarnings('ignore', message='Port .* is already in use')
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               dashboard_address=dashboard_address,
-                               silence_logs=logging.ERROR,
-                               preload=['ring_gyro_sim.sweep._worker'])
-    try:
-        client = Client(cluster)
+    with dask.config.set(local_cluster_config()):
+        with warnings.catch_warnings():
+            if dashboard_address is None:
+                # no dashboard: the scheduler's plain HTTP server (health, metrics) then tries
+                # :8787 all the same and warns when it is taken; it moves to a free port
+                warnings.filterwarnings('ignore', message='Port .* is already in use')
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                   dashboard_address=dashboard_address,
+                                   silence_logs=logging.ERROR,
+                                   preload=['ring_gyro_sim.sweep._worker'])
         try:
-            yield client, True
+            client = Client(cluster)
+            try:
+                yield client, True
+            finally:
+                client.close()
         finally:
-            client.close()
-    finally:
-        cluster.close()
+            cluster.close()
+
+
+def local_cluster_config() -> Dict[str, Any]:
+    """
+    Return the Dask settings of the local cluster (:data:`LOCAL_CLUSTER_CONFIG` and the rest).
+
+    Besides :data:`LOCAL_CLUSTER_CONFIG`: the environment the nannies give their workers
+    (``distributed.nanny.pre-spawn-environ``) without ``MALLOC_TRIM_THRESHOLD_``, which
+    makes glibc map and unmap the chunk-sized arrays of every block (~175 000 page faults
+    and ~0.2 s of system time per 25 s point, doc/sweeps.md); the rest of it (one BLAS
+    thread) stays.
+    """
+    import dask
+    import distributed  # noqa: F401 - its defaults are in dask.config once imported
+    environ = dict(dask.config.get('distributed.nanny.pre-spawn-environ', default={}) or {})
+    environ.pop('MALLOC_TRIM_THRESHOLD_', None)
+    return dict(LOCAL_CLUSTER_CONFIG, **{'distributed.nanny.pre-spawn-environ': environ})
 
 
 def _bar(total: int, initial: int, enabled: bool):
@@ -301,8 +342,19 @@ def _compute(client, pending, store: PointStore, out: str, reused: int, total: i
     """Submit ``pending`` and store each record as it comes; return the number computed."""
     from distributed import as_completed
     futures = {}
+    setups = {}
     for p in pending:
-        fut = client.submit(point_mod.compute, p, out, key=TASK_PREFIX + p.key, retries=0)
+        try:
+            skey = point_mod.setup_key(p)
+        except Exception:  # noqa: B902 - no configuration: the point reports why when computed
+            setup = None
+        else:
+            setup = setups.get(skey)
+            if setup is None:
+                setup = setups[skey] = client.submit(point_mod.setup_task, p,
+                                                     key=SETUP_PREFIX + skey, retries=0)
+        fut = client.submit(point_mod.compute, p, out, setup, key=TASK_PREFIX + p.key,
+                            retries=0)
         futures[fut] = p
     bar = _bar(total, reused, progress)
     computed = 0

@@ -19,11 +19,16 @@ A sweep point: (parameter set) -> metrics, by one pure function.
 ``Run(config, start_state=...)``, ``run.apply(Shock(...))``, ``run.advance(n)``)
 and keeps the numbers of :data:`METRICS`, which are the case's numbers (branch logic and
 all: cases.py's, not a copy). The result depends on the point only: not on the worker, the
-order or what ran before in the process. The one thing a worker keeps between points is the
-drive setup (branches and start state, ~1.5 s of shooting), cached per configuration: it is
-a pure function of the configuration, so the cache changes the cost only.
+order or what ran before in the process. What a point needs before it runs is the drive
+setup (branches and start state, ~1.7 s of shooting, a quarter of a 25 s point): a pure
+function of the configuration (the point without its shock), so computing it once per
+configuration changes the cost only. The engine makes it a task of its own,
+:func:`setup_task` (key :func:`setup_key`), once per configuration on the cluster, and
+hands it to every point of that configuration, whichever worker computes it; a point
+computed without one (:func:`evaluate`, :func:`compute` without ``setup``) takes it from
+this process's cache.
 
-:func:`compute` is the task a Dask worker runs: :func:`evaluate`, its wall time, an
+:func:`compute` is the task a Dask worker runs: :func:`evaluate`, its wall and CPU time, an
 exception turned into a failure record (with the point's parameters), and the record stored
 at once in the sweep's point directory when the worker can see it (a worker of a cluster
 without the client's file system cannot: the client stores it on receipt).
@@ -39,6 +44,8 @@ point back as the ``CaseResult`` of its run: the same envelopes, hence the same 
 """
 
 from collections import OrderedDict
+from dataclasses import dataclass
+import hashlib
 import json
 import math
 import os
@@ -55,8 +62,8 @@ from ring_gyro_sim.core.params import SimConfig, to_flat
 from ring_gyro_sim.sweep.spec import ALL_ENVELOPES, Point
 from ring_gyro_sim.sweep.store import PointStore
 
-__all__ = ['METRICS', 'OUTCOME_FIELDS', 'case_result', 'compute', 'evaluate',
-           'failure_record', 'kept_output']
+__all__ = ['METRICS', 'OUTCOME_FIELDS', 'SetupFailure', 'case_result', 'compute', 'evaluate',
+           'failure_record', 'kept_output', 'setup_key', 'setup_task']
 
 METRICS: Dict[str, tuple] = OrderedDict([
     ('final_branch', ('str', '', "branch q2 ends on: 'upper', 'lower', 'contact' ('none': "
@@ -84,6 +91,11 @@ SETUP_CACHE_SIZE = 32
 _SETUP_CACHE: 'OrderedDict[str, cases.DriveSetup]' = OrderedDict()
 
 
+def _config(point: Point) -> SimConfig:
+    """Return the configuration ``point`` runs (its shock is not part of it)."""
+    return point.case_spec().config(None, point.output_rate_hz)
+
+
 def _setup(config: SimConfig) -> cases.DriveSetup:
     """Return :func:`cases.drive_setup` of ``config``, from this process's cache if there."""
     key = json.dumps(to_flat(config), sort_keys=True)
@@ -98,12 +110,60 @@ def _setup(config: SimConfig) -> cases.DriveSetup:
     return found
 
 
-def run(point: Point) -> cases.CaseResult:
-    """Run ``point`` as a case (drive setup from this process's cache); its ``CaseResult``."""
+@dataclass(frozen=True)
+class SetupFailure:
+    """The drive setup of a configuration raised: what every point of it reports."""
+
+    error: str
+    traceback: str
+
+
+def setup_key(point: Point) -> str:
+    """
+    Return the key of the drive setup of ``point``: equal for the points of one configuration.
+
+    The first 16 hex digits of the SHA-256 of the configuration's flat parameters (canonical
+    JSON) and the package version: the points of a sweep that differ in their shock only
+    share it.
+
+    Raises
+    ------
+    Exception
+        The configuration cannot be built (the point will report it when computed).
+
+    """
+    text = json.dumps([__version__, to_flat(_config(point))], sort_keys=True, default=str)
+    return hashlib.sha256(text.encode('utf-8')).hexdigest()[:16]
+
+
+def setup_task(point: Point):
+    """
+    Compute the drive setup of ``point``'s configuration: the task the engine runs once.
+
+    Returns
+    -------
+    DriveSetup or SetupFailure
+        The setup (also kept in this process's cache), or what it raised (never raises: the
+        points of the configuration report it as their failure).
+
+    """
+    try:
+        return _setup(_config(point))
+    except Exception as exc:  # noqa: B902 - reported by each point of the configuration
+        return SetupFailure(f'{type(exc).__name__}: {exc}', traceback.format_exc())
+
+
+def run(point: Point, setup: Optional[cases.DriveSetup] = None) -> cases.CaseResult:
+    """
+    Run ``point`` as a case; its ``CaseResult``.
+
+    ``setup``: the drive setup of its configuration (:func:`setup_task`); None: from this
+    process's cache (computed there the first time).
+    """
     spec = point.case_spec()
     config = spec.config(None, point.output_rate_hz)
     return cases.run_case(spec, output_rate_hz=point.output_rate_hz, window_s=point.window_s,
-                          progress=False, setup=_setup(config))
+                          progress=False, setup=_setup(config) if setup is None else setup)
 
 
 def metrics_of(result: cases.CaseResult) -> Dict[str, Any]:
@@ -233,31 +293,45 @@ def failure_record(point: Point, error: str, detail: str = '') -> Dict[str, Any]
     """Return the record of a point that raised (or whose worker died): no metrics."""
     return {'key': point.key, 'coords': [[k, v] for k, v in point.coords],
             'parameters': point.parameters(), 'metrics': None, 'error': error,
-            'traceback': detail, 'wall_time_s': math.nan, 'worker': '',
-            'version': __version__}
+            'traceback': detail, 'wall_time_s': math.nan, 'cpu_time_s': math.nan,
+            'worker': '', 'version': __version__}
 
 
-def compute(point: Point, store_dir: Optional[str] = None) -> Dict[str, Any]:
+def compute(point: Point, store_dir: Optional[str] = None,
+            setup: Optional[Any] = None) -> Dict[str, Any]:
     """
     Evaluate ``point`` on a worker: its record, stored under ``store_dir`` if it exists.
 
+    ``setup`` is the result of :func:`setup_task` for the point's configuration (None: the
+    point takes it from this process's cache); a :class:`SetupFailure` is the point's
+    failure. Besides the metrics the record holds ``wall_time_s`` and ``cpu_time_s`` (the CPU
+    time of the thread that computed it, s; neither is reproducible) and the worker.
     Never raises for a failing point: the record's ``error`` says what happened.
     """
     wall0 = time.perf_counter()
-    try:
-        result = run(point)
-        metrics = metrics_of(result)
-        kept = kept_output(point, result) if point.envelopes else {}
-    except Exception as exc:  # noqa: B902 - any failure of one point is reported, not fatal
-        record = failure_record(point, f'{type(exc).__name__}: {exc}',
-                                traceback.format_exc())
+    cpu0 = time.thread_time()
+    if isinstance(setup, SetupFailure):
+        record = failure_record(point, setup.error, setup.traceback)
     else:
-        record = {'key': point.key, 'coords': [[k, v] for k, v in point.coords],
-                  'parameters': point.parameters(), 'metrics': metrics, 'error': None,
-                  'traceback': '', 'version': __version__}
-        record.update(kept)
+        record = _evaluated(point, setup)
     record['wall_time_s'] = time.perf_counter() - wall0
+    record['cpu_time_s'] = time.thread_time() - cpu0
     record['worker'] = f'{socket.gethostname()}:{os.getpid()}'
     if store_dir is not None and PointStore.reachable(store_dir):
         PointStore(store_dir, create=False).write(record)
+    return record
+
+
+def _evaluated(point: Point, setup: Optional[cases.DriveSetup]) -> Dict[str, Any]:
+    """Return the record of ``point`` run with ``setup``, or its failure record."""
+    try:
+        result = run(point, setup)
+        metrics = metrics_of(result)
+        kept = kept_output(point, result) if point.envelopes else {}
+    except Exception as exc:  # noqa: B902 - any failure of one point is reported, not fatal
+        return failure_record(point, f'{type(exc).__name__}: {exc}', traceback.format_exc())
+    record = {'key': point.key, 'coords': [[k, v] for k, v in point.coords],
+              'parameters': point.parameters(), 'metrics': metrics, 'error': None,
+              'traceback': '', 'version': __version__}
+    record.update(kept)
     return record

@@ -16,10 +16,10 @@
 Helpers of the sweep tests: tiny specs, the CLI in a subprocess, a separate Dask cluster.
 
 The tiny sweep (:data:`TINY`) is 2 x 2 points on one configuration (shock amplitude x shock
-phase), 0.5 s simulated each: the drive setup (shooting, ~1.5 s) is done once per worker and
-each point then runs in ~0.12 s (idle; RTF ~4.5), long enough for a worker to be killed or
-the client interrupted mid-sweep, short enough that a test's time is mostly the cluster's
-start.
+phase), 0.5 s simulated each: the drive setup (shooting, ~1.7 s) is done once on the cluster
+(a task the points depend on) and each point then runs in ~0.12 s (idle; RTF ~4.5), long
+enough for a worker to be killed or the client interrupted mid-sweep, short enough that a
+test's time is mostly the cluster's start.
 """
 
 import json

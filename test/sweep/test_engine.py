@@ -27,13 +27,14 @@ import shutil
 import signal
 import subprocess
 
+from distributed import LocalCluster, SchedulerPlugin
 import psutil
 import pytest
-from ring_gyro_sim.sweep import load_spec, run_sweep
-from ring_gyro_sim.sweep.engine import SweepError
+from ring_gyro_sim.sweep import load_spec, point, run_sweep
+from ring_gyro_sim.sweep.engine import SETUP_PREFIX, SweepError, TASK_PREFIX
 from ring_gyro_sim.sweep.results import open_results
 from sweep_harness import (assert_same_results, cli, DaskCluster, env, run_cli,
-                           START_TIMEOUT_S, stored, wait_for, worker_of, write_spec)
+                           START_TIMEOUT_S, stored, TINY, wait_for, worker_of, write_spec)
 
 FAILING = """\
 duration: 0.05
@@ -76,6 +77,34 @@ def test_two_workers_give_the_results_of_one(reference, tmp_path):
                                                          'shock.phase': [0.0, 0.5]}
     rows = (tmp_path / 'out' / 'results.csv').read_text().splitlines()
     assert rows[0].startswith('shock.peak_g,shock.phase,final_branch,') and len(rows) == 5
+
+
+class ComputedKeys(SchedulerPlugin):
+    """Every key the scheduler saw computed (processing -> memory), in order."""
+
+    def __init__(self):
+        self.keys = []
+
+    def transition(self, key, start, finish, *args, **kwargs):
+        if start == 'processing' and finish == 'memory':
+            self.keys.append(key)
+
+
+def test_one_drive_setup_per_configuration_on_two_workers(tmp_path):
+    two_q = TINY.replace('duration: 0.5', 'duration: 0.05').replace(
+        '  modes.quality_factors[0]: 40000.0\n', '') + \
+        '  modes.quality_factors[0]: [20000.0, 40000.0]\n'
+    spec = write_spec(tmp_path, two_q)                      # 8 points on 2 configurations
+    log = ComputedKeys()
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                      dashboard_address=None) as cluster:
+        cluster.scheduler.add_plugin(log)
+        outcome = sweep(spec, tmp_path / 'out', scheduler=cluster.scheduler_address)
+    assert outcome.computed == 8 and not outcome.failures
+    setups = [k for k in log.keys if k.startswith(SETUP_PREFIX)]
+    assert sorted(setups) == sorted(SETUP_PREFIX + point.setup_key(p)
+                                    for p in load_spec(str(spec)).points()[:2])
+    assert sum(k.startswith(TASK_PREFIX) for k in log.keys) == 8
 
 
 def test_resume_recomputes_no_stored_point(reference, tmp_path):

@@ -24,7 +24,7 @@ from ring_gyro_sim.analysis import cases
 from ring_gyro_sim.core.params import build_config
 from ring_gyro_sim.sweep import load_spec, point
 from ring_gyro_sim.sweep.store import PointStore
-from sweep_harness import write_spec
+from sweep_harness import TINY, write_spec
 
 
 def same(a, b):
@@ -69,6 +69,30 @@ def test_a_failing_point_is_a_record_with_its_parameters(tmp_path):
     assert record['parameters']['coords'] == {'shock.peak_g': 2000.0, 'shock.phase': 0.0}
     stored = json.loads(store.path(bad.key, failed=True).read_text())
     assert stored['error'] == record['error'] and not store.has(bad.key)
+
+
+def test_points_differing_in_their_shock_share_one_drive_setup(tmp_path):
+    two_q = TINY.replace('  modes.quality_factors[0]: 40000.0\n', '') + \
+        '  modes.quality_factors[0]: [20000.0, 40000.0]\n'
+    points = load_spec(str(write_spec(tmp_path, two_q))).points()   # 2 x 2 x 2, Q_1 last
+    keys = [point.setup_key(p) for p in points]
+    assert len(set(keys)) == 2 and keys == [keys[0], keys[1]] * 4   # one per Q_1
+    point._SETUP_CACHE.clear()
+    setup = point.setup_task(points[1])
+    assert isinstance(setup, cases.DriveSetup) and len(point._SETUP_CACHE) == 1
+    assert setup.branches.upper_m > 1.5 * setup.branches.lower_m > 0.0
+
+
+def test_a_failed_drive_setup_is_the_failure_of_its_points(tmp_path):
+    p = load_spec(str(write_spec(tmp_path))).points()[0]
+    bad = replace(p, overrides=p.overrides + (('modes.frequencies', 'not a list'),))
+    failed = point.setup_task(bad)                            # does not raise
+    assert isinstance(failed, point.SetupFailure) and 'Traceback' in failed.traceback
+    store = PointStore(tmp_path / 'out')
+    record = point.compute(p, str(tmp_path / 'out'), setup=failed)
+    assert record['metrics'] is None and record['error'] == failed.error
+    assert record['traceback'] == failed.traceback and record['cpu_time_s'] >= 0.0
+    assert store.read_failure(p.key)['error'] == failed.error and not store.has(p.key)
 
 
 def test_store_writes_whole_records_and_nan_as_null(tmp_path):
