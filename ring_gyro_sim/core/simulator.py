@@ -660,9 +660,10 @@ class Simulator:
         if loop is not None:
             rows = np.empty((n_samples, len(control.CONTROL_CHANNELS)))
             channels = self._channel_arrays(n_samples)
-            # The noise of the whole call at once (addressed by sample index, so the same
-            # as per stretch): a generator per 1 ms stretch cost more than its numbers.
-            force_noise = self._force_noise(n_samples)
+            # The normals of the whole call at once (addressed by sample index, so the same
+            # as per stretch; scaled per stretch, by the levels then in force): a generator
+            # per 1 ms stretch cost more than its numbers.
+            force_noise = self._unit_force_noise(n_samples)
             pickoff_noise = loop.pickoff.noise(self.sample_index, n_samples)
         done = 0
         while done < n_samples:
@@ -678,8 +679,10 @@ class Simulator:
                                 rate[done:done + stop])
             first = self.sample_index
             noise_part = None
-            if loop is not None and force_noise.size:
-                noise_part = force_noise[done * self.n_sub:(done + stop) * self.n_sub]
+            if force_noise is not None:
+                noise_part = np.ascontiguousarray(
+                    force_noise[done * self.n_sub:(done + stop) * self.n_sub]
+                    * self._noise_sigma[None, :])
             self._integrate(stop, out_q[done:done + stop], out_v[done:done + stop],
                             noise_part)
             if loop is not None and stop > 0:
@@ -795,13 +798,20 @@ class Simulator:
 
     def _force_noise(self, count: int) -> np.ndarray:
         """Velocity impulses (m/s) of the thermomechanical noise for ``count`` samples."""
+        z = self._unit_force_noise(count)
+        if z is None:
+            return _NO_NOISE
+        return np.ascontiguousarray(z * self._noise_sigma[None, :])
+
+    def _unit_force_noise(self, count: int) -> Optional[np.ndarray]:
+        """Return the force noise's standard normals, shape (count n_sub, n); None: no noise."""
         sigma = self._noise_sigma
         if count <= 0 or not np.any(sigma > 0.0):
-            return _NO_NOISE
+            return None
         n = sigma.size
         z = noise.normals(self._noise_seed, noise.STREAM_BROWNIAN, self.sample_index, count,
                           self.n_sub * n)
-        return np.ascontiguousarray((z.reshape(count * self.n_sub, n) * sigma[None, :]))
+        return z.reshape(count * self.n_sub, n)
 
     def _profile_arrays(self, t_start: float, t_end: float):
         """

@@ -110,6 +110,23 @@ def test_closed_loop_is_chunk_invariant_and_runs_without_the_gyroscope():
     assert pieces[0][1][-1, COL['locked']] == 1.0
 
 
+def test_closed_loop_noise_follows_a_parameter_change_inside_a_call():
+    # The gyroscope with its noise, closed loop, Q changed at 3.0005 ms (inside a call and
+    # inside a loop period): the noise levels in force act from then on, whatever the cuts.
+    config = config_of('gyro.yaml', **{'control.drive_loop': 'closed'})
+    state = start_of(config)
+    q_new = list(config.modes.quality_factors)
+    q_new[1] = 20000.0
+    runs = []
+    for cuts in ((2000,), (333, 1, 1200, 466)):
+        sim = Simulator(config)
+        sim.set_state(*state)
+        sim.update_parameters({'modes.quality_factors': q_new}, at_ns=3_000_500)
+        parts = [sim.advance_samples(n) for n in cuts]
+        runs.append(np.concatenate([p.q for p in parts]))
+    assert np.array_equal(runs[0], runs[1])
+
+
 def test_agc_recovers_the_drive_after_the_paper_shock_that_the_open_loop_loses():
     # Case 3 (Q1 = 40 000, 10 000 g at 0.5 s): open loop the drive ends on its lower branch
     # (test_gyro.py: pick-off at 0.09 of its value). Closed loop the shock throws the PLL
