@@ -15,12 +15,19 @@
 """
 Read ROS 2 bags (MCAP), including what a killed recorder left behind.
 
-A finished file is read through its summary and indexes (seeking, in log-time order). A file
-without a valid summary, such as one truncated by ``kill -9``, is read linearly from the start:
-everything up to the first incomplete or corrupt record (in practice: every completed chunk and
-every metadata record before it) is returned and the rest is ignored; one warning line (logger
-``ring_gyro_sim.recording.reader``, once per file and process) says where the reading stopped
-and that ``ring_gyro recover FILE`` writes a complete copy that every MCAP reader opens.
+A finished file is read through its summary and indexes (seeking, in log-time order), once
+the summary matches the CRC in the footer. A file without a valid summary, such as one
+truncated by ``kill -9`` or one whose summary is damaged, is read linearly from the start:
+everything up to the first incomplete, corrupt or implausible record (in practice: every
+completed chunk and every metadata record before it) is returned and nothing after it, so the
+messages are a prefix of those written, never a later chunk after a damaged record; one
+warning line (logger ``ring_gyro_sim.recording.reader``, once per file and process) says
+where the reading stopped and that ``ring_gyro recover FILE`` writes a complete copy that
+every MCAP reader opens. The linear read (:func:`_linear_records`) is stricter than mcap's
+``StreamReader``, which skips records of unknown types for forward compatibility: here a
+record type it does not know (a newer writer's, a private one) ends it too. The messages are
+guarded by the chunk CRCs (``BagWriter`` always writes them); metadata records carry no CRC
+of their own, so a damaged byte inside a metadata value of a killed file can go unnoticed.
 
 A corrupt record found through the index of a finished file (a file written by two recorders
 at once, a damaged disk) raises a :class:`~ring_gyro_sim.recording.errors.RecordingError`
@@ -42,11 +49,15 @@ import logging
 import os
 import pathlib
 import struct
+import zlib
 
-from mcap.exceptions import McapError
+from mcap.data_stream import ReadDataStream
+from mcap.exceptions import EndOfFile, McapError
+from mcap.opcode import Opcode
 from mcap.reader import SeekingReader
-from mcap.records import Channel, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
+from mcap.records import (
+    Attachment, Channel, Chunk, DataEnd, Header, Message, MessageIndex, Metadata, Schema)
+from mcap.stream_reader import CRCValidationError, get_chunk_data_stream
 import numpy as np
 from rclpy.serialization import deserialize_message
 
@@ -67,6 +78,8 @@ _MAGIC = b'\x89MCAP0\r\n'
 # channel that does not exist (KeyError) or to a length beyond the data.
 _TRUNCATION_ERRORS = (McapError, ValueError, struct.error, EOFError, ZstdError, KeyError,
                       IndexError, RuntimeError, OverflowError, MemoryError)
+# Reading through the index also: a damaged chunk offset that the file cannot seek to (EINVAL).
+_INDEXED_READ_ERRORS = (*_TRUNCATION_ERRORS, OSError)
 
 #: Name of the metadata record of a run (written by ``ring_gyro_sim.ros.recorder``).
 RUN_METADATA_NAME = 'ring_gyro_sim'
@@ -173,27 +186,190 @@ def _summary(reader):
         return None
 
 
+_FOOTER = struct.Struct('<BQQQI')  # opcode, length, summary start, summary offsets start, CRC
+
+
+def _summary_crc_matches(stream):
+    """
+    Tell whether the summary section and footer of a finished file match the footer's CRC.
+
+    mcap does not check it, and takes what a damaged summary leaves (it skips a chunk index
+    whose opcode is damaged; a damaged start time reorders the messages). True if the footer
+    gives no CRC (0) or cannot be read (the summary is not used then).
+    """
+    size = _size(stream)
+    footer_start = size - len(_MAGIC) - _FOOTER.size
+    if footer_start < len(_MAGIC):
+        return True
+    stream.seek(footer_start, io.SEEK_SET)
+    footer = stream.read(_FOOTER.size)
+    _, _, summary_start, _, expected = _FOOTER.unpack(footer)
+    if expected == 0:
+        return True
+    if not len(_MAGIC) <= summary_start <= footer_start:
+        return False
+    # From the summary's start up to the footer's CRC field.
+    stream.seek(summary_start, io.SEEK_SET)
+    crc, left = 0, footer_start + _FOOTER.size - 4 - summary_start
+    while left > 0:
+        data = stream.read(min(left, 1 << 20))
+        if not data:
+            return False
+        crc, left = zlib.crc32(data, crc), left - len(data)
+    return crc == expected
+
+
+def _intact_summary(reader, stream):
+    """Return the summary of a complete file, or None if it has none, or a damaged one."""
+    summary = _summary(reader)
+    if summary is None or not _summary_crc_matches(stream):
+        return None
+    return summary
+
+
+class _DamagedRecord(McapError):
+    """A record whose bytes are not what its opcode and length announce."""
+
+
+# The records a linear read accepts: the header first, then only what a data section holds,
+# and inside chunks only schemas, channels and messages. Anything else ends the read (see
+# _linear_records).
+_HEADER_RECORDS = {Opcode.HEADER: Header}
+_DATA_RECORDS = {
+    Opcode.SCHEMA: Schema, Opcode.CHANNEL: Channel, Opcode.MESSAGE: Message,
+    Opcode.CHUNK: Chunk, Opcode.MESSAGE_INDEX: MessageIndex, Opcode.ATTACHMENT: Attachment,
+    Opcode.METADATA: Metadata, Opcode.DATA_END: DataEnd,
+}
+_CHUNK_RECORDS = {Opcode.SCHEMA: Schema, Opcode.CHANNEL: Channel, Opcode.MESSAGE: Message}
+_CHUNK_COMPRESSIONS = ('', 'zstd', 'lz4')
+# Where a file keeps its messages, by the record that tells: all in chunks or none outside
+# them, as every MCAP writer does.
+_STORAGE = {Chunk: 'in chunks', MessageIndex: 'in chunks', Message: 'outside chunks'}
+_RECORD_HEAD = struct.Struct('<BQ')  # opcode, length of the fields
+
+
+class _RecordFields(ReadDataStream):
+    """The fields of one record: reading past them is damage, not the end of the file."""
+
+    def __init__(self, body):
+        super().__init__(io.BytesIO(body))
+        self._length = len(body)
+
+    def read(self, length):
+        if length < 0 or self.count + length > self._length:
+            raise _DamagedRecord('its fields run past its length')
+        return super().read(length)
+
+
+def _record(opcode, body, kinds):
+    """Return the record of ``opcode`` read with mcap's parser; its fields must fill ``body``."""
+    kind = kinds.get(opcode)
+    if kind is None:
+        raise _DamagedRecord(f'unexpected record opcode 0x{opcode:02x}')
+    fields = _RecordFields(body)
+    record = kind.read(fields, len(body)) if kind is Message else kind.read(fields)
+    if fields.count != len(body):
+        raise _DamagedRecord(f'a {kind.__name__} record of {len(body)} bytes whose fields '
+                             f'take {fields.count}')
+    return record
+
+
+def _chunk_records(chunk):
+    """Return the records of ``chunk`` once its size and CRC are checked."""
+    if chunk.compression not in _CHUNK_COMPRESSIONS:
+        # mcap would take the compressed bytes as records.
+        raise _DamagedRecord(f'a chunk compressed with unknown {chunk.compression!r}')
+    stream, size = get_chunk_data_stream(chunk, validate_crc=True)
+    if size != chunk.uncompressed_size:
+        raise _DamagedRecord(f'a chunk of {size} bytes announced as {chunk.uncompressed_size}')
+    data = stream.read(size)
+    records, offset = [], 0
+    while offset < size:
+        if size - offset < _RECORD_HEAD.size:
+            raise _DamagedRecord('a chunk that ends inside a record')
+        opcode, length = _RECORD_HEAD.unpack_from(data, offset)
+        offset += _RECORD_HEAD.size
+        if length > size - offset:
+            raise _DamagedRecord('a chunk that ends inside a record')
+        records.append(_record(opcode, data[offset:offset + length], _CHUNK_RECORDS))
+        offset += length
+    return records
+
+
+def _storage(record, storage):
+    """
+    Return where the file keeps its messages (None: not known yet), ``record`` included.
+
+    A message record among chunks is another record damaged into one (one flipped bit makes a
+    message index a message, whose fields then fill its length), and a message index comes
+    after its chunk.
+    """
+    where = _STORAGE.get(type(record))
+    if where is None:
+        return storage
+    if storage is None and isinstance(record, MessageIndex):
+        raise _DamagedRecord('a message index before any chunk')
+    if storage not in (None, where):
+        raise _DamagedRecord(f'a {type(record).__name__} record in a file whose messages are '
+                             f'{storage}')
+    return where
+
+
 def _linear_records(stream, stop=None):
     """
     Yield the records of a possibly truncated file until the first unreadable one.
 
-    The records of a chunk come only once the whole chunk has been read and checked. If
-    ``stop`` is a list, (byte offset of the first unreadable record, reason) is appended to it
-    when reading stops before the end of the file.
+    The records of a chunk come only once the whole chunk has been read and checked. Reading
+    ends at the data section's end (DataEnd: the summary only repeats what came before) or
+    at the first record that is incomplete or fails a check: an opcode that does not belong
+    there, fields that do not fill the record's length exactly, a message record among
+    chunks, a chunk's size, compression or CRC, the data section's CRC. It never goes on
+    after such a record. mcap's StreamReader does: it skips records of unknown opcodes (room
+    for record types added later) and ignores lengths that disagree with the fields, so one
+    damaged opcode made it skip a whole chunk and go on with the next. If ``stop`` is a list,
+    (byte offset of the first unreadable record, reason) is appended to it when reading stops
+    before the end of the file.
     """
-    records = StreamReader(stream, validate_crcs=True).records
+    size = _size(stream)
     good = stream.tell()
+    kinds, storage = _HEADER_RECORDS, None
+    try:
+        magic = stream.read(len(_MAGIC))
+        if magic != _MAGIC:
+            raise _DamagedRecord('no MCAP magic at its start')
+    except _TRUNCATION_ERRORS as exc:
+        if stop is not None:
+            stop.append((good, _reason(exc)))
+        return
+    crc = zlib.crc32(magic)
     while True:
-        try:
-            record = next(records)
-        except StopIteration:
+        good = stream.tell()
+        head = stream.read(_RECORD_HEAD.size)
+        if not head:
             return
+        try:
+            if len(head) < _RECORD_HEAD.size:
+                raise EndOfFile()
+            opcode, length = _RECORD_HEAD.unpack(head)
+            if length > size - stream.tell():
+                raise EndOfFile()
+            body = stream.read(length)
+            if len(body) < length:
+                raise EndOfFile()
+            record = _record(opcode, body, kinds)
+            if isinstance(record, DataEnd):
+                if record.data_section_crc not in (0, crc):
+                    raise CRCValidationError(record.data_section_crc, crc, record)
+                return
+            storage = _storage(record, storage)
+            records = _chunk_records(record) if isinstance(record, Chunk) else (record,)
         except _TRUNCATION_ERRORS as exc:
-            if stop is not None and good < _size(stream):
+            if stop is not None:
                 stop.append((good, _reason(exc)))
             return
-        good = stream.tell()
-        yield record
+        crc = zlib.crc32(body, zlib.crc32(head, crc))
+        kinds = _DATA_RECORDS
+        yield from records
 
 
 def _bag_message(schema, channel, message):
@@ -214,13 +390,13 @@ def _iter_messages(path, topics):
             return
         stream.seek(0, io.SEEK_SET)
         reader = SeekingReader(stream, validate_crcs=True)
-        summary = _summary(reader)
+        summary = _intact_summary(reader, stream)
         if summary is not None and summary.chunk_indexes:
             try:
                 for schema, channel, message in reader.iter_messages(
                         topics=topics, log_time_order=True):
                     yield _bag_message(schema, channel, message)
-            except _TRUNCATION_ERRORS as exc:
+            except _INDEXED_READ_ERRORS as exc:
                 raise _corrupt(path, exc) from exc
             return
         stream.seek(0, io.SEEK_SET)
@@ -258,7 +434,7 @@ def read_topics(path):
         if len(stream.read(len(_MAGIC))) < len(_MAGIC):
             return {}
         stream.seek(0, io.SEEK_SET)
-        summary = _summary(SeekingReader(stream))
+        summary = _intact_summary(SeekingReader(stream), stream)
         if summary is not None:
             schemas, channels = summary.schemas, summary.channels.values()
         else:
@@ -318,7 +494,7 @@ def read_metadata(path, name):
         if len(stream.read(len(_MAGIC))) == len(_MAGIC):
             stream.seek(0, io.SEEK_SET)
             reader = SeekingReader(stream, validate_crcs=True)
-            summary = _summary(reader)
+            summary = _intact_summary(reader, stream)
             indexed = summary is not None and (
                 summary.statistics is None
                 or summary.statistics.metadata_count <= len(summary.metadata_indexes))
@@ -326,7 +502,7 @@ def read_metadata(path, name):
                 try:
                     records = [record for record in reader.iter_metadata()
                                if record.name == name]
-                except _TRUNCATION_ERRORS as exc:
+                except _INDEXED_READ_ERRORS as exc:
                     raise _corrupt(path, exc) from exc
             else:
                 stream.seek(0, io.SEEK_SET)

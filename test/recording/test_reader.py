@@ -14,6 +14,7 @@
 
 """Tests of ring_gyro_sim.recording.reader, including files cut short by a killed recorder."""
 
+import io
 import logging
 import os
 import signal
@@ -224,18 +225,58 @@ def contents(messages):
     return [(m.topic, m.log_time_ns, m.data) for m in messages]
 
 
+VALUE_TOPIC = '/ring_gyro/value'
+
+
+def value_data(value):
+    """
+    Return the CDR of a std_msgs/Float64, built here: the same bytes on every run.
+
+    rclpy leaves alignment padding uninitialised, so the bytes of serialized blocks, the
+    compressed chunks holding them and their offsets in a file differ from one process to the
+    next: a test that damages given offsets would damage other fields on every run.
+    """
+    return struct.pack('<4sd', b'\x00\x01\x00\x00', value)  # encapsulation: CDR, little endian
+
+
+def write_values(path, count, chunk_size):
+    """Record ``count`` values at increasing log times, in small chunks, as a run is recorded."""
+    with BagWriter(path, chunk_size=chunk_size) as bag:
+        bag.add_topic(VALUE_TOPIC, 'std_msgs/msg/Float64')
+        bag.add_metadata('ring_gyro_sim', samples.RUN_METADATA)
+        for b in range(count):
+            bag.write(VALUE_TOPIC, value_data(0.5 * b), b * BLOCK_PERIOD_NS)
+    return path
+
+
+def killed_before_finish(data):
+    """Return the bytes of a finished file up to its rosbag2 record: a killed recorder's."""
+    summary = mcap.reader.make_reader(io.BytesIO(data)).get_summary()
+    return data[:next(index.offset for index in summary.metadata_indexes
+                      if index.name == 'rosbag2')]
+
+
 def test_corrupt_bytes_give_a_clean_end_or_a_recording_error(tmp_path):
     """Two recorders on one file, a damaged disk: never another exception."""
-    path = write_blocks(tmp_path / 'full.mcap', 60, chunk_size=1024)
+    path = write_values(tmp_path / 'full.mcap', 16, chunk_size=160)
     data = path.read_bytes()
     original = contents(read_messages(path))
+    assert len(chunk_layout(path)) == 5
+    assert decode(next(read_messages(path))).data == 0.0  # a std_msgs/Float64
     damaged = tmp_path / 'damaged.mcap'
     outcomes = {'clean': 0, 'error': 0}
-    # A prime step hits every kind of record and field somewhere; the file is read through its
-    # index (finished) and linearly (the same bytes without the summary: a killed recorder).
-    for variant in ('finished', 'killed'):
-        source = data if variant == 'finished' else data[:summary_start(data)]
-        for position in range(8, len(source), 97):  # after the magic
+    # Read linearly: a killed recorder's file, every byte after the magic, so every field of
+    # every record whatever its offset (1 600 positions). Read through the index: the finished
+    # file, every byte of the summary, which the index read relies on, and the data section
+    # (its chunks CRC-checked) at a prime step (1 600 positions): about 3.5 s in all.
+    killed = killed_before_finish(data)
+    summary = summary_start(data)
+    variants = {
+        'killed': (killed, range(8, len(killed))),
+        'finished': (data, [*range(8, summary, 97), *range(summary, len(data))]),
+    }
+    for variant, (source, positions) in variants.items():
+        for position in positions:
             corrupt = bytearray(source)
             corrupt[position] ^= 0xFF
             damaged.write_bytes(bytes(corrupt))
@@ -247,10 +288,64 @@ def test_corrupt_bytes_give_a_clean_end_or_a_recording_error(tmp_path):
                 outcomes['error'] += 1
                 continue
             outcomes['clean'] += 1
-            if variant == 'killed':
-                # Reading stopped at the damaged record: what came back is what was written.
-                assert read == original[:len(read)], position
+            # Reading stopped at the damaged record (or did not need it): what came back is
+            # what was written, in order, nothing skipped.
+            assert read == original[:len(read)], (variant, position)
     assert outcomes['clean'] > 0 and outcomes['error'] > 0, outcomes
+
+
+@pytest.mark.parametrize('damage', ['opcode', 'length', 'index_as_message'])
+def test_a_damaged_record_ends_a_linear_read(tmp_path, caplog, damage):
+    # A killed file, damaged after its second chunk: the third chunk's opcode (unknown now), the
+    # length of the index record after the second chunk (reaching the fourth chunk now), or one
+    # bit of that record's opcode (a message record now, that the index's fields fill). mcap's
+    # StreamReader skipped the third chunk or returned a message never written.
+    path = write_values(tmp_path / 'full.mcap', 16, chunk_size=160)
+    layout = chunk_layout(path)
+    assert len(layout) == 5
+    data = bytearray(killed_before_finish(path.read_bytes()))
+    if damage == 'opcode':
+        stop = layout[2][0]
+        data[stop] ^= 0xFF
+    else:
+        stop = layout[1][1]  # the first message index record after the second chunk
+        assert data[stop] == 0x07
+        if damage == 'length':
+            struct.pack_into('<Q', data, stop + 1, layout[3][0] - stop - 9)
+        else:
+            data[stop] ^= 0x02
+    killed = tmp_path / 'killed.mcap'
+    killed.write_bytes(bytes(data))
+    expected = layout[0][2] + layout[1][2]
+    with caplog.at_level(logging.WARNING, logger='ring_gyro_sim.recording.reader'):
+        read = list(read_messages(killed))
+    assert contents(read) == contents(read_messages(path))[:expected]
+    assert f'read up to byte {stop} of {len(data)}' in caplog.records[0].getMessage()
+
+
+@pytest.mark.parametrize('damage', ['opcode', 'start_time', 'offset'])
+def test_a_damaged_summary_is_not_trusted(tmp_path, damage):
+    # mcap does not check the summary's CRC: it skipped a chunk index whose opcode is damaged
+    # (that chunk's messages were missing), read the chunks in the order of a damaged start
+    # time (messages out of order) and seeked to a damaged offset (OSError). Checked, the
+    # summary is not used and the intact data section is read linearly.
+    path = write_values(tmp_path / 'full.mcap', 16, chunk_size=160)
+    original = contents(read_messages(path))
+    data = bytearray(path.read_bytes())
+    with open(path, 'rb') as stream:
+        index = mcap.reader.make_reader(stream).get_summary().chunk_indexes[1]
+    fields = data.index(struct.pack('<QQQ', index.message_start_time, index.message_end_time,
+                                    index.chunk_start_offset), summary_start(data))
+    if damage == 'opcode':
+        data[fields - 9] ^= 0xFF
+    elif damage == 'start_time':
+        struct.pack_into('<Q', data, fields, original[-1][1] + 1)
+    else:
+        data[fields + 16 + 6] ^= 0xFF
+    damaged = tmp_path / 'damaged.mcap'
+    damaged.write_bytes(bytes(data))
+    assert contents(read_messages(damaged)) == original
+    assert read_metadata(damaged, 'ring_gyro_sim') == samples.RUN_METADATA
 
 
 def test_invalid_utf8_in_an_indexed_file_is_a_recording_error(tmp_path):
