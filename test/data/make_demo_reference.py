@@ -26,13 +26,19 @@ physics is meant to change, and say why in the commit. (The file was written thr
 Simulator directly; it is now computed through :class:`ring_gyro_sim.run.Run`, the one run
 path, which must give the same samples.)
 
-The samples depend on the numerical libraries in their last bits (the start state is a
-shooting solve through scipy; numba compiles the kernel through LLVM), so the file records
-the versions it was made with (:func:`versions`). It was regenerated on 2026-12-02 with the
+The samples depend on the numerical libraries and on the CPU in their last bits (the start
+state is a shooting solve through scipy, whose OpenBLAS picks its kernels by the CPU: on one
+host, ``OPENBLAS_CORETYPE=Sandybridge`` moves the start state's q1 by 4e-12 of itself against
+the default Zen/Haswell kernels; numba compiles the kernel through LLVM for the host CPU), so
+the file records the versions (:func:`versions`) and the machine (:func:`machine`) it was made
+with. CI machines differ: on 2026-12-02 the reference made on one host failed bit for bit on
+the next one (4.9e-16 in q, 4e-11 of the peak after the shock). It was regenerated on 2026-12-02 with the
 tree of commit fd02a0a when new wheels (numpy 2.4.6, scipy 1.17.1, numba 0.68.1, llvmlite
 0.50.0) moved the 14aa740 reference by up to 8.6e-11 of a channel's peak (1e-12 in the first
 sample, the start state; the 10 000 g shock amplifies it); fd02a0a and the tree of issue 14
-give the same samples bit for bit under those versions.
+give the same samples bit for bit under those versions. It was regenerated again the same day,
+with the unchanged tree of commit 9f5620c, on a znver3 host, to record its machine (the samples
+moved by up to 4.3e-11 of a peak, the start state by 1.1e-12: the CPU, not the tree).
 """
 
 import hashlib
@@ -73,6 +79,20 @@ def versions():
     return ';'.join(f'{m.__name__}={m.__version__}' for m in (np, scipy, numba, llvmlite))
 
 
+def machine():
+    """
+    Return the CPU the samples were computed on: LLVM's name for it and a hash of its features.
+
+    The name (``znver3``, ``skylake-avx512``...) is what numba compiles for and, with the
+    features (AVX-512 or not), what OpenBLAS chooses its kernels by.
+    """
+    import hashlib
+    import llvmlite.binding as llvm
+    features = str(llvm.get_host_cpu_features().flatten())
+    tag = hashlib.sha256(features.encode()).hexdigest()[:12]
+    return f'cpu={llvm.get_host_cpu_name()};features={tag}'
+
+
 def digest(array):
     """Return the SHA-256 (hex) of a float64 array's bytes."""
     return hashlib.sha256(np.ascontiguousarray(array, dtype=np.float64).tobytes()).hexdigest()
@@ -83,4 +103,5 @@ if __name__ == '__main__':
     stored = {name: a[::DECIMATION] for name, a in channels.items()}
     stored.update({f'sha256_{name}': np.array(digest(a)) for name, a in channels.items()})
     stored['versions'] = np.array(versions())
+    stored['machine'] = np.array(machine())
     np.savez_compressed(HERE / 'demo_reference.npz', **stored)
