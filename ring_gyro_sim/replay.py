@@ -21,6 +21,16 @@ KeepLast(100): what the node offers, so estimators with default subscriptions co
 With ``--clock`` the log time is also published on ``/clock`` before each message (for
 subscribers that run on ``use_sim_time``).
 
+Timing
+    Every message has an absolute deadline on the monotonic clock, computed from the first
+    message's start, never from the previous publication: no message is published before its
+    deadline, and the small delay of each wake-up does not add up over a replay. A stall of
+    the host (a loaded machine that does not run the replay for a while) delays the messages
+    due during it; when the replay runs again it publishes those at once and is back on
+    schedule with the next one: a stall costs lateness once, it does not shift what follows.
+    Nothing is dropped to catch up. :attr:`ReplayResult.max_lag_s` (and the closing note)
+    says how far behind its deadline the latest message was published.
+
 Discovery
     Volatile publishers deliver only to subscribers they have matched, so the first message
     waits ``DISCOVERY_WAIT_S``; on a loaded machine discovery can take longer and the first
@@ -99,6 +109,11 @@ class ReplayResult:
         Gaps longer than ``max_gap_s`` that were shortened.
     skipped_s : float
         Log time skipped by shortening them, s.
+    max_lag_s : float
+        Largest delay between a message's deadline and its publication, s (monotonic clock of
+        the replaying process).
+    max_lag_log_time_ns : int or None
+        Log time of that message, ns.
 
     """
 
@@ -107,6 +122,8 @@ class ReplayResult:
     stopped_by: Optional[str] = None
     shortened_gaps: int = 0
     skipped_s: float = 0.0
+    max_lag_s: float = 0.0
+    max_lag_log_time_ns: Optional[int] = None
 
     def describe(self) -> str:
         """Return the one-line note ``ring_gyro replay`` prints at the end."""
@@ -118,6 +135,9 @@ class ReplayResult:
         if self.shortened_gaps:
             text += (f' ({self.shortened_gaps} gap(s) shortened, {self.skipped_s:.6g} s of '
                      'log time skipped)')
+        if self.published:
+            text += (f'; latest publication {self.max_lag_s * 1e3:.3g} ms after its '
+                     f'deadline (log time {self.max_lag_log_time_ns * 1e-9:.9g} s)')
         return text
 
 
@@ -323,6 +343,9 @@ def _publish(path, rate, clock, topics, discovery_wait_s, node_name, max_gap_s, 
             due = start + (m.log_time_ns - first - skipped_ns) * 1e-9 / rate
             if not _sleep_until(due, stop):
                 break
+            lag_s = time.monotonic() - due
+            if result.max_lag_log_time_ns is None or lag_s > result.max_lag_s:
+                result.max_lag_s, result.max_lag_log_time_ns = lag_s, m.log_time_ns
             if clock_pub is not None:
                 clock_pub.publish(clock_message(m.log_time_ns))
             publishers[m.topic].publish(m.data)

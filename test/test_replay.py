@@ -19,6 +19,12 @@ A short run is recorded offline; ``ring_gyro replay`` publishes it from its own 
 subscriber node in this process receives it. The subscriber has its own rclpy context in a
 ROS domain of its own (215-232, apart from the node tests' 100-199), discovery limited to this
 machine, so that it neither disturbs nor is disturbed by other sessions.
+
+Timing is judged on the publication times (the DDS source timestamps, taken by the replaying
+process as it publishes), not on when this process's executor got round to a message: on a
+loaded 2-core host the latter trailed the publication by up to 47 ms while the replay itself
+was within 14 ms of its schedule. The replay's contract (replay.py, "Timing"): absolute
+deadlines, a stall of the host costs lateness once and is caught up, nothing accumulates.
 """
 
 import os
@@ -58,7 +64,12 @@ BLOCK_S = 0.05
 """Log-time spacing of the recorded blocks, s."""
 DURATION_S = 0.6
 JITTER_S = 0.025
-"""Allowed deviation of one arrival from its schedule (scheduling and discovery), s."""
+"""Allowed deviation of one publication from its schedule (scheduling), s."""
+ON_TIME_S = 0.005
+"""
+A publication counts as on schedule within this of its deadline, s: a wake-up and a publish
+(on an idle host the median lag is 0.1 ms, on a loaded one the largest 14 ms).
+"""
 
 
 def replay_command():
@@ -79,14 +90,36 @@ def recording(tmp_path_factory):
 
 
 class Received:
-    """What one replay delivered: [(wall arrival, topic, message)] and the replay's output."""
+    """
+    What one replay delivered: [(wall arrival, topic, message)] and the replay's output.
 
-    def __init__(self, items, result):
+    ``published`` maps each topic to the source timestamps of its messages (ns, the
+    publisher's system clock), in the order they arrived.
+    """
+
+    def __init__(self, items, result, published):
         self.items = items
         self.returncode, self.stderr = result
+        self._published = published
 
     def topic(self, name):
         return [(wall, msg) for wall, topic, msg in self.items if topic == name]
+
+    def published_ns(self, name):
+        """Publication times of the messages of topic ``name`` (ns, the replay's clock)."""
+        return np.array(self._published.get(name, []), dtype=np.int64)
+
+    def schedule(self, path):
+        """Return (publication ns, log time ns) of every received message of the recording."""
+        published, log = [], []
+        for topic in read_topics(path):
+            times = [m.log_time_ns for m in read_messages(path, topic)]
+            sent = self.published_ns(topic)
+            assert len(sent) == len(times), topic
+            published.extend(sent)
+            log.extend(times)
+        order = np.argsort(log, kind='stable')
+        return np.array(published, dtype=np.int64)[order], np.array(log, dtype=np.int64)[order]
 
     def count(self, name):
         return len(self.topic(name))
@@ -102,14 +135,18 @@ def replay_and_receive(path, *args, timeout=60.0, during=None):
     rclpy.init(context=context, domain_id=DOMAIN_ID)
     node = rclpy.create_node(f'replay_probe_{os.getpid()}', context=context)
     items = []
+    published = {}
+
+    def received(msg, info, name):
+        items.append((time.monotonic(), name, msg))
+        published.setdefault(name, []).append(info['source_timestamp'])
     # Every topic of the recording (channels without messages too: the replay waits until
     # each of its publishers has a subscriber), and /clock.
     types = {**{t: message_class(name) for t, name in read_topics(path).items()},
              **TOPIC_TYPES} if pathlib.Path(path).stat().st_size else dict(TOPIC_TYPES)
     for name, msg_type in types.items():
         node.create_subscription(
-            msg_type, name,
-            lambda msg, name=name: items.append((time.monotonic(), name, msg)), 200)
+            msg_type, name, lambda msg, info, name=name: received(msg, info, name), 2000)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     env = dict(os.environ)
@@ -142,7 +179,7 @@ def replay_and_receive(path, *args, timeout=60.0, during=None):
         executor.shutdown()
         node.destroy_node()
         context.try_shutdown()
-    got = Received(items, (proc.returncode, err_path.read_text(errors='replace')))
+    got = Received(items, (proc.returncode, err_path.read_text(errors='replace')), published)
     got.end = end
     return got
 
@@ -152,18 +189,48 @@ def recorded_blocks(path, topic=f'{NS}/modal_displacement'):
     return [(m.log_time_ns, np.array(decode(m).data)) for m in read_messages(path, topic)]
 
 
-def check_spacing(received, recorded, rate):
-    """Arrivals follow the log times divided by ``rate`` within the jitter."""
-    walls = np.array([w for w, _ in received])
-    log_s = np.array([t for t, _ in recorded]) * 1e-9
-    expected = (log_s - log_s[0]) / rate
-    actual = walls - walls[0]
-    deviation = np.max(np.abs(actual - expected))
-    median = float(np.median(np.diff(walls)))
-    print(f'rate {rate}: median spacing {median * 1e3:.1f} ms (expected '
-          f'{BLOCK_S / rate * 1e3:.1f} ms), largest deviation {deviation * 1e3:.1f} ms')
+def publication_lags(published_ns, log_ns, rate):
+    """
+    Return how late each message was published against the replay's schedule, s.
+
+    The schedule is the log times divided by ``rate`` from an origin the publisher does not
+    tell: the earliest publication relative to it (the replay never publishes early, so that
+    one was at most a wake-up late) is taken as on time.
+    """
+    lag = (published_ns - published_ns[0]) * 1e-9 - (log_ns - log_ns[0]) * 1e-9 / rate
+    return lag - lag.min()
+
+
+def check_schedule(published_ns, log_ns, rate, what):
+    """
+    Messages (sorted by log time) were published on the schedule of their log times / rate.
+
+    Most messages are published on time (within ON_TIME_S), in each half of the replay: a
+    replay that publishes in bursts (every message of a block at once), ignores the timing
+    or drifts (a lag that grows by more than about ON_TIME_S over the replay) fails. A stall
+    of the host makes the messages due during it late, and does not fail the check unless it
+    covers half of either half (the replay catches up: test_a_stall_is_caught_up).
+    """
+    lag = publication_lags(published_ns, log_ns, rate)
+    half = len(lag) // 2
+    medians = [float(np.median(lag[:half])), float(np.median(lag[half:]))]
+    print(f'{what} at rate {rate}: {len(lag)} messages, median lag '
+          f'{medians[0] * 1e3:.2f} / {medians[1] * 1e3:.2f} ms (first / second half), '
+          f'largest {lag.max() * 1e3:.1f} ms, {np.mean(lag > JITTER_S) * 100:.0f} % later '
+          f'than {JITTER_S * 1e3:.0f} ms')
+    assert max(medians) < ON_TIME_S, what
+
+
+def check_spacing(got, topic, recorded, rate):
+    """Check that the blocks of ``topic`` were published on the schedule of log times / rate."""
+    published = got.published_ns(topic)
+    log_ns = np.array([t for t, _ in recorded], dtype=np.int64)
+    assert len(published) == len(log_ns)
+    median = float(np.median(np.diff(published))) * 1e-9
+    print(f'rate {rate}: median spacing of the publications {median * 1e3:.1f} ms (expected '
+          f'{BLOCK_S / rate * 1e3:.1f} ms)')
     assert median == pytest.approx(BLOCK_S / rate, rel=0.1)
-    assert deviation < JITTER_S
+    check_schedule(published, log_ns, rate, topic)
 
 
 @pytest.fixture(scope='module')
@@ -184,11 +251,13 @@ def test_replay_delivers_everything_in_order_with_its_spacing(recording, at_rate
     # Same messages, same order, values unchanged (published as recorded, bit for bit).
     for (_, msg), (_, data) in zip(received, recorded):
         assert np.array_equal(np.array(msg.data), data)
-    check_spacing(received, recorded, 1.0)
+    check_spacing(got, f'{NS}/modal_displacement', recorded, 1.0)
+    check_schedule(*got.schedule(recording), 1.0, 'every topic')
     # The shock (log time 0) comes first, 50 ms before the first block.
-    shock_wall = got.topic(f'{NS}/shock')[0][0]
     assert got.items[0][1] == f'{NS}/shock'
-    assert received[0][0] - shock_wall == pytest.approx(BLOCK_S, abs=JITTER_S)
+    first_block = got.published_ns(f'{NS}/modal_displacement')[0]
+    shock = got.published_ns(f'{NS}/shock')[0]
+    assert (first_block - shock) * 1e-9 == pytest.approx(BLOCK_S, abs=JITTER_S)
     # Across topics, arrivals keep the log-time order (blocks of one time arrive together).
     times = {BLOCK_TOPICS[0]: [t for t, _ in recorded]}
     order = []
@@ -204,10 +273,11 @@ def test_rate_2_halves_the_spacing(recording, at_rate_1):
     assert got.returncode == 0, got.stderr
     received = got.topic(f'{NS}/modal_displacement')
     assert len(received) == 12
-    check_spacing(received, recorded_blocks(recording), 2.0)
-    span_1 = at_rate_1.topic(f'{NS}/modal_displacement')
-    span_1 = span_1[-1][0] - span_1[0][0]
-    span_2 = received[-1][0] - received[0][0]
+    check_spacing(got, f'{NS}/modal_displacement', recorded_blocks(recording), 2.0)
+    span_1 = at_rate_1.published_ns(f'{NS}/modal_displacement')
+    span_1 = (span_1[-1] - span_1[0]) * 1e-9
+    span_2 = got.published_ns(f'{NS}/modal_displacement')
+    span_2 = (span_2[-1] - span_2[0]) * 1e-9
     print(f'first to last block: {span_1 * 1e3:.0f} ms at rate 1, {span_2 * 1e3:.0f} ms at 2')
     assert span_2 == pytest.approx(0.5 * span_1, abs=JITTER_S)
 
@@ -352,9 +422,10 @@ def test_a_2038_input_does_not_make_replay_wait_until_2038(far_future_recording)
     shocks = got.topic(f'{NS}/shock')
     assert len(shocks) == 2
     assert shocks[-1][1].header.stamp.sec == FAR_FUTURE_NS // 1_000_000_000
-    last_block = got.topic(f'{NS}/modal_displacement')[-1][0]
+    last_block = got.published_ns(f'{NS}/modal_displacement')[-1]
     # The gap after the last block (log time 0.55 s) is cut to MAX_GAP_S.
-    assert shocks[-1][0] - last_block == pytest.approx(MAX_GAP_S, abs=JITTER_S)
+    gap_s = (got.published_ns(f'{NS}/shock')[-1] - last_block) * 1e-9
+    assert gap_s == pytest.approx(MAX_GAP_S, abs=JITTER_S)
 
 
 def test_sigterm_ends_a_long_gap_kept_by_max_gap_inf(far_future_recording):
@@ -412,8 +483,11 @@ def test_topics_not_in_the_recording_are_refused(recording):
 
 # ------------------------------------------------------------------ gyroscope topics
 
-GYRO_BLOCKS = 6
-"""Blocks of BLOCK_S in the gyro recording (0.3 s, 300 rate samples at 1 kHz)."""
+GYRO_BLOCKS = 20
+"""
+Blocks of BLOCK_S in the gyro recording (1 s, 1000 rate samples at 1 kHz): long enough that
+one stall of a loaded host (100 ms seen in CI) holds up a small share of the samples.
+"""
 
 
 @pytest.fixture(scope='module')
@@ -468,12 +542,11 @@ def test_replay_publishes_the_gyro_topics_with_their_timing(gyro_recording):
         assert msg.header.stamp == original.header.stamp
         assert msg.header.frame_id == 'gyro_link'
         assert msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec == log_ns
-    # Each rate sample is published at its own log time (1 ms apart), not in block bursts.
-    walls = np.array([w for w, _ in received])
-    log_s = np.array([t for t, _ in recorded]) * 1e-9
-    deviation = np.max(np.abs((walls - walls[0]) - (log_s - log_s[0])))
-    print(f'rate: largest deviation from the schedule {deviation * 1e3:.1f} ms')
-    assert deviation < JITTER_S
+    # Each rate sample is published at its own log time (1 ms apart), not in block bursts,
+    # and the block topics at theirs, without drift.
+    check_schedule(got.published_ns(f'{NS}/rate'), np.array([t for t, _ in recorded]), 1.0,
+                   f'{NS}/rate')
+    check_schedule(*got.schedule(gyro_recording), 1.0, 'every topic')
     assert got.count(f'{NS}/demodulator') == GYRO_BLOCKS
     # The closed loop's block topic, as the other block topics: every block, as recorded.
     control = [(m.log_time_ns, decode(m)) for m in read_messages(gyro_recording,
@@ -487,3 +560,58 @@ def test_replay_publishes_the_gyro_topics_with_their_timing(gyro_recording):
     assert got.count(f'{NS}/angular_rate') == 1
     (_, acted), = got.topic(f'{NS}/angular_rate')
     assert acted.vector.z == 0.174533
+
+
+# ------------------------------------------------------------------ a stall of the host
+
+STALL_S = 0.3
+"""How long test_a_stall_is_caught_up stops the replay process (SIGSTOP), s."""
+
+
+class Stall:
+    """Stop the replay process for ``STALL_S`` once ``count`` messages of ``topic`` arrived."""
+
+    def __init__(self, count, topic=f'{NS}/modal_displacement'):
+        self.count, self.topic = count, topic
+        self.done = False
+
+    def __call__(self, proc, items):
+        if self.done or sum(t == self.topic for _, t, _ in items) < self.count:
+            return
+        proc.send_signal(signal.SIGSTOP)
+        try:
+            time.sleep(STALL_S)
+        finally:
+            proc.send_signal(signal.SIGCONT)
+        self.done = True
+
+
+def test_a_stall_is_caught_up(long_recording):
+    # What a loaded host does to the replay, on purpose: the process does not run for 0.3 s
+    # in the middle of the 2 s replay. The messages due meanwhile are published late, at
+    # once when it runs again; the ones after that on the original schedule, not 0.3 s late.
+    stall = Stall(10)
+    got = replay_and_receive(long_recording, during=stall)
+    assert stall.done, got.stderr
+    assert got.returncode == 0, got.stderr
+    assert 'replayed 122 messages' in got.stderr  # nothing dropped to catch up
+    published, log_ns = got.schedule(long_recording)
+    # The stall shows in the publication times (else this test tested nothing).
+    gaps = np.diff(np.sort(published)) * 1e-9
+    resumed = np.sort(published)[np.argmax(gaps) + 1]
+    assert gaps.max() > 0.9 * STALL_S
+    lag = publication_lags(published, log_ns, 1.0)
+    deadline = published - np.round(lag * 1e9).astype(np.int64)
+    overdue = deadline < resumed
+    after = deadline > resumed + round(2 * BLOCK_S * 1e9)
+    print(f'stall of {gaps.max() * 1e3:.0f} ms; lag of the overdue messages up to '
+          f'{lag[overdue].max() * 1e3:.0f} ms, median lag after '
+          f'{np.median(lag[after]) * 1e3:.2f} ms ({np.sum(after)} messages)')
+    assert lag[overdue].max() > 0.9 * STALL_S - BLOCK_S
+    # Back on schedule: the stall was not carried on to the rest of the replay.
+    assert np.sum(after) >= 40
+    assert np.median(lag[after]) < ON_TIME_S
+    # The replay says how late it was.
+    note = re.search(r'latest publication ([0-9.e+]+) ms after its deadline', got.stderr)
+    assert note, got.stderr
+    assert float(note.group(1)) * 1e-3 > 0.9 * STALL_S - BLOCK_S

@@ -32,13 +32,15 @@ host, ``OPENBLAS_CORETYPE=Sandybridge`` moves the start state's q1 by 4e-12 of i
 the default Zen/Haswell kernels; numba compiles the kernel through LLVM for the host CPU), so
 the file records the versions (:func:`versions`) and the machine (:func:`machine`) it was made
 with. CI machines differ: on 2026-12-02 the reference made on one host failed bit for bit on
-the next one (4.9e-16 in q, 4e-11 of the peak after the shock). It was regenerated on 2026-12-02 with the
-tree of commit fd02a0a when new wheels (numpy 2.4.6, scipy 1.17.1, numba 0.68.1, llvmlite
-0.50.0) moved the 14aa740 reference by up to 8.6e-11 of a channel's peak (1e-12 in the first
-sample, the start state; the 10 000 g shock amplifies it); fd02a0a and the tree of issue 14
-give the same samples bit for bit under those versions. It was regenerated again the same day,
-with the unchanged tree of commit 9f5620c, on a znver3 host, to record its machine (the samples
-moved by up to 4.3e-11 of a peak, the start state by 1.1e-12: the CPU, not the tree).
+the next one (4.9e-16 in q, 4e-11 of the peak after the shock).
+
+It was regenerated on 2026-12-02 with the tree of commit fd02a0a when new wheels (numpy 2.4.6,
+scipy 1.17.1, numba 0.68.1, llvmlite 0.50.0) moved the 14aa740 reference by up to 8.6e-11 of a
+channel's peak (1e-12 in the first sample, the start state; the 10 000 g shock amplifies it);
+fd02a0a and the tree of issue 14 give the same samples bit for bit under those versions. It was
+regenerated again the same day, with the unchanged tree of commit 9f5620c, on a znver3 host, to
+record its machine (the samples moved by up to 4.3e-11 of a peak, the start state by 1.1e-12:
+the CPU, not the tree).
 """
 
 import hashlib
