@@ -598,14 +598,32 @@ class Run:
         period = self.sim.period_ns
         return -(-t // period) * period
 
+    def shock_refusal(self) -> Optional[str]:
+        """
+        Return why any shock would be refused now, whatever it holds (None: one may be accepted).
+
+        :data:`MAX_PENDING_SHOCKS` are pending, or :data:`MAX_SHOCKS_PER_BLOCK` were accepted
+        since the last block. A caller facing a flood may then refuse the waiting shocks
+        without decoding them (:meth:`refuse_shocks`): the outcome is what :meth:`apply` would
+        give each of them.
+        """
+        if len(self._shock_ends) >= MAX_PENDING_SHOCKS:
+            return f'{MAX_PENDING_SHOCKS} shocks are already pending'
+        if self._shocks_this_block >= MAX_SHOCKS_PER_BLOCK:
+            return (f'{MAX_SHOCKS_PER_BLOCK} shocks were already accepted since the last block '
+                    f'(a flood)')
+        return None
+
+    def refuse_shocks(self, count: int) -> None:
+        """Count ``count`` shocks refused for :meth:`shock_refusal`'s reason, not decoded."""
+        self.rejected[Shock.topic] = self.rejected.get(Shock.topic, 0) + int(count)
+
     def _accept_shock(self, event: Shock, schedule: bool = False) -> int:
         if schedule:
             at_ns = self.acting_time(event.at_ns)
-            if len(self._shock_ends) >= MAX_PENDING_SHOCKS:
-                raise InputError(f'{MAX_PENDING_SHOCKS} shocks are already pending')
-            if self._shocks_this_block >= MAX_SHOCKS_PER_BLOCK:
-                raise InputError(f'{MAX_SHOCKS_PER_BLOCK} shocks were already accepted since '
-                                 f'the last block (a flood)')
+            refusal = self.shock_refusal()
+            if refusal is not None:
+                raise InputError(refusal)
             self.sim.shock(event.x, event.y, at_ns=at_ns)
             self._shocks_this_block += 1
         else:

@@ -190,3 +190,22 @@ def test_at_most_max_shocks_per_block_are_accepted_between_blocks():
     run.apply(Shock(x=1.0, at_ns=15_000_000))  # a new block: taken again
     assert run.rejected['shock'] == 1
     assert run.accepted['shock'] == run_mod.MAX_SHOCKS_PER_BLOCK + 1
+
+
+def test_shock_refusal_says_when_every_shock_would_be_refused():
+    # What the node relies on to take a flood's excess undecoded: shock_refusal() is None
+    # exactly while apply() could accept a valid shock, else apply()'s reason, and
+    # refuse_shocks() counts as apply() does.
+    run = rest_run()
+    for k in range(run_mod.MAX_SHOCKS_PER_BLOCK):
+        assert run.shock_refusal() is None
+        run.apply(Shock(x=1.0, at_ns=(k + 1) * 100_000))
+    reason = run.shock_refusal()
+    with pytest.raises(InputError) as refused:
+        run.apply(Shock(x=1.0, at_ns=5_000_000))
+    assert str(refused.value) == reason
+    run.refuse_shocks(41)
+    assert run.rejected['shock'] == 42
+    assert run.accepted['shock'] == run_mod.MAX_SHOCKS_PER_BLOCK
+    run.advance(BLOCK)
+    assert run.shock_refusal() is None

@@ -128,6 +128,12 @@ class NodeProcess:
                     return int(line.split()[1]) * 1024
         raise RuntimeError('no VmRSS')
 
+    def cpu_seconds(self):
+        """Return the CPU time the process has used so far (user + system, all threads), s."""
+        with open(f'/proc/{self.proc.pid}/stat', encoding='ascii') as fh:
+            fields = fh.read().rsplit(')', 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
     def stop(self):
         """End the process if it still runs (SIGINT, then SIGKILL) and close the log files."""
         if self.proc.poll() is None:

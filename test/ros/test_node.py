@@ -393,46 +393,85 @@ def test_drive_and_base_acceleration_inputs_are_applied(run):
     probe.wait_sim_time(at_ns + 5_000_000, 5)
 
 
+FLOOD_S = 2.0
+"""How long test_shock_flood_leaves_the_node_responsive floods ~/shock (10 000 per second), s."""
+
+
+def flood(publisher, sent):
+    """Publish 10 000 shocks per second (1 m/s^2, "now") for FLOOD_S, in batches of 100."""
+    msg = conversions.shock_message(0, 1.0)
+    start = time.monotonic()
+    for batch in range(int(FLOOD_S * 100)):
+        for _ in range(100):
+            publisher.publish(msg)
+        sent[0] += 100
+        delay = start + 0.01 * (batch + 1) - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+
+
+FLOOD_COST_BOUND = 0.6
+"""
+Most CPU a flood of 10 000 shocks per second may cost the node, in simulated seconds' worth of
+its own work per second (the node's CPU time per simulated second, measured in the same test,
+is the unit, so that the bound does not depend on the host's speed): 0.29-0.42 measured with the
+excess shocks taken undecoded (31-44 us of CPU per message, idle or beside two CPU hogs, most
+of it the middleware's reliable receive), 0.83 before (89 us).
+"""
+
+
 def test_shock_flood_leaves_the_node_responsive(run):
+    # A flood of 10 000 shocks per second for 2 s, against an equal window just before in which
+    # the probe publishes the same messages to a topic nobody subscribes (the same work in
+    # this process). On a 2-core host the node (~1 core per simulated second here: 100 kHz
+    # published to this probe and recorded), the probe and the flood saturate the machine, so
+    # the node's progress in wall time says as much about the host as about the node (0.67 of
+    # the window without the flood when idle, 0.48 beside one CPU hog; 0.21 before the excess
+    # shocks were taken undecoded). What the flood costs the node is judged on its CPU time.
     probe = run.probe
     rss_before = run.node.rss_bytes()
     counted_keys = ('accepted_shocks', 'rejected_shock', 'lost_inputs')
     wall = time.monotonic()
     probe.spin_until(lambda: probe.latest_diagnostics(wall) is not None, 10, 'diagnostics')
     counted_before = sum(int(probe.latest_diagnostics(wall)[k]) for k in counted_keys)
-    sim_before = probe.last_time_ns()
-    blocks_before = len(probe.blocks['modal_displacement'])
-    sent = [0]
 
-    def flood():
-        msg = conversions.shock_message(0, 1.0)  # 1 m/s^2, "now"
-        start = time.monotonic()
-        for batch in range(200):  # 10 000 per second for 2 s, in batches of 100
-            for _ in range(100):
-                probe.shock_pub.publish(msg)
-            sent[0] += 100
-            delay = start + 0.01 * (batch + 1) - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
+    def window(publisher):
+        sent = [0]
+        sim_before = probe.last_time_ns()
+        blocks_before = len(probe.blocks['modal_displacement'])
+        cpu0 = run.node.cpu_seconds()
+        wall0 = time.monotonic()
+        thread = threading.Thread(target=flood, args=(publisher, sent))
+        thread.start()
+        probe.spin_for(FLOOD_S / 2)
+        t_call = time.monotonic()
+        assert probe.remote_get('real_time_factor', timeout=2.0) == 1.0  # answers mid-flood
+        call_s = time.monotonic() - t_call
+        probe.spin_until(lambda: not thread.is_alive(), 10, 'the flood to end')
+        wall = time.monotonic() - wall0
+        cpu = run.node.cpu_seconds() - cpu0
+        sim_advance = (probe.last_time_ns() - sim_before) * 1e-9
+        blocks = len(probe.blocks['modal_displacement']) - blocks_before
+        return sent[0], wall, cpu, sim_advance, blocks, call_s
 
-    wall0 = time.monotonic()
-    thread = threading.Thread(target=flood)
-    thread.start()
-    probe.spin_for(1.0)
-    t_call = time.monotonic()
-    assert probe.remote_get('real_time_factor', timeout=2.0) == 1.0  # answers mid-flood
-    call_s = time.monotonic() - t_call
-    probe.spin_until(lambda: not thread.is_alive(), 10, 'the flood to end')
-    wall = time.monotonic() - wall0
-    sim_advance = (probe.last_time_ns() - sim_before) * 1e-9
-    blocks = len(probe.blocks['modal_displacement']) - blocks_before
+    decoy = probe.create_publisher(type(conversions.shock_message(0, 1.0)),
+                                   f'{probe.target}/shock_heard_by_nobody', 100)
+    _, wall, cpu, reference, _, _ = window(decoy)
+    per_sim_s = cpu / reference  # the node's CPU time per simulated second
+    print(f'\nno flood: the node simulated {reference:.3f} s in {wall:.2f} s, CPU {cpu:.2f} s '
+          f'({per_sim_s:.3f} s per simulated s)')
+    sent, wall, cpu, sim_advance, blocks, call_s = window(probe.shock_pub)
+    cost = (cpu - per_sim_s * sim_advance) / wall / per_sim_s
     rss_after = run.node.rss_bytes()
-    print(f'\nflood: {sent[0]} shocks in {wall:.2f} s ({sent[0] / wall:.0f}/s); the node '
-          f'simulated {sim_advance:.3f} s meanwhile ({blocks} blocks), a service call '
-          f'answered in {call_s * 1e3:.0f} ms, RSS {rss_before / 1e6:.1f} -> '
+    print(f'flood: {sent} shocks in {wall:.2f} s ({sent / wall:.0f}/s); the node simulated '
+          f'{sim_advance:.3f} s meanwhile ({blocks} blocks, {sim_advance / reference:.2f} of the '
+          f'window without), CPU {cpu:.2f} s: the flood cost {cost:.2f} simulated s of work '
+          f'per s ({(cpu - per_sim_s * sim_advance) / sent * 1e6:.0f} us per message); a '
+          f'service call answered in {call_s * 1e3:.0f} ms, RSS {rss_before / 1e6:.1f} -> '
           f'{rss_after / 1e6:.1f} MB')
-    assert sent[0] / wall > 8000  # the issue's 10 000/s, less the publisher's own jitter
-    assert sim_advance > 0.5 * wall  # kept simulating (paced at 1; 1.0 on an idle machine)
+    assert sent / wall > 8000  # the issue's 10 000/s, less the publisher's own jitter
+    assert cost < FLOOD_COST_BOUND
+    assert blocks > 0  # kept simulating
     assert rss_after - rss_before < 50e6  # coarse: measured +0.1 MB; bounds are in the node
     probe.wait_sim_time(probe.last_time_ns() + 50_000_000, 5)
     assert_contiguous(probe)
@@ -441,8 +480,8 @@ def test_shock_flood_leaves_the_node_responsive(run):
     wall = time.monotonic()
     probe.spin_until(lambda: probe.latest_diagnostics(wall) is not None, 10, 'diagnostics')
     counted = sum(int(probe.latest_diagnostics(wall)[k]) for k in counted_keys) - counted_before
-    print(f'flood: {counted} of {sent[0]} shocks counted (accepted, refused or lost)')
-    assert counted >= 0.95 * sent[0]
+    print(f'flood: {counted} of {sent} shocks counted (accepted, refused or lost)')
+    assert counted >= 0.95 * sent
     assert probe.reset().success
 
 
