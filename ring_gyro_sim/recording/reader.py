@@ -315,7 +315,7 @@ def _storage(record, storage):
     return where
 
 
-def _linear_records(stream, stop=None):
+def _linear_records(stream, stop=None, counts=None):
     """
     Yield the records of a possibly truncated file until the first unreadable one.
 
@@ -328,7 +328,8 @@ def _linear_records(stream, stop=None):
     for record types added later) and ignores lengths that disagree with the fields, so one
     damaged opcode made it skip a whole chunk and go on with the next. If ``stop`` is a list,
     (byte offset of the first unreadable record, reason) is appended to it when reading stops
-    before the end of the file.
+    before the end of the file. If ``counts`` is a dict, ``counts['chunks']`` counts the
+    chunks read whole.
     """
     size = _size(stream)
     good = stream.tell()
@@ -369,6 +370,8 @@ def _linear_records(stream, stop=None):
             return
         crc = zlib.crc32(body, zlib.crc32(head, crc))
         kinds = _DATA_RECORDS
+        if counts is not None and isinstance(record, Chunk):
+            counts['chunks'] = counts.get('chunks', 0) + 1
         yield from records
 
 

@@ -41,13 +41,13 @@ from typing import Dict, Optional
 from mcap import __version__ as mcap_version
 from mcap.reader import SeekingReader
 from mcap.records import Attachment, Channel, Chunk, Header, Message, Metadata, Schema
-from mcap.stream_reader import breakup_chunk, StreamReader
+from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, IndexType, Writer
 from ring_gyro_sim import __version__
 from ring_gyro_sim.recording import _rosbag2
 from ring_gyro_sim.recording._filelock import is_being_written
 from ring_gyro_sim.recording.errors import OutputBusyError, OutputExistsError, RecordingError
-from ring_gyro_sim.recording.reader import _reason, _size, _summary, _TRUNCATION_ERRORS
+from ring_gyro_sim.recording.reader import _linear_records, _summary, _TRUNCATION_ERRORS
 from ring_gyro_sim.recording.writer import (
     DEFAULT_CHUNK_SIZE,
     MCAP_MAGIC,
@@ -319,47 +319,40 @@ def recover(path, output=None) -> Recovery:
 
 
 def _copy(stream, sink, compression, file_name):
-    """Copy the readable records of ``stream`` to a new MCAP on ``sink``."""
-    records = StreamReader(stream, emit_chunks=True, validate_crcs=True).records
+    """
+    Copy the readable records of ``stream`` to a new MCAP on ``sink``.
+
+    The records come from the reader's linear read (:func:`_linear_records`), which stops at
+    the first damaged or incomplete record: mcap's StreamReader, used here before, skipped a
+    record whose opcode was damaged (a whole chunk) and went on with the next.
+    """
     copy = None
-    chunks = metadata_count = 0
+    metadata_count = 0
     original_rosbag2 = None
-    stop = None
-    good = stream.tell()
-    while True:
-        try:
-            record = next(records)
-            inner = (breakup_chunk(record, validate_crc=True) if isinstance(record, Chunk)
-                     else [record])
-        except StopIteration:
-            break
-        except _TRUNCATION_ERRORS as exc:
-            if good < _size(stream):  # else the file ends cleanly between two records
-                stop = (good, _reason(exc))
-            break
-        good = stream.tell()
-        if isinstance(record, Header):
-            copy = _Copy(sink, record.profile, record.library, compression)
+    stops, counts = [], {}
+    for item in _linear_records(stream, stops, counts):
+        if isinstance(item, Header):
+            copy = _Copy(sink, item.profile, item.library, compression)
             continue
         if copy is None:
             copy = _Copy(sink, '', '', compression)  # a file with its header damaged
-        chunks += isinstance(record, Chunk)
-        for item in inner:
-            if isinstance(item, Schema):
-                copy.schema(item)
-            elif isinstance(item, Channel):
-                copy.channel(item)
-            elif isinstance(item, Message):
-                copy.message(item)
-            elif isinstance(item, Metadata):
-                if item.name == ROSBAG2_METADATA_NAME:
-                    original_rosbag2 = item.metadata.get('serialized_metadata', '')
-                    continue
-                copy.writer.add_metadata(item.name, dict(item.metadata))
-                metadata_count += 1
-            elif isinstance(item, Attachment):
-                copy.writer.add_attachment(item.create_time, item.log_time, item.name,
-                                           item.media_type, item.data)
+        if isinstance(item, Schema):
+            copy.schema(item)
+        elif isinstance(item, Channel):
+            copy.channel(item)
+        elif isinstance(item, Message):
+            copy.message(item)
+        elif isinstance(item, Metadata):
+            if item.name == ROSBAG2_METADATA_NAME:
+                original_rosbag2 = item.metadata.get('serialized_metadata', '')
+                continue
+            copy.writer.add_metadata(item.name, dict(item.metadata))
+            metadata_count += 1
+        elif isinstance(item, Attachment):
+            copy.writer.add_attachment(item.create_time, item.log_time, item.name,
+                                       item.media_type, item.data)
+    chunks = counts.get('chunks', 0)
+    stop = stops[0] if stops else None
     if copy is None:
         copy = _Copy(sink, '', '', compression)
     copy.writer.flush()  # the last chunk before the rosbag2 record, as BagWriter does

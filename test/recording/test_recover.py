@@ -145,6 +145,32 @@ def test_a_cut_file_recovers_every_complete_chunk(tmp_path, keep):
     assert all(index.message_index_offsets for index in summary.chunk_indexes)
 
 
+def test_a_damaged_opcode_ends_the_recovery_where_the_reader_stops(tmp_path):
+    # A killed file whose third chunk's opcode is damaged (0x06 -> 0xF9, unknown): mcap's
+    # StreamReader, which recover used before, skipped that chunk and copied the ones after
+    # it, so the copy had a hole the report did not mention. Now the copy ends where the
+    # project's reader stops, and the report says where and why.
+    full = many_chunks(tmp_path / 'full.mcap', blocks=30)
+    with open(full, 'rb') as stream:
+        summary = mcap.reader.make_reader(stream).get_summary()
+        third = sorted(index.chunk_start_offset for index in summary.chunk_indexes)[2]
+        rosbag2_record = next(index.offset for index in summary.metadata_indexes
+                              if index.name == 'rosbag2')
+    data = bytearray(full.read_bytes()[:rosbag2_record])  # killed before the summary
+    assert data[third] == 0x06
+    data[third] ^= 0xFF
+    killed = tmp_path / 'killed.mcap'
+    killed.write_bytes(bytes(data))
+    ours = [(m.topic, m.log_time_ns, m.data) for m in read_messages(killed)]
+    assert 0 < len(ours) < len(list(read_messages(full)))
+    result = recover(killed)
+    assert result.chunk_count == 2
+    assert result.stopped_at == third and 'opcode' in result.reason, result.reason
+    assert [(m.topic, m.log_time_ns, m.data) for m in read_messages(result.output)] == ours
+    decoded, _ = independent(result.output)
+    assert len(decoded) == len(ours)
+
+
 def test_a_complete_file_is_copied_as_it_is(tmp_path):
     full = many_chunks(tmp_path / 'full.mcap', blocks=30)
     result = recover(full, tmp_path / 'copy.mcap')
