@@ -119,7 +119,14 @@ def _hint_incomplete(path, stop):
     _hinted.add(key)
     where = f'; read up to byte {stop[0]} of {info.st_size} ({stop[1]})' if stop else ''
     busy = ' (it is being recorded right now)' if is_being_written(path) else ''
-    _log.warning(f'recording {str(path)!r} has no summary{busy}{where}: '
+    what = 'has no summary'
+    try:
+        with open(path, 'rb') as stream:
+            if _summary(SeekingReader(stream)) is not None:  # there, but not intact
+                what = 'has a summary that fails its CRC (not used; read linearly)'
+    except (*_TRUNCATION_ERRORS, OSError):  # no magic at its start: a summary is no question
+        pass
+    _log.warning(f'recording {str(path)!r} {what}{busy}{where}: '
                  f'`ring_gyro recover {path}` writes a complete copy that every MCAP reader '
                  f'opens')
 

@@ -324,7 +324,7 @@ def test_a_damaged_record_ends_a_linear_read(tmp_path, caplog, damage):
 
 
 @pytest.mark.parametrize('damage', ['opcode', 'start_time', 'offset'])
-def test_a_damaged_summary_is_not_trusted(tmp_path, damage):
+def test_a_damaged_summary_is_not_trusted(tmp_path, caplog, damage):
     # mcap does not check the summary's CRC: it skipped a chunk index whose opcode is damaged
     # (that chunk's messages were missing), read the chunks in the order of a damaged start
     # time (messages out of order) and seeked to a damaged offset (OSError). Checked, the
@@ -344,7 +344,11 @@ def test_a_damaged_summary_is_not_trusted(tmp_path, damage):
         data[fields + 16 + 6] ^= 0xFF
     damaged = tmp_path / 'damaged.mcap'
     damaged.write_bytes(bytes(data))
-    assert contents(read_messages(damaged)) == original
+    with caplog.at_level(logging.WARNING, logger='ring_gyro_sim.recording.reader'):
+        assert contents(read_messages(damaged)) == original
+    # The warning says what is wrong: the summary is there but fails its CRC (it said "has no
+    # summary" before).
+    assert 'has a summary that fails its CRC' in caplog.records[0].getMessage()
     assert read_metadata(damaged, 'ring_gyro_sim') == samples.RUN_METADATA
 
 
