@@ -326,13 +326,16 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         for sub, handler, most in self._input_subs:
             is_shock = handler == self._on_shock
             undecoded = 0
+            raw = False
             for _ in range(most):
                 # A flood's excess: once the run refuses every shock until the next block,
                 # the waiting ones are taken undecoded and counted as refused (the reason is
                 # the same for all of them). Taking one decoded costs 35-40 us of the node's
                 # only thread, raw 6-7 us (measured with rclpy's take on this project's
-                # host): 10 000 per second no longer starve the simulation.
-                raw = is_shock and self.run.shock_refusal() is not None
+                # host): 10 000 per second no longer starve the simulation. Once refused, a
+                # shock stays refused until the next block (the drain does not advance it), so
+                # the reason is asked only until then, not formatted for every message.
+                raw = is_shock and (raw or self.run.shock_refusal() is not None)
                 with sub.handle:
                     taken = sub.handle.take_message(sub.msg_type, raw or sub.raw)
                 if taken is None:
