@@ -94,10 +94,22 @@ def test_far_future_stamps_are_refused_and_do_not_lock_the_topic(hostile):
 
 def test_reset_discards_a_pending_shock(hostile):
     node, probe = hostile
-    at_ns = probe.last_time_ns() + 600_000_000
+    keys = ('accepted_shocks', 'pending_shocks')
+    before = counters(probe, 0.0, keys)
+    # 3 s ahead of the probe's newest block: the probe trails the node by its queue (see
+    # above), and a shock already past for the node would be refused, so that the test
+    # would pass without a reset to test; /diagnostics (~1 Hz) must then say it waits
+    # before the reset. That it was accepted and waits is asserted.
+    at_ns = probe.last_time_ns() + 3_000_000_000
     probe.shock(PEAK, at_ns=at_ns)
-    probe.spin_for(0.2)
+    wall = time.monotonic()
+    probe.spin_until(
+        lambda: (probe.latest_diagnostics(wall) or {}).get('accepted_shocks')
+        == str(int(before['accepted_shocks']) + 1), 10.0, 'the shock accepted')
+    assert probe.latest_diagnostics(wall)['pending_shocks'] == '1'
     assert probe.reset().success
+    wall = time.monotonic()
+    assert counters(probe, wall, keys)['pending_shocks'] == '0'
     probe.wait_sim_time(at_ns + 200_000_000, timeout=10.0)
     _, data = probe.stacked('modal_displacement', at_ns * 1e-9 - 0.01)
     t = data[:, 0]
