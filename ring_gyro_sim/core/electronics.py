@@ -529,8 +529,8 @@ class PickOff:
         """Return the white noise of the amplifiers at the given samples, V (E2); None: off."""
         if not self.noisy or count == 0:
             return None
-        return noise.normals(self.noise_seed, noise.STREAM_PICKOFF, first_index, count,
-                             2) * self._noise_std
+        return noise.block_normals(self.noise_seed, noise.STREAM_PICKOFF, first_index, count,
+                                   2) * self._noise_std
 
     def volts(self, first_index: int, capacitance: np.ndarray) -> np.ndarray:
         """

@@ -45,21 +45,36 @@ meant to be read at one width for the whole run.
 
 Cost
 ----
-Measured on this machine (2 cores shared with other jobs, numpy 2.4): 1.2 ms for a block of
-2000 x 12 (the Brownian force noise of 6 coordinates x 2 steps per sample for 10 ms at
-200 kHz), i.e. ~50 ns per normal, and 0.17 ms for 2000 x 2 (~43 ns). About a quarter is the
-Philox words (5.5 ns each), most of the rest numpy's scalar cos / sin (~9 ns each per pair,
-not vectorised on this CPU) and the temporaries of the block.
+The uniforms and Box-Muller are one compiled loop (:func:`_box_muller`, numba, the GIL
+released), with the same operations per value as the formulas above, in the platform's libm
+(``log``, ``cos``, ``sin``; numpy's own vectorised versions, used on some CPUs, may differ
+in the last bit, so a compiled loop also makes the numbers the same across CPUs with one
+libm). Measured on this machine (2-core AMD EPYC, slow state, numpy 2.4): a block of 2000 x
+6 (the Brownian force noise of 6 coordinates, 10 ms at 200 kHz) 0.45 ms, 37 ns per normal
+(numpy's ufuncs over the block: 0.62 ms, 51 ns); 2000 x 12 22 ns per normal (36), 2000 x 2
+32 (44). The Philox words are ~0.1 ms of a block.
+
+:func:`block_normals` is what the simulator and the electronics call: the same numbers,
+memoised (the loop's pick-off and the sense electronics' draw the same block of
+:data:`STREAM_PICKOFF`) and drawn one block ahead on a worker thread (the next block of a
+stream usually follows this one), so that a paced run's normals are off its critical path.
 """
 
+from collections import OrderedDict
+from concurrent.futures import Future, ThreadPoolExecutor
 import math
 import numbers
+import os
+import threading
+from typing import Optional, Tuple
 
+from numba import njit
 import numpy as np
 
 from ring_gyro_sim.core.errors import InputError
 
-__all__ = ['STREAM_BROWNIAN', 'STREAM_PICKOFF', 'STREAM_FLICKER', 'MAX_KEY_WORD', 'normals']
+__all__ = ['STREAM_BROWNIAN', 'STREAM_PICKOFF', 'STREAM_FLICKER', 'MAX_KEY_WORD', 'normals',
+           'block_normals']
 
 STREAM_BROWNIAN = 1
 """Thermomechanical force noise of the modes (simulator kernel): width = coordinates x steps."""
@@ -124,19 +139,115 @@ def normals(seed: int, stream: int, first_index: int, count: int, width: int) ->
         return np.empty((0, width))
     gen = np.random.Philox(key=seed + (stream << 64), counter=first_index * blocks)
     raw = gen.random_raw(count * words).reshape(count, words)
+    out = np.empty((count, width))
+    _box_muller(raw, width, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _box_muller(raw, width, out):
+    """
+    ``out[r] =`` Box-Muller of the words ``raw[r]`` (see the module doc), row by row.
+
+    Per value the operations of the documented formulas, in their order: ``u = (floor(x /
+    2**11) + 1/2) 2**-53``, radius ``sqrt(-2 ln u1)``, angle ``2 pi u2 - pi``, then ``cos``
+    and ``sin`` of the angle times the radius.
+    """
     pairs = (width + 1) // 2
-    u = (raw[:, :2 * pairs] >> np.uint64(11)).astype(np.float64)
-    u += 0.5
-    u *= _TO_UNIT
-    radius = np.log(u[:, :pairs])
-    radius *= -2.0
-    np.sqrt(radius, out=radius)
-    angle = u[:, pairs:]
-    angle *= 2.0 * math.pi
-    angle -= math.pi  # uniform on [-pi, pi): numpy's cos / sin reduce it faster than [0, 2 pi)
-    out = np.empty((count, 2 * pairs))
-    out[:, :pairs] = np.cos(angle)
-    out[:, pairs:] = np.sin(angle)
-    out[:, :pairs] *= radius
-    out[:, pairs:] *= radius
-    return out[:, :width] if 2 * pairs != width else out
+    for r in range(raw.shape[0]):
+        for j in range(pairs):
+            u1 = (float(raw[r, j] >> np.uint64(11)) + 0.5) * _TO_UNIT
+            u2 = (float(raw[r, pairs + j] >> np.uint64(11)) + 0.5) * _TO_UNIT
+            radius = math.sqrt(math.log(u1) * -2.0)
+            angle = u2 * (2.0 * math.pi) - math.pi
+            out[r, j] = math.cos(angle) * radius
+            if pairs + j < width:
+                out[r, pairs + j] = math.sin(angle) * radius
+
+
+AHEAD_MAX_NORMALS = 1 << 19
+"""Largest block :func:`block_normals` keeps or draws ahead (4 MB); larger ones are drawn."""
+_MEMO_ENTRIES = 6
+
+_Key = Tuple[int, int, int, int, int]
+
+
+class _Ahead:
+    """The memo and the worker of :func:`block_normals` (one per process)."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.memo: 'OrderedDict[_Key, Future]' = OrderedDict()
+        self.worker: Optional[ThreadPoolExecutor] = None
+
+    def submit(self, key: _Key) -> Future:
+        if self.worker is None:
+            self.worker = ThreadPoolExecutor(max_workers=1,
+                                             thread_name_prefix='ring_gyro_noise')
+        return self.worker.submit(_frozen_normals, key)
+
+
+def _frozen_normals(key: _Key) -> np.ndarray:
+    out = normals(*key)
+    out.flags.writeable = False  # shared by the memo's readers
+    return out
+
+
+_AHEAD = _Ahead()
+
+
+def _after_fork_in_child() -> None:
+    # A forked child has no worker thread: pending futures of the parent would never end.
+    global _AHEAD
+    _AHEAD = _Ahead()
+
+
+if hasattr(os, 'register_at_fork'):
+    os.register_at_fork(after_in_child=_after_fork_in_child)
+
+
+def block_normals(seed: int, stream: int, first_index: int, count: int, width: int,
+                  ahead: bool = True) -> np.ndarray:
+    """
+    Return :func:`normals` of these arguments, memoised and drawn a block ahead.
+
+    The values are those of :func:`normals`, bit for bit (a pure function of the arguments,
+    whichever thread draws them). A block asked for again (another consumer of the same
+    stream) comes from the memo; unless ``ahead`` is false, the block that follows,
+    ``(first_index + count, count)``, is then drawn on a worker thread (numba and numpy's
+    Philox release the GIL), so that the caller finds it ready next time. Blocks of more
+    than :data:`AHEAD_MAX_NORMALS` are drawn directly. The array is read-only.
+
+    Raises
+    ------
+    InputError
+        As :func:`normals` (at this call, not on the worker).
+
+    """
+    key = (_check_int('seed', seed, 0, MAX_KEY_WORD),
+           _check_int('stream', stream, 0, MAX_KEY_WORD),
+           _check_int('first_index', first_index, 0), _check_int('count', count, 0),
+           _check_int('width', width, 1))
+    if key[3] * key[4] > AHEAD_MAX_NORMALS or key[3] == 0:
+        return normals(*key)
+    state = _AHEAD
+    with state.lock:
+        future = state.memo.pop(key, None)
+    result = None
+    if future is not None:
+        try:
+            result = future.result()
+        except Exception:  # noqa: B902 (drawn again below: the error, if any, is raised here)
+            result = None
+    if result is None:
+        result = _frozen_normals(key)
+    with state.lock:
+        done: Future = Future()
+        done.set_result(result)
+        state.memo[key] = done
+        following = (key[0], key[1], key[2] + key[3], key[3], key[4])
+        if ahead and following not in state.memo:
+            state.memo[following] = state.submit(following)
+        while len(state.memo) > _MEMO_ENTRIES:
+            state.memo.popitem(last=False)
+    return result

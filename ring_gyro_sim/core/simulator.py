@@ -665,7 +665,10 @@ class Simulator:
             # per 1 ms stretch cost more than its numbers.
             force_noise = self._unit_force_noise(n_samples)
             pickoff_noise = loop.pickoff.noise(self.sample_index, n_samples)
+        # The sample times: the block's, and the drive phase's per stretch.
+        t = (np.arange(self.sample_index, self.sample_index + n_samples) + 1) * self.period_s
         done = 0
+        rate_version = None
         while done < n_samples:
             self._run_due_events()
             stop = n_samples - done
@@ -675,8 +678,15 @@ class Simulator:
                 stop = min(stop, loop.window - self.sample_index % loop.window)
             if phase is not None and stop > 0:
                 # The drive is constant over the stretch (events and loop updates cut it).
-                self._reference(self.sample_index, stop, phase[done:done + stop],
-                                rate[done:done + stop])
+                d = self._drive
+                np.add(d.omega * (t[done:done + stop] - d.t_ref), d.phase,
+                       out=phase[done:done + stop])
+                if rate_version != self._rate_version:
+                    # The knots change only by set_rate (between calls) or by a compaction
+                    # of past ones (same values): the rates of all the call's samples left
+                    # at once (per 1 ms loop stretch its numpy calls cost ~50 us).
+                    rate_version = self._rate_version
+                    self._rates(self.sample_index, n_samples - done, rate[done:])
             first = self.sample_index
             noise_part = None
             if force_noise is not None:
@@ -693,7 +703,6 @@ class Simulator:
                                 pickoff_noise[part] if pickoff_noise is not None else None)
             done += stop
         self._run_due_events()
-        t = (np.arange(self.sample_index - n_samples, self.sample_index) + 1) * self.period_s
         if loop is None:
             return self._samples(t, out_q, out_v, phase if self.gyro else None, rate)
         gap, min_gap, cap = channels
@@ -809,8 +818,8 @@ class Simulator:
         if count <= 0 or not np.any(sigma > 0.0):
             return None
         n = sigma.size
-        z = noise.normals(self._noise_seed, noise.STREAM_BROWNIAN, self.sample_index, count,
-                          self.n_sub * n)
+        z = noise.block_normals(self._noise_seed, noise.STREAM_BROWNIAN, self.sample_index,
+                                count, self.n_sub * n)
         return z.reshape(count * self.n_sub, n)
 
     def _profile_arrays(self, t_start: float, t_end: float):
@@ -863,12 +872,8 @@ class Simulator:
         return Samples(t=t, q=q, v=v, gap=gap, min_gap=min_gap, capacitance=cap,
                        drive_phase=drive_phase, rate=rate)
 
-    def _reference(self, first: int, count: int, phase_out: np.ndarray,
-                   rate_out: np.ndarray) -> None:
-        """Drive phase (rad) and angular rate (rad/s) at samples ``first .. first + count - 1``."""
-        t = (np.arange(first, first + count) + 1) * self.period_s
-        d = self._drive
-        phase_out[:] = d.omega * (t - d.t_ref) + d.phase
+    def _rates(self, first: int, count: int, rate_out: np.ndarray) -> None:
+        """Set ``rate_out`` to the angular rate (rad/s) at samples ``first ..`` on."""
         t_ns = (np.arange(first, first + count, dtype=np.int64) + 1) * self.period_ns
         rate_out[:] = self.rates_at(t_ns)
 

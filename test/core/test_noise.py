@@ -22,6 +22,8 @@ a lost factor in Box-Muller) moves the statistic by far more.
 """
 
 import math
+import multiprocessing
+import threading
 
 from hypothesis import given, settings, strategies as st
 import numpy as np
@@ -52,18 +54,21 @@ def test_the_brief_example_bit_for_bit():
 
 
 def test_a_row_is_the_documented_function_of_philox():
-    # Rebuilt from the module docstring with numpy's Philox alone, one row at a time.
+    # Rebuilt from the module docstring with numpy's Philox alone, one row at a time, and
+    # the platform's libm through Python's math (numpy's own vectorised log / cos / sin,
+    # used on some CPUs, may differ in the last bit: the module documents libm).
     seed, stream, width = 123456789, noise.STREAM_PICKOFF, 5
     blocks, pairs = 2, 3
     got = noise.normals(seed, stream, 1000, 4, width)
     for r in range(4):
         gen = np.random.Philox(key=seed + stream * 2 ** 64, counter=(1000 + r) * blocks)
         words = gen.random_raw(4 * blocks)
-        u = ((words >> np.uint64(11)).astype(np.float64) + 0.5) * 2.0 ** -53
-        rad = np.sqrt(-2.0 * np.log(u[:pairs]))
-        ang = 2.0 * math.pi * u[pairs:2 * pairs] - math.pi
-        expect = np.concatenate([rad * np.cos(ang), rad * np.sin(ang)])[:width]
-        assert np.array_equal(got[r], expect)
+        u = [(float(w >> np.uint64(11)) + 0.5) * 2.0 ** -53 for w in words]
+        rad = [math.sqrt(-2.0 * math.log(x)) for x in u[:pairs]]
+        ang = [2.0 * math.pi * x - math.pi for x in u[pairs:2 * pairs]]
+        expect = ([a * math.cos(b) for a, b in zip(rad, ang)]
+                  + [a * math.sin(b) for a, b in zip(rad, ang)])[:width]
+        assert got[r].tolist() == expect
 
 
 def test_seeds_and_streams_give_unrelated_numbers():
@@ -114,3 +119,66 @@ def test_empty_and_numpy_integers():
     assert noise.normals(0, 1, 0, 0, 3).shape == (0, 3)
     assert np.array_equal(noise.normals(np.int64(3), np.uint8(1), np.int64(4), 2, 3),
                           noise.normals(3, 1, 4, 2, 3))
+
+
+def test_block_normals_are_the_normals_memoised_and_drawn_ahead():
+    seed, stream, width, block = 99, noise.STREAM_BROWNIAN, 6, 500
+    first = 10_000
+    got = [noise.block_normals(seed, stream, first + k * block, block, width) for k in range(4)]
+    expect = noise.normals(seed, stream, first, 4 * block, width)
+    assert np.array_equal(np.concatenate(got), expect)
+    # the block after the last one was drawn ahead; a repeated block comes from the memo
+    memo = noise._AHEAD.memo
+    following = (seed, stream, first + 4 * block, block, width)
+    assert following in memo
+    assert np.array_equal(memo[following].result(),
+                          noise.normals(seed, stream, first + 4 * block, block, width))
+    again = noise.block_normals(seed, stream, first + 3 * block, block, width)
+    assert again is got[3]
+    assert not again.flags.writeable
+    with pytest.raises(ValueError):
+        again[0, 0] = 1.0
+    # a jump back (a reset) and another block length: not in the memo, drawn, same values
+    assert np.array_equal(noise.block_normals(seed, stream, 0, 7, width),
+                          noise.normals(seed, stream, 0, 7, width))
+    assert len(memo) <= noise._MEMO_ENTRIES
+
+
+def test_block_normals_without_ahead_and_too_large_for_the_memo():
+    noise.block_normals(5, noise.STREAM_PICKOFF, 0, 100, 2, ahead=False)
+    assert (5, noise.STREAM_PICKOFF, 100, 100, 2) not in noise._AHEAD.memo
+    rows = noise.AHEAD_MAX_NORMALS // 2 + 1
+    big = noise.block_normals(5, noise.STREAM_PICKOFF, 0, rows, 2)
+    assert (5, noise.STREAM_PICKOFF, 0, rows, 2) not in noise._AHEAD.memo
+    assert np.array_equal(big, noise.normals(5, noise.STREAM_PICKOFF, 0, rows, 2))
+
+
+@pytest.mark.parametrize('kwargs, name', [
+    ({'seed': -1}, 'seed'), ({'stream': 2 ** 64}, 'stream'), ({'first_index': -1}, 'first_index'),
+    ({'count': 1.5}, 'count'), ({'width': 0}, 'width'),
+])
+def test_block_normals_bad_arguments_name_themselves(kwargs, name):
+    args = {'seed': 0, 'stream': 1, 'first_index': 0, 'count': 3, 'width': 2, **kwargs}
+    with pytest.raises(InputError, match=f'^{name}: '):
+        noise.block_normals(**args)
+
+
+def test_a_forked_child_draws_ahead_with_its_own_worker():
+    # A child forked while a block is pending must not wait for the parent's worker thread
+    # (it has none): it starts its own.
+    noise.block_normals(4, noise.STREAM_BROWNIAN, 0, 10, 2)  # the worker exists
+    gate = threading.Event()
+    noise._AHEAD.worker.submit(gate.wait, 30.0)  # ... and is busy until the fork is done
+    noise.block_normals(3, noise.STREAM_BROWNIAN, 0, 2000, 12)  # the next one is pending
+    assert not noise._AHEAD.memo[(3, noise.STREAM_BROWNIAN, 2000, 2000, 12)].done()
+    try:
+        with multiprocessing.get_context('fork').Pool(1) as pool:
+            child = pool.apply_async(_draw_two_blocks, ()).get(timeout=20)
+    finally:
+        gate.set()
+    assert np.array_equal(child, noise.normals(3, noise.STREAM_BROWNIAN, 0, 4000, 12))
+
+
+def _draw_two_blocks():
+    return np.concatenate([noise.block_normals(3, noise.STREAM_BROWNIAN, k * 2000, 2000, 12)
+                           for k in range(2)])
