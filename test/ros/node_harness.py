@@ -22,6 +22,7 @@ sessions and other machines do not see each other.
 
 # Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
 # isort: off
+import contextlib
 import os
 import pathlib
 import random
@@ -272,3 +273,23 @@ def start_node(workdir, values, *ros_args, node='ring_gyro'):
     path = pathlib.Path(workdir) / 'params.yaml'
     path.write_text(params_yaml(values, node), encoding='utf-8')
     return NodeProcess(path, workdir, *ros_args)
+
+
+@contextlib.contextmanager
+def connected(node, make_probe=Probe, tail=3000):
+    """
+    Yield a probe (``make_probe()``) connected to a started node process.
+
+    On the way out, also on a failure: the probe destroyed, the node stopped and the last
+    ``tail`` characters of its log printed (pytest shows them with a failure).
+    """
+    probe = None
+    try:
+        probe = make_probe()
+        probe.wait_connected()
+        yield probe
+    finally:
+        if probe is not None:
+            probe.destroy_node()
+        node.stop()
+        print(node.output()[-tail:])

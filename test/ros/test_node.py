@@ -29,7 +29,7 @@ import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticStatus
-from node_harness import Probe, start_node
+from node_harness import connected, Probe, start_node
 import numpy as np
 import pytest
 from ring_gyro_sim.core.params import build_config, to_flat
@@ -81,16 +81,8 @@ def run(ros, tmp_path_factory):
     workdir = tmp_path_factory.mktemp('node_run')
     record = workdir / 'run.mcap'
     node = start_node(workdir, {**CONFIG, 'record.path': str(record)})
-    probe = None
-    try:
-        probe = Probe()
-        probe.wait_connected()
+    with connected(node, Probe) as probe:
         yield Run(node, probe, (workdir / 'params.yaml').read_text(), record)
-    finally:
-        if probe is not None:
-            probe.destroy_node()
-        node.stop()
-        print(node.output()[-3000:])
 
 
 def offline_config(yaml_text, **changes):

@@ -26,7 +26,7 @@ that the publisher exists only with the closed loop.
 # isort: off
 import signal
 
-from node_harness import NodeProcess, params_yaml, Probe, REPO_ROOT
+from node_harness import connected, NodeProcess, params_yaml, Probe, REPO_ROOT
 import numpy as np
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from ring_gyro_sim.core.control import CONTROL_CHANNELS
@@ -59,10 +59,7 @@ def test_closed_loop_node_publishes_and_records_control(ros, tmp_path):
                                      'record.path': str(path)}), encoding='utf-8')
     node = NodeProcess(REPO_ROOT / 'config' / 'gyro.yaml', tmp_path, '--params-file',
                        str(override))
-    probe = None
-    try:
-        probe = ControlProbe()
-        probe.wait_connected()
+    with connected(node, ControlProbe) as probe:
         types = dict(probe.get_topic_names_and_types())
         assert types[f'{NS}/control'] == ['std_msgs/msg/Float64MultiArray']
         (info,) = probe.get_publishers_info_by_topic(f'{NS}/control')
@@ -74,10 +71,6 @@ def test_closed_loop_node_publishes_and_records_control(ros, tmp_path):
         probe.spin_until(lambda: node.proc.poll() is not None, 30.0, 'the node to stop')
         assert node.wait(10.0) == 0, node.output()[-3000:]
         probe.spin_for(0.5)
-    finally:
-        if probe is not None:
-            probe.destroy_node()
-        node.stop()
     log = node.output()
     assert probe.control, log[-3000:]
     live = []

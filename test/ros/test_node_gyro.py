@@ -31,7 +31,7 @@ import signal
 
 from geometry_msgs.msg import Vector3Stamped
 from mcap.reader import make_reader
-from node_harness import Probe, start_node
+from node_harness import connected, Probe, start_node
 import numpy as np
 import pytest
 from rclpy.qos import ReliabilityPolicy
@@ -79,10 +79,7 @@ def stop(node):
 def test_gyro_node_offers_the_gyro_topics_and_records_them(ros, tmp_path):
     path = tmp_path / 'gyro.mcap'
     node = start_node(tmp_path, {**GYRO, 'record.path': str(path)})
-    probe = None
-    try:
-        probe = GyroProbe()
-        probe.wait_connected()
+    with connected(node, GyroProbe) as probe:
         probe.spin_until(lambda: probe.angular_rate_pub.get_subscription_count() > 0, 20.0,
                          'the ~/angular_rate subscription')
         types = dict(probe.get_topic_names_and_types())
@@ -96,10 +93,6 @@ def test_gyro_node_offers_the_gyro_topics_and_records_them(ros, tmp_path):
         # Accepted (the physics merged) or refused (not yet): either way once, and counted.
         probe.spin_for(1.0)
         stop(node)
-    finally:
-        if probe is not None:
-            probe.destroy_node()
-        node.stop()
     log = node.output()
     acted = list(read_messages(path, f'{NS}/angular_rate'))
     diagnostics = [decode(m) for m in read_messages(path, '/diagnostics')]
@@ -121,10 +114,7 @@ def test_gyro_node_offers_the_gyro_topics_and_records_them(ros, tmp_path):
 
 def test_a_resonator_node_refuses_angular_rates_and_has_no_rate_output(ros, tmp_path):
     node = start_node(tmp_path, {**GYRO, 'gyro.enabled': False})
-    probe = None
-    try:
-        probe = GyroProbe()
-        probe.wait_connected()
+    with connected(node, GyroProbe) as probe:
         probe.spin_until(lambda: probe.angular_rate_pub.get_subscription_count() > 0, 20.0,
                          'the ~/angular_rate subscription')
         # The probe subscribes to both, so the topics exist; nobody publishes them.
@@ -135,10 +125,6 @@ def test_a_resonator_node_refuses_angular_rates_and_has_no_rate_output(ros, tmp_
             probe.angular_rate(TEN_DEG_S)
         counted(probe, 'rejected_inputs', 3)
         stop(node)
-    finally:
-        if probe is not None:
-            probe.destroy_node()
-        node.stop()
     log = node.output()
     # One warning for the three (throttled per topic and kind of reason).
     assert log.count('rejected ~/angular_rate') == 1, log[-3000:]
@@ -162,19 +148,12 @@ def test_rate_output_end_to_end(ros, tmp_path):
                                  'drive.start_on': 'upper_branch',
                                  'scenario.rate_values': [TEN_DEG_S], 'duration': 1.5,
                                  'record.path': str(path)})
-    probe = None
-    try:
-        probe = GyroProbe()
-        probe.wait_connected()
+    with connected(node, GyroProbe) as probe:
         # Spin while the node runs: the 1 500 rate messages must not wait in the reader's
         # history (1 000 deep) while nobody takes them.
         probe.spin_until(lambda: node.proc.poll() is not None, 120.0, 'the node to finish')
         assert node.wait(10.0) == 0, node.output()[-3000:]
         probe.spin_for(0.5)
-    finally:
-        if probe is not None:
-            probe.destroy_node()
-        node.stop()
     stamps = [m.header.stamp.sec * 10 ** 9 + m.header.stamp.nanosec for m in probe.rate]
     # 1 kHz on the simulation clock: consecutive stamps 1 ms apart, none lost or repeated.
     assert np.all(np.diff(stamps) == 1_000_000)

@@ -25,7 +25,7 @@ clock and names the instance (the node runs under a remapped name here).
 import time
 
 from geometry_msgs.msg import AccelStamped
-from node_harness import Probe, start_node
+from node_harness import connected, Probe, start_node
 import numpy as np
 import pytest
 from ring_gyro_sim.ros import conversions
@@ -42,16 +42,8 @@ PEAK = 98066.5
 def hostile(ros, tmp_path_factory):
     workdir = tmp_path_factory.mktemp('hostile')
     node = start_node(workdir, CONFIG, '-r', f'__node:={NAME}', node=NAME)
-    probe = None
-    try:
-        probe = Probe(target=f'/{NAME}')
-        probe.wait_connected()
+    with connected(node, lambda: Probe(target=f'/{NAME}')) as probe:
         yield node, probe
-    finally:
-        if probe is not None:
-            probe.destroy_node()
-        node.stop()
-        print(node.output()[-3000:])
 
 
 def accel(probe, at_ns, x):

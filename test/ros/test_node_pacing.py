@@ -25,7 +25,7 @@ Run with ``pytest -s`` to see the numbers.
 import signal
 import time
 
-from node_harness import NodeProcess, Probe, REPO_ROOT
+from node_harness import connected, NodeProcess, Probe, REPO_ROOT
 import numpy as np
 import pytest
 # isort: on
@@ -38,16 +38,8 @@ def paced(ros, tmp_path_factory):
     """Run the node on config/default.yaml as it is: 200 kHz, bm6, upper branch, paced at 1."""
     node = NodeProcess(REPO_ROOT / 'config' / 'default.yaml',
                        tmp_path_factory.mktemp('node_pacing'))
-    probe = None
-    try:
-        probe = Probe(topics=('modal_displacement',))
-        probe.wait_connected()
+    with connected(node, lambda: Probe(topics=('modal_displacement',))) as probe:
         yield node, probe
-    finally:
-        if probe is not None:
-            probe.destroy_node()
-        node.stop()
-        print(node.output()[-2000:])
 
 
 def measured_factor(probe, seconds):

@@ -26,7 +26,7 @@ with one FATAL line, the same reason ``check_params_file`` gives.
 import math
 import time
 
-from node_harness import NodeProcess, params_yaml, Probe, start_node
+from node_harness import connected, NodeProcess, params_yaml, Probe, start_node
 import pytest
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.params import build_config
@@ -58,16 +58,8 @@ REFUSED = [
 def node(ros, tmp_path_factory):
     workdir = tmp_path_factory.mktemp('node_parameters')
     proc = start_node(workdir, CONFIG)
-    probe = None
-    try:
-        probe = Probe()
-        probe.wait_connected()
+    with connected(proc, Probe) as probe:
         yield proc, probe
-    finally:
-        if probe is not None:
-            probe.destroy_node()
-        proc.stop()
-        print(proc.output()[-3000:])
 
 
 def test_the_voltage_descriptor_carries_the_configuration_limit(node):
