@@ -294,6 +294,11 @@ class Scratch(NamedTuple):
         Drive rotations of the stages of a step and of a sub-step (:func:`_stage_rotations`).
     prop_sub : ndarray, shape (s, n, 4)
         Propagators of a sub-step.
+    turn : ndarray, shape (s + 1, P, 4)
+        The rotating kick's coefficients per stage and coordinate pair
+        (:func:`_turn_coefficients`), for the rate and step in ``turn_key``.
+    turn_key : ndarray, shape (2,)
+        ``(Omega, h)`` of ``turn``; NaN: none yet (:func:`run_samples` sets it at each call).
 
     """
 
@@ -305,6 +310,8 @@ class Scratch(NamedTuple):
     rot: np.ndarray
     rot_sub: np.ndarray
     prop_sub: np.ndarray
+    turn: np.ndarray
+    turn_key: np.ndarray
 
 
 def orbit_angle(theta_rep: float, member: int) -> float:
@@ -809,7 +816,37 @@ def _rate_at(t, rate_t, rate_w):
 
 
 @njit(cache=True, inline='always')
-def _kick_rotating(q, v, acc, fe, kick, w, wdot, forcing):
+def _turn_coefficients(b, hs, w, kappa, turn):
+    """
+    ``turn[i, p] = (cos theta, sin theta, sin theta / theta, (1 - cos theta) / theta)``.
+
+    With ``theta = 2 kappa_p Omega b_i hs``, the rotating kick's angle of pair ``p`` at kick
+    ``i`` (:func:`_kick_rotating`). Below ``|theta| = 1e-3`` (``Omega tau < 6e-4``: 5 700
+    deg/s at a 5 us kick) the trigonometric functions are their Taylor series to the first
+    neglected term ``theta^6 / 720 < 1.4e-21``. They depend on the rate and the step only,
+    so a step at the same rate as the last one reuses them (:func:`_step`).
+    """
+    for i in range(b.size):
+        kick = b[i] * hs
+        for p in range(kappa.size):
+            theta = 2.0 * kappa[p] * w * kick
+            th2 = theta * theta
+            if abs(theta) < 1e-3:
+                turn[i, p, 0] = 1.0 - th2 * (0.5 - th2 / 24.0)
+                turn[i, p, 1] = theta * (1.0 - th2 * (1.0 / 6.0 - th2 / 120.0))
+                turn[i, p, 2] = 1.0 - th2 * (1.0 / 6.0 - th2 / 120.0)
+                turn[i, p, 3] = theta * (0.5 - th2 * (1.0 / 24.0 - th2 / 720.0))
+            else:
+                co = math.cos(theta)
+                si = math.sin(theta)
+                turn[i, p, 0] = co
+                turn[i, p, 1] = si
+                turn[i, p, 2] = si / theta
+                turn[i, p, 3] = (1.0 - co) / theta
+
+
+@njit(cache=True, inline='always')
+def _kick_rotating(q, v, acc, fe, kick, w, wdot, forcing, turn, i):
     """
     Kick (B) in the rotating sensor frame: the exact flow of ``q' = 0``, ``v' = a + G v``.
 
@@ -819,13 +856,11 @@ def _kick_rotating(q, v, acc, fe, kick, w, wdot, forcing):
     v_c)`` (``structure.gyroscopic_coefficient``, eqs. G5-G6). With the positions fixed over
     a kick this is linear with constant coefficients, integrated exactly: with
     ``theta = 2 kappa Omega tau``, ``z = v_c + i v_s`` and ``alpha = a_c + i a_s``,
-    ``z(tau) = e^{-i theta} z + tau (sin theta / theta - i (1 - cos theta) / theta) alpha``.
-    Below ``|theta| = 1e-3`` (``Omega tau < 6e-4``: 5 700 deg/s at a 5 us kick) the
-    trigonometric functions are their Taylor series to the first neglected term
-    ``theta^6 / 720 < 1.4e-21``. The splitting stays the RKN pair of the module docstring
-    with B now linear in velocity; its error is measured against DOP853 with the rotation
-    in ``test/core/test_rotation.py``. Every coordinate belongs to a pair (``gyro.enabled``
-    needs ``modes.companions``).
+    ``z(tau) = e^{-i theta} z + tau (sin theta / theta - i (1 - cos theta) / theta) alpha``,
+    the coefficients of kick ``i`` in ``turn[i]`` (:func:`_turn_coefficients`). The
+    splitting stays the RKN pair of the module docstring with B now linear in velocity; its
+    error is measured against DOP853 with the rotation in ``test/core/test_rotation.py``.
+    Every coordinate belongs to a pair (``gyro.enabled`` needs ``modes.companions``).
     """
     for p in range(forcing.pair_c.size):
         ic = forcing.pair_c[p]
@@ -833,18 +868,10 @@ def _kick_rotating(q, v, acc, fe, kick, w, wdot, forcing):
         kap = forcing.kappa[p]
         a_c = acc[ic] + fe[ic] + w * w * q[ic] + kap * wdot * q[js]
         a_s = acc[js] + fe[js] + w * w * q[js] - kap * wdot * q[ic]
-        theta = 2.0 * kap * w * kick
-        th2 = theta * theta
-        if abs(theta) < 1e-3:
-            co = 1.0 - th2 * (0.5 - th2 / 24.0)
-            si = theta * (1.0 - th2 * (1.0 / 6.0 - th2 / 120.0))
-            s1 = 1.0 - th2 * (1.0 / 6.0 - th2 / 120.0)
-            s2 = theta * (0.5 - th2 * (1.0 / 24.0 - th2 / 720.0))
-        else:
-            co = math.cos(theta)
-            si = math.sin(theta)
-            s1 = si / theta
-            s2 = (1.0 - co) / theta
+        co = turn[i, p, 0]
+        si = turn[i, p, 1]
+        s1 = turn[i, p, 2]
+        s2 = turn[i, p, 3]
         vc = v[ic]
         vs = v[js]
         v[ic] = co * vc + si * vs + kick * (s1 * a_c + s2 * a_s)
@@ -892,6 +919,11 @@ def _step(q, v, acc, ts, hs, prop, rot, method, force, drive, forcing, scratch):
     if forcing.rate_t.size > 0:
         w, wdot = _rate_at(t_mid, forcing.rate_t, forcing.rate_w)
     rotating = w != 0.0 or wdot != 0.0
+    turn = scratch.turn
+    if rotating and not (w == scratch.turn_key[0] and hs == scratch.turn_key[1]):
+        _turn_coefficients(b, hs, w, forcing.kappa, turn)
+        scratch.turn_key[0] = w
+        scratch.turn_key[1] = hs
     for i in range(n_stages):
         if forcing.profile_t.size > 0:
             base_x, base_y = _profile_accel(tt, forcing.profile_t, forcing.profile_x,
@@ -899,7 +931,7 @@ def _step(q, v, acc, ts, hs, prop, rot, method, force, drive, forcing, scratch):
         _external(tt, t_mid, forcing, base_x, base_y, drive.index, drive_c, drive_s,
                   rot[i, 0], rot[i, 1], drive.sense_index, sense_c, sense_s, fe)
         if rotating:
-            _kick_rotating(q, v, acc, fe, b[i] * hs, w, wdot, forcing)
+            _kick_rotating(q, v, acc, fe, b[i] * hs, w, wdot, forcing, turn, i)
         else:
             _kick(v, acc, fe, b[i] * hs)
         _drift(q, v, prop, i)
@@ -916,7 +948,7 @@ def _step(q, v, acc, ts, hs, prop, rot, method, force, drive, forcing, scratch):
     _external(ts + hs, t_mid, forcing, base_x, base_y, drive.index, drive_c, drive_s,
               rot[n_stages, 0], rot[n_stages, 1], drive.sense_index, sense_c, sense_s, fe)
     if rotating:
-        _kick_rotating(q, v, acc, fe, b[n_stages] * hs, w, wdot, forcing)
+        _kick_rotating(q, v, acc, fe, b[n_stages] * hs, w, wdot, forcing, turn, n_stages)
     else:
         _kick(v, acc, fe, b[n_stages] * hs)
     return True
@@ -1005,6 +1037,7 @@ def run_samples(q, v, acc, k0, n_samples, method, force, drive, forcing, scratch
     fe = scratch.fe
     for c in range(q.size):
         fe[c] = 0.0
+    scratch.turn_key[0] = np.nan  # the coefficients of another call may be another's
     h = method.h
     cuts = scratch.cuts
     _stage_rotations(method.a, h, drive.omega, scratch.rot)

@@ -293,7 +293,8 @@ class Simulator:
             work=np.empty(forces.scratch_size(self.model)), fe=np.empty(n),
             info=np.zeros(2, dtype=np.int64), tinfo=np.zeros(1),
             cuts=np.empty(2 * _CUTS_PULSES + 2), rot=np.empty((self._b.size, 2)),
-            rot_sub=np.empty((self._b.size, 2)), prop_sub=np.empty_like(prop))
+            rot_sub=np.empty((self._b.size, 2)), prop_sub=np.empty_like(prop),
+            turn=np.empty((self._b.size, max(1, n // 2), 4)), turn_key=np.full(2, np.nan))
         self.coordinates = coordinate_names(config)
         self._y_index = config.modes.count if config.modes.companions else -1
         self._drive_index = 1 if config.modes.count >= 2 else -1
