@@ -294,11 +294,12 @@ class Scratch(NamedTuple):
         Drive rotations of the stages of a step and of a sub-step (:func:`_stage_rotations`).
     prop_sub : ndarray, shape (s, n, 4)
         Propagators of a sub-step.
-    turn : ndarray, shape (s + 1, P, 4)
-        The rotating kick's coefficients per stage and coordinate pair
-        (:func:`_turn_coefficients`), for the rate and step in ``turn_key``.
+    turn : ndarray, shape (s + 1, >= P, 4)
+        The rotating kick's coefficients (dimensionless) per kick and gyroscopic pair (P
+        pairs, ``Forcing.kappa``; :func:`_turn_coefficients`), for ``turn_key``.
     turn_key : ndarray, shape (2,)
-        ``(Omega, h)`` of ``turn``; NaN: none yet (:func:`run_samples` sets it at each call).
+        ``(Omega, hs)`` of ``turn``: the rate (rad/s) and the (sub)step (s); NaN: none
+        (:func:`run_samples` sets it at each call, whose configuration may be another).
 
     """
 
@@ -1037,7 +1038,7 @@ def run_samples(q, v, acc, k0, n_samples, method, force, drive, forcing, scratch
     fe = scratch.fe
     for c in range(q.size):
         fe[c] = 0.0
-    scratch.turn_key[0] = np.nan  # the coefficients of another call may be another's
+    scratch.turn_key[0] = np.nan  # another call's coefficients may be another config's
     h = method.h
     cuts = scratch.cuts
     _stage_rotations(method.a, h, drive.omega, scratch.rot)

@@ -294,7 +294,9 @@ class Simulator:
             info=np.zeros(2, dtype=np.int64), tinfo=np.zeros(1),
             cuts=np.empty(2 * _CUTS_PULSES + 2), rot=np.empty((self._b.size, 2)),
             rot_sub=np.empty((self._b.size, 2)), prop_sub=np.empty_like(prop),
-            turn=np.empty((self._b.size, max(1, n // 2), 4)), turn_key=np.full(2, np.nan))
+            # one row of the rotating kick's coefficients per gyroscopic pair (at most one
+            # per mode, _build_rotation: kernels index it unchecked)
+            turn=np.empty((self._b.size, config.modes.count, 4)), turn_key=np.full(2, np.nan))
         self.coordinates = coordinate_names(config)
         self._y_index = config.modes.count if config.modes.companions else -1
         self._drive_index = 1 if config.modes.count >= 2 else -1
