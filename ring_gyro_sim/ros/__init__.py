@@ -27,8 +27,12 @@ parameter table), ``conversions`` (messages to and from the core's types), ``sin
 and record a run), ``recorder`` (recording a run as a ROS 2 bag).
 """
 
+# The handlers go in before anything else runs: ``signal`` (a thin wrapper of the interpreter's
+# own ``_signal``, already loaded at start-up) converts its constants to enums on import, 1 ms
+# idle and several under load, and a Ctrl-C landing in that import raised KeyboardInterrupt in
+# this file (CI, stop 20). ``_signal``, ``os`` and ``sys`` are loaded before any code of ours.
+import _signal
 import os
-import signal
 import sys
 
 __all__ = ['EARLY_SIGNALS', 'conversions', 'node', 'parameters', 'recorder', 'sinks']
@@ -48,5 +52,5 @@ def _is_node_process() -> bool:
 # Also when SIGINT came in ignored (a shell's background job): the node handles both signals
 # once it runs (node.main), so it must not die of one, or ignore one, before that.
 if _is_node_process():
-    for _signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(_signum, lambda signum, frame: EARLY_SIGNALS.append(signum))
+    for _signum in (_signal.SIGINT, _signal.SIGTERM):
+        _signal.signal(_signum, lambda signum, frame: EARLY_SIGNALS.append(signum))
