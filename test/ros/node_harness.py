@@ -87,6 +87,13 @@ def params_yaml(values, node='ring_gyro'):
     return yaml.safe_dump({node: {'ros__parameters': tree}}, sort_keys=True)
 
 
+def process_cpu_seconds(pid):
+    """Return the CPU time process ``pid`` has used so far (user + system, all threads), s."""
+    with open(f'/proc/{pid}/stat', encoding='ascii') as fh:
+        fields = fh.read().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
 class NodeProcess:
     """One ``ring_gyro_node`` process; output goes to files so that no pipe can fill up."""
 
@@ -131,9 +138,7 @@ class NodeProcess:
 
     def cpu_seconds(self):
         """Return the CPU time the process has used so far (user + system, all threads), s."""
-        with open(f'/proc/{self.proc.pid}/stat', encoding='ascii') as fh:
-            fields = fh.read().rsplit(')', 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+        return process_cpu_seconds(self.proc.pid)
 
     def stop(self):
         """End the process if it still runs (SIGINT, then SIGKILL) and close the log files."""
