@@ -213,9 +213,11 @@ def build_force_model(config: SimConfig) -> ForceModel:
         energy_poly[k] = c_k
     kbasis = kernels.member_basis(basis, signs, e.gap)
     inner_contact = bool(e.inner_voltage != 0.0)
+    series, series_u2 = kernels.estrin_layout(poly)
     kernel = kernels.Force(kbasis=kbasis, projection=projection, signs=signs, poly=poly,
                            taylor_terms=int(n_t), outer=float(outer), inner=float(inner),
-                           fold=bool(fold), inner_contact=inner_contact, gap=float(e.gap))
+                           fold=bool(fold), inner_contact=inner_contact, gap=float(e.gap),
+                           series=series, series_u2=series_u2)
     return ForceModel(harmonics=harmonics, sine=sine, theta=theta, weights=weights,
                       parity=parity, signs=signs, m_points=m_points, basis=basis,
                       kbasis=kbasis, projection=projection, poly=poly, energy_poly=energy_poly,

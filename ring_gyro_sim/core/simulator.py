@@ -81,7 +81,10 @@ Angles per mode for the smallest gap, refined by a parabola: the error is below
 ``sum n^3 |q_n| delta^3 / (9 sqrt 3)`` for the grid spacing delta, ~1e-4 of q_n.
 """
 ELECTRODE_GAUSS_POINTS = 8
-"""Gauss-Legendre angles per panel of an electrode (see :meth:`Simulator._build_outputs`)."""
+"""
+Gauss-Legendre angles per panel of an electrode (see :meth:`Simulator._build_outputs`); a
+multiple of 4 (``kernels.output_channels`` sums four nodes per division).
+"""
 ELECTRODE_FINE_PANELS = 16
 """Finest level (a power of 2): panels per panel, for an electrode the ring comes close to."""
 ELECTRODE_RTOL = 1e-7
