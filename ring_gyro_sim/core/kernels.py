@@ -108,7 +108,8 @@ import numpy as np
 __all__ = ['STATUS_OK', 'STATUS_OUTER_CONTACT', 'STATUS_INNER_CONTACT', 'STATUS_SERIES_RANGE',
            'STATUS_NONFINITE', 'NEEDS_GENERAL', 'Force', 'Drive', 'Forcing', 'Method', 'Scratch',
            'ESTRIN_MAX_SLOTS', 'estrin_layout', 'orbit_angle', 'describe_status',
-           'splitting_coefficients', 'linear_propagators', 'member_basis', 'nl_accel', 'drive_phasor', 'run_samples', 'output_channels']
+           'splitting_coefficients', 'linear_propagators', 'member_basis', 'nl_accel',
+           'drive_phasor', 'run_samples', 'output_channels']
 
 STATUS_OK = 0
 STATUS_OUTER_CONTACT = 1
@@ -489,7 +490,7 @@ ESTRIN_MAX_SLOTS = 16
 
 def estrin_layout(poly: np.ndarray):
     """
-    The series of :func:`_series_values` for the coefficients ``poly`` of P(u).
+    Lay out the coefficients ``poly`` of P(u) as :func:`_series_values` takes them.
 
     Returns ``(series, u2)``: with ``poly[0] == poly[1] == 0`` (the folded model, eq. 26's
     terms removed) ``P(u) = u^2 Q(u)`` and ``series`` holds Q's coefficients, else P's; zero

@@ -60,7 +60,7 @@ def plain_series(u, kernel):
 
 def plain_force(x, kernel):
     """nl_accel's definition, one angle and one coordinate at a time (module docstring)."""
-    kb, proj, signs, poly = kernel.kbasis, kernel.projection, kernel.signs, kernel.poly
+    kb, proj, signs = kernel.kbasis, kernel.projection, kernel.signs
     n = x.size
     r = kb.shape[1] // 4
     even = not any(signs[1, i] < 0.0 and x[i] != 0.0 for i in range(n))
