@@ -193,7 +193,7 @@ import numbers
 from typing import Dict, Optional, Tuple, Union
 
 import numpy as np
-from ring_gyro_sim.core import control, forces, noise, structure
+from ring_gyro_sim.core import control, forces, kernels, noise, structure
 from ring_gyro_sim.core.errors import InputError
 from ring_gyro_sim.core.params import BOLTZMANN, SimConfig
 
@@ -523,7 +523,11 @@ class PickOff:
     def clean_volts(self, capacitance: np.ndarray, out: Optional[np.ndarray] = None
                     ) -> np.ndarray:
         """Return the amplifiers' outputs without noise (E1), V, shape (K, 2)."""
-        return np.matmul(capacitance - self.rest_capacitance, self.volts_per_farad, out=out)
+        capacitance = np.ascontiguousarray(capacitance, dtype=np.float64)
+        if out is None:
+            out = np.empty((capacitance.shape[0], self.volts_per_farad.shape[1]))
+        kernels.pickoff_volts(capacitance, self.rest_capacitance, self.volts_per_farad, out)
+        return out
 
     def noise(self, first_index: int, count: int) -> Optional[np.ndarray]:
         """Return the white noise of the amplifiers at the given samples, V (E2); None: off."""

@@ -109,7 +109,7 @@ __all__ = ['STATUS_OK', 'STATUS_OUTER_CONTACT', 'STATUS_INNER_CONTACT', 'STATUS_
            'STATUS_NONFINITE', 'NEEDS_GENERAL', 'Force', 'Drive', 'Forcing', 'Method', 'Scratch',
            'ESTRIN_MAX_SLOTS', 'estrin_layout', 'orbit_angle', 'describe_status',
            'splitting_coefficients', 'linear_propagators', 'member_basis', 'nl_accel',
-           'drive_phasor', 'run_samples', 'output_channels']
+           'drive_phasor', 'run_samples', 'output_channels', 'pickoff_volts']
 
 STATUS_OK = 0
 STATUS_OUTER_CONTACT = 1
@@ -1039,6 +1039,24 @@ def _drift(q, v, prop, i):
 
 
 @njit(cache=True, inline='always')
+def _kick_drift(q, v, acc, fe, kick, prop, i):
+    """
+    Kick (B) then drift (A) of drift ``i``: :func:`_kick` and :func:`_drift` in one.
+
+    The new position is ``(xx x + xv v) + (xv kick) a`` (``a = acc + fe``): the force reaches
+    it through one multiply and one add instead of the kick's three operations and the
+    drift's two (the stage's chain of dependent operations is its cost).
+    """
+    for c in range(q.size):
+        a = acc[c] + fe[c]
+        x0 = q[c]
+        v0 = v[c]
+        xv = prop[i, c, 1]
+        q[c] = (prop[i, c, 0] * x0 + xv * v0) + (xv * kick) * a
+        v[c] = prop[i, c, 2] * x0 + prop[i, c, 3] * (v0 + kick * a)
+
+
+@njit(cache=True, inline='always')
 def _step(q, v, acc, ts, hs, prop, rot, method, force, drive, forcing, scratch):
     """
     One BAB splitting step of length ``hs`` from ``ts`` (module docstring), in place.
@@ -1082,9 +1100,9 @@ def _step(q, v, acc, ts, hs, prop, rot, method, force, drive, forcing, scratch):
                   rot[i, 0], rot[i, 1], drive.sense_index, sense_c, sense_s, fe)
         if rotating:
             _kick_rotating(q, v, acc, fe, b[i] * hs, w, wdot, forcing, turn, i)
+            _drift(q, v, prop, i)
         else:
-            _kick(v, acc, fe, b[i] * hs)
-        _drift(q, v, prop, i)
+            _kick_drift(q, v, acc, fe, b[i] * hs, prop, i)
         tt += hs * a[i]
         # nl_accel written out: its fallback is called from here, not from an inlined
         # function (see _force).
@@ -1422,3 +1440,35 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
                 for j in range(n_p // 4):
                     c += wq[k * (n_p // 4) + j]
             out_cap[s, k] = cap_scale * c
+
+
+@njit(cache=True, nogil=True)
+def pickoff_volts(capacitance, rest, volts_per_farad, out):
+    """
+    ``out[s, j] = sum_e (C[s, e] - C0[e]) G[e, j]``: the pick-off amplifiers' outputs (E1), V.
+
+    Summed over the electrodes in their order, row by row, so that a sample's value does not
+    depend on how many samples a call holds: ``numpy.matmul`` goes through BLAS, whose kernels
+    for one row and for many round differently (a run cut into calls of 1 sample and one of
+    12 000 samples differed in the last bits of the demodulator's output).
+
+    Parameters
+    ----------
+    capacitance : ndarray, shape (S, K)
+        Electrode capacitances, F.
+    rest : ndarray, shape (K,)
+        Their rest values, F.
+    volts_per_farad : ndarray, shape (K, J)
+        Gains, V/F.
+    out : ndarray, shape (S, J)
+        The outputs, V.
+
+    """
+    n_s, n_k = capacitance.shape
+    n_j = volts_per_farad.shape[1]
+    for s in range(n_s):
+        for j in range(n_j):
+            acc = 0.0
+            for e in range(n_k):
+                acc += (capacitance[s, e] - rest[e]) * volts_per_farad[e, j]
+            out[s, j] = acc
