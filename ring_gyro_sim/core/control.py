@@ -105,7 +105,7 @@ import math
 from typing import Dict, Optional, Tuple
 
 import numpy as np
-from ring_gyro_sim.core import structure
+from ring_gyro_sim.core import kernels, structure
 from ring_gyro_sim.core.errors import InputError
 from ring_gyro_sim.core.params import SimConfig
 
@@ -231,6 +231,7 @@ class DriveLoop:
         self.pll_integral = 0.0          # rad/s
         self.agc_integral = float(abs(config.drive.amplitude))  # m/s^2
         self.rb_integral = np.zeros(2)   # (S_c, S_s), m/s^2
+        self._coef = np.empty((3, 2))  # the C2 fit of a period: (cos, sin, 1) x (sense, drive)
         self.omega = self.omega_c
         self.force = self.agc_integral
         self.rebalance_force = np.zeros(2)
@@ -312,11 +313,9 @@ class DriveLoop:
             raise InputError(f'volts: one loop period of {self.window} samples expected, '
                              f'got shape {volts.shape}')
         # (C2) least squares on cos, sin, 1 through the normal equations (3 x 3)
-        basis = np.empty((3, self.window))
-        np.cos(phase, out=basis[0])
-        np.sin(phase, out=basis[1])
-        basis[2] = 1.0
-        coef = np.linalg.solve(basis @ basis.T, basis @ volts)  # (3, 2): sense, drive
+        coef = self._coef
+        kernels.iq_fit(np.ascontiguousarray(phase, dtype=np.float64),
+                       np.ascontiguousarray(volts, dtype=np.float64), coef)  # (3, 2)
         x_c, x_s = coef[0, 1] / self.pickoff.drive_gain, coef[1, 1] / self.pickoff.drive_gain
         dt = self.period_s
         self.updates += 1

@@ -60,14 +60,15 @@ recorder thread can serialise and compress while they run.
 Cost
 ----
 Measured on the paper configuration (N_R = 3, N_T = 10, bm6, one 5 us step per 200 kHz
-sample; ``benchmarks/bench_simulator.py``, ``doc/performance.md``): ~0.64 us per step in
-this kernel, of which 11 stages at ~54 ns (force evaluation at 18 angles, Horner of degree
-9, kick, drift and external force; strict IEEE arithmetic: no fast-math, so results do not
-depend on the vector width) and ~45 ns per step (drive phasor, loop, the last kick);
-:func:`output_channels` adds ~170 ns per sample. The stages form one chain of dependent
-operations (each force needs the previous drift, each drift the previous kick), so the
-latency of that chain, not the number of operations, sets the cost: ~190 cycles per stage
-for ~600 flops. What the code is shaped by, each measured:
+sample; ``benchmarks/bench_simulator.py``, ``doc/performance.md``; 2026-12-03, an Intel host):
+~0.55 us per step in this kernel, of which 11 stages at ~46 ns (force evaluation at 18
+angles, the degree-9 series by Estrin's scheme, kick, drift and external force; strict IEEE
+arithmetic: no fast-math, so results do not depend on the vector width) and ~37 ns per step
+(drive phasor, loop, the last kick); :func:`output_channels` adds ~135 ns per sample. The
+stages form one chain of dependent operations (each force needs the previous drift, each
+drift the previous kick), so the latency of that chain, not the number of operations, sets
+the cost: what shortens the chain pays (the series 18 -> 8 dependent operations, the angle
+values in one pass, kick and drift fused: 62 -> 46 ns per stage in one session). What the code is shaped by, each measured:
 
 * numba's reference counting: a function that takes arrays and has branches increments and
   decrements every array argument atomically on every call unless its pruning pass can prove
@@ -84,10 +85,18 @@ for ~600 flops. What the code is shaped by, each measured:
   integers (:func:`_all_inside`), the smallest gap's grid maximum is found in independent
   lanes (:func:`_first_argmax`; the maximum is exact in any order), and the projections sum
   each coordinate in a register, the coordinates as independent chains;
-* Horner's rule runs three degrees per pass over the angles (:func:`_horner`), so that each
-  value stays in a register instead of a store and reload per degree; each value gets the
-  same operations in the same order, so results are unchanged bit for bit;
-* the pieces of a step (:func:`_cut_step`, :func:`_step`, :func:`_kick`, :func:`_drift`,
+* the series is evaluated by Estrin's scheme written out for 4, 8, 12 or 16 coefficients
+  (:func:`_series_values`), one loop over the angles with the coefficients in registers: a
+  loop over the coefficient blocks inside it, or the blocks in passes over the angles, cost
+  more than Horner's rule (measured 75 and 90-160 ns against 58 ns per stage); longer series
+  take Horner's rule three degrees per pass (:func:`_horner`);
+* the angle values take six or three coordinates per pass (:func:`_angle_values`): one
+  pass per coordinate stored and reloaded them on the chain; the range check over the angles
+  runs only when ``sum |q_n|`` reaches the gap (:data:`_REACH_INSIDE`);
+* tried and not kept (no gain or a loss, measured in one session): two partial sums in the
+  projection (566 -> 688 ns per sample), a tree of 8 lanes, the representatives padded to a
+  multiple of 4 (48 angles instead of 36), the rotating kick fused with the drift;
+* the pieces of a step (:func:`_cut_step`, :func:`_step`, :func:`_kick_drift`,
   :func:`_external`, :func:`_force`) are ``inline='always'``: inlined, they cost the same as
   the loop written out (measured, best of N in one session); called, a step passed ~20 array
   structures every step (~25 % of a Strang run). :func:`_force_general` inlined as well was
@@ -109,7 +118,7 @@ __all__ = ['STATUS_OK', 'STATUS_OUTER_CONTACT', 'STATUS_INNER_CONTACT', 'STATUS_
            'STATUS_NONFINITE', 'NEEDS_GENERAL', 'Force', 'Drive', 'Forcing', 'Method', 'Scratch',
            'ESTRIN_MAX_SLOTS', 'estrin_layout', 'orbit_angle', 'describe_status',
            'splitting_coefficients', 'linear_propagators', 'member_basis', 'nl_accel',
-           'drive_phasor', 'run_samples', 'output_channels', 'pickoff_volts']
+           'drive_phasor', 'run_samples', 'output_channels', 'pickoff_volts', 'iq_fit']
 
 STATUS_OK = 0
 STATUS_OUTER_CONTACT = 1
@@ -1472,3 +1481,65 @@ def pickoff_volts(capacitance, rest, volts_per_farad, out):
             for e in range(n_k):
                 acc += (capacitance[s, e] - rest[e]) * volts_per_farad[e, j]
             out[s, j] = acc
+
+
+@njit(cache=True, nogil=True)
+def iq_fit(phase, volts, coef):
+    """
+    Least squares of each column of ``volts`` on ``cos(phase), sin(phase), 1``, into ``coef``.
+
+    The closed loop's synchronous demodulator (``core/control.py``, C2): the normal equations
+    (3 x 3, summed over the samples in their order) solved by Cramer's rule, for every column
+    at once. One compiled loop instead of ``np.linalg.solve`` on numpy's products (~40 us of
+    Python and BLAS per 1 ms loop period, measured 2026-12-03).
+
+    Parameters
+    ----------
+    phase : ndarray, shape (N,)
+        NCO phase at each sample, rad.
+    volts : ndarray, shape (N, J)
+        The signals, V.
+    coef : ndarray, shape (3, J)
+        ``(a, b, c)`` of ``a cos(phase) + b sin(phase) + c`` per column, V.
+
+    """
+    n = phase.size
+    n_j = volts.shape[1]
+    scc = 0.0
+    scs = 0.0
+    sc = 0.0
+    sss = 0.0
+    ss = 0.0
+    for j in range(n_j):
+        coef[0, j] = 0.0
+        coef[1, j] = 0.0
+        coef[2, j] = 0.0
+    for k in range(n):
+        c = math.cos(phase[k])
+        s = math.sin(phase[k])
+        scc += c * c
+        scs += c * s
+        sc += c
+        sss += s * s
+        ss += s
+        for j in range(n_j):
+            value = volts[k, j]
+            coef[0, j] += c * value
+            coef[1, j] += s * value
+            coef[2, j] += value
+    m = float(n)
+    # the cofactors of the symmetric matrix [[scc, scs, sc], [scs, sss, ss], [sc, ss, m]]
+    c00 = sss * m - ss * ss
+    c01 = sc * ss - scs * m
+    c02 = scs * ss - sss * sc
+    c11 = scc * m - sc * sc
+    c12 = scs * sc - scc * ss
+    c22 = scc * sss - scs * scs
+    det = scc * c00 + scs * c01 + sc * c02
+    for j in range(n_j):
+        r0 = coef[0, j]
+        r1 = coef[1, j]
+        r2 = coef[2, j]
+        coef[0, j] = (c00 * r0 + c01 * r1 + c02 * r2) / det
+        coef[1, j] = (c01 * r0 + c11 * r1 + c12 * r2) / det
+        coef[2, j] = (c02 * r0 + c12 * r1 + c22 * r2) / det
