@@ -43,10 +43,9 @@ import os
 import sys
 import time
 
-import numpy as np
-
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import bench_simulator as bench  # noqa: E402 - the same problem and reference as make bench
+import bench_simulator as bench  # noqa: E402,I100 - the same problem and reference as make bench
+import numpy as np  # noqa: E402
 from ring_gyro_sim.analysis.nnm import drive_initial_state  # noqa: E402
 from ring_gyro_sim.core import forces, kernels  # noqa: E402
 from ring_gyro_sim.paramfile import load_yaml  # noqa: E402

@@ -68,7 +68,8 @@ arithmetic: no fast-math, so results do not depend on the vector width) and ~37 
 stages form one chain of dependent operations (each force needs the previous drift, each
 drift the previous kick), so the latency of that chain, not the number of operations, sets
 the cost: what shortens the chain pays (the series 18 -> 8 dependent operations, the angle
-values in one pass, kick and drift fused: 62 -> 46 ns per stage in one session). What the code is shaped by, each measured:
+values in one pass, kick and drift fused: 62 -> 46 ns per stage in one session). What the
+code is shaped by, each measured:
 
 * numba's reference counting: a function that takes arrays and has branches increments and
   decrements every array argument atomically on every call unless its pruning pass can prove
