@@ -40,7 +40,12 @@ channel's peak (1e-12 in the first sample, the start state; the 10 000 g shock a
 fd02a0a and the tree of issue 14 give the same samples bit for bit under those versions. It was
 regenerated again the same day, with the unchanged tree of commit 9f5620c, on a znver3 host, to
 record its machine (the samples moved by up to 4.3e-11 of a peak, the start state by 1.1e-12:
-the CPU, not the tree).
+the CPU, not the tree). It was regenerated on 2026-12-03 (commit a4378ba's kernels, an Intel
+host LLVM calls rocketlake) because the physics' arithmetic changed on purpose (issue 11: the
+series by Estrin's scheme instead of Horner's rule, kick and drift fused, the capacitances
+summed four nodes per division): the tree moved the 9f5620c reference by up to 9.6e-11 of a
+channel's peak (q; 8.1e-11 the smallest gap, 6.6e-11 the capacitances), round-off that the
+10 000 g shock amplifies, as the CPU alone did before.
 """
 
 import hashlib
