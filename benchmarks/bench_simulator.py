@@ -278,42 +278,59 @@ def bench_cases(duration_s: float, repeats: int, rounds: int,
     return rows
 
 
+def series_flops(slots: int, degree: int) -> int:
+    """
+    Operations of one value of the series (``kernels._series_values``), counted from the code.
+
+    Estrin's scheme with S = 4, 8, 12 or 16 slots: the powers ``u^2, u^4, u^8`` it needs, a
+    multiply and an add per coefficient pair and per block, the blocks' combination and the
+    ``u^2`` (or 1) scale; S = 0: Horner's rule of degree D, ``2 D``.
+    """
+    if slots == 0:
+        return 2 * degree
+    powers = {4: 1, 8: 2, 12: 3, 16: 3}[slots]
+    combine = {4: 0, 8: 2, 12: 4, 16: 6}[slots]
+    return powers + slots + slots // 2 + combine + 1
+
+
 def flop_model(sim: Simulator) -> Dict[str, Any]:
     """
     Floating-point operations of the kernels per simulated second, counted from the code.
 
     ``core/kernels.py``: one force evaluation at m angles (``_force``: m = 2 R without sine
     content, ``_force_general``: m = 4 R) is ``m (2 n - 1)`` for the angle values (all
-    coordinates non-zero), m for the range check's sum, ``2 D m`` for Horner of degree D, and
-    the projection (5 per representative and coordinate even under theta -> -theta on the
-    common path, 8 per representative and coordinate on the general one); a stage adds the
-    kick (3 n), the drift (6 n) and the drive (3). The output channels of one sample: the
-    centre gaps (2 n K), the ring grid (G (2 n - 1)), the electrode angles (E (2 n - 1)),
-    their gaps, divisions and sums (4 E, of which E divisions), the curvature (2 n) and the
-    scale (K). Shock sub-steps (a few per shock) are left out.
+    coordinates non-zero), ``2 n`` for the reach that spares the range check, the series at
+    each angle (:func:`series_flops`), and the projection (5 per representative and
+    coordinate even under theta -> -theta on the common path, 8 per representative and
+    coordinate on the general one); a stage adds the fused kick and drift (12 n) and the drive
+    (3). The output channels of one sample: the centre gaps (2 n K), the ring grid
+    (G (2 n - 1)), the electrode angles (E (2 n - 1)), their gaps and the capacitance sums
+    four nodes per division (18 per 4 angles, of which one division), the curvature (2 n) and
+    the scale (K). Shock sub-steps (a few per shock) are left out.
     """
     model = sim.model
     n = model.n_coordinates
     r = int(model.kernel.projection.shape[1])
     degree = int(model.kernel.poly.size) - 1
+    slots = int(model.kernel.series.size)
     general = bool(sim.config.modes.companions)  # the companions are excited in the files
     m = (4 if general else 2) * r
     even = int(np.sum(model.kernel.signs[1] > 0.0))
     projection = 8 * n * r if general else 5 * even * r
-    force = m * (2 * n - 1) + m + 2 * degree * m + projection
-    stage = force + 3 * n + 6 * n + 3
+    force = m * (2 * n - 1) + 2 * n + series_flops(slots, degree) * m + projection
+    stage = force + 12 * n + 3
     stages = int(sim._a.size)
     step = stages * stage + 3 * n + 3
     steps_per_s = sim.n_sub / sim.period_s
     k = sim._centre_shapes.shape[1]
     g = sim._ring_shapes.shape[1]
     e = sim._electrode_shapes.shape[1]
-    output = 2 * n * k + g * (2 * n - 1) + e * (2 * n - 1) + 4 * e + 2 * n + k
+    output = 2 * n * k + g * (2 * n - 1) + e * (2 * n - 1) + 18 * e // 4 + 2 * n + k
     samples_per_s = 1.0 / sim.period_s
-    return {'n': n, 'angles': m, 'degree': degree, 'force_flops': force,
+    return {'n': n, 'angles': m, 'degree': degree, 'slots': slots, 'force_flops': force,
             'stage_flops': stage, 'stages': stages, 'step_flops': step,
-            'steps_per_sim_s': steps_per_s, 'output_flops': output, 'output_divisions': e,
-            'samples_per_sim_s': samples_per_s,
+            'steps_per_sim_s': steps_per_s, 'output_flops': output,
+            'output_divisions': e // 4, 'samples_per_sim_s': samples_per_s,
             'integration_flops_per_sim_s': step * steps_per_s,
             'output_flops_per_sim_s': output * samples_per_s,
             'flops_per_sim_s': step * steps_per_s + output * samples_per_s}
@@ -683,9 +700,10 @@ def print_report(r: Dict[str, Any]) -> None:
     for row in r['cases']:
         f = row['flops']
         run = row['runs'].get('new')
-        print(f'  {row["label"]}: n = {f["n"]}, {f["angles"]} angles, Horner degree '
-              f'{f["degree"]}: force {f["force_flops"]} flops, stage {f["stage_flops"]}, step '
-              f'{f["step_flops"]} ({f["stages"]} stages) x {f["steps_per_sim_s"]:.0f} steps/s;'
+        form = (f'Estrin, {f["slots"]} slots' if f.get('slots') else 'Horner')
+        print(f'  {row["label"]}: n = {f["n"]}, {f["angles"]} angles, series of degree '
+              f'{f["degree"]} ({form}): force {f["force_flops"]} flops, stage '
+              f'{f["stage_flops"]}, step {f["step_flops"]} ({f["stages"]} stages) x {f["steps_per_sim_s"]:.0f} steps/s;'
               f' outputs {f["output_flops"]} flops ({f["output_divisions"]} divisions) x '
               f'{f["samples_per_sim_s"]:.0f} samples/s')
         total = f['flops_per_sim_s']
