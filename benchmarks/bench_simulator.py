@@ -703,7 +703,8 @@ def print_report(r: Dict[str, Any]) -> None:
         form = (f'Estrin, {f["slots"]} slots' if f.get('slots') else 'Horner')
         print(f'  {row["label"]}: n = {f["n"]}, {f["angles"]} angles, series of degree '
               f'{f["degree"]} ({form}): force {f["force_flops"]} flops, stage '
-              f'{f["stage_flops"]}, step {f["step_flops"]} ({f["stages"]} stages) x {f["steps_per_sim_s"]:.0f} steps/s;'
+              f'{f["stage_flops"]}, step {f["step_flops"]} ({f["stages"]} stages) x '
+              f'{f["steps_per_sim_s"]:.0f} steps/s;'
               f' outputs {f["output_flops"]} flops ({f["output_divisions"]} divisions) x '
               f'{f["samples_per_sim_s"]:.0f} samples/s')
         total = f['flops_per_sim_s']
