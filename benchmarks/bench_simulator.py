@@ -63,9 +63,9 @@ import numba
 from numba import njit
 import numpy as np
 from ring_gyro_sim import offline
-from ring_gyro_sim.analysis.nnm import drive_initial_state
 from ring_gyro_sim.core import forces, kernels
 from ring_gyro_sim.core.errors import SimulationError
+from ring_gyro_sim.core.gyro.operating_point import start_state
 from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.paramfile import load_yaml
@@ -190,27 +190,32 @@ def bench_compile(children: bool) -> Dict[str, Any]:
     return out
 
 
-# Run in a child process per tree (argv: tree, parameter file, state .npz, duration, repeats):
-# the whole run of a parameter file through Run in its blocks, best of N, after a warm-up.
+# Run in a child process per tree (argv: tree, parameter file, duration, repeats): the whole
+# run of a parameter file through Run in its blocks, best of N, after a warm-up run that also
+# computes the start state (memoised, not timed). A baseline tree from before Run started
+# itself is handed the start state its own shooting gives.
 WHOLE_RUN_CODE = """
 import json, sys, time
-tree, path, state_file, duration, repeats = sys.argv[1:6]
+tree, path, duration, repeats = sys.argv[1:5]
 sys.path.insert(0, tree)
-import numpy as np
 import ring_gyro_sim
 from ring_gyro_sim.paramfile import load_yaml
 from ring_gyro_sim.run import Run
 config = load_yaml(path)
-with np.load(state_file) as f:
-    state = (f['q'], f['v'])
+try:
+    from ring_gyro_sim.core.gyro import operating_point  # Run(config) starts itself
+    start = {}
+except ImportError:
+    from ring_gyro_sim.analysis.nnm import drive_initial_state
+    start = {'start_state': drive_initial_state(config)}
 period = config.run.output_period_ns * 1e-9
 block = max(1, int(round(config.run.block_duration / period)))
 n_blocks = max(1, int(round(float(duration) / (block * period))))
-warm = Run(config, start_state=state)
+warm = Run(config, **start)
 warm.advance(block)
 best = None
 for _ in range(int(repeats)):
-    run = Run(config, start_state=state)
+    run = Run(config, **start)
     w0 = time.perf_counter()
     c0 = time.process_time()
     for _ in range(n_blocks):
@@ -228,11 +233,11 @@ print(json.dumps(best))
 """
 
 
-def whole_run(tree: str, path: str, state_file: str, duration_s: float,
+def whole_run(tree: str, path: str, duration_s: float,
               repeats: int) -> Optional[Dict[str, Any]]:
     """Best of ``repeats`` whole runs of a parameter file with the code of ``tree`` (child)."""
     env = dict(os.environ, PYTHONPATH=tree)
-    result = subprocess.run([sys.executable, '-c', WHOLE_RUN_CODE, tree, path, state_file,
+    result = subprocess.run([sys.executable, '-c', WHOLE_RUN_CODE, tree, path,
                              repr(duration_s), str(repeats)], env=env, capture_output=True,
                             text=True, check=False, timeout=3600)
     if result.returncode != 0:
@@ -248,33 +253,28 @@ def bench_cases(duration_s: float, repeats: int, rounds: int,
                 baseline: Optional[str]) -> List[Dict[str, Any]]:
     """Section 2: each parameter file as a whole run, the current tree and the baseline."""
     rows = []
-    with tempfile.TemporaryDirectory(prefix='ring_gyro_bench_') as tmp:
-        for name, label, goal in CASES:
-            path = os.path.join(HERE, name)
-            config = load_yaml(path)
-            log(f'{name}: start state (drive.start_on = {config.drive.start_on}, not timed)')
-            q, v = drive_initial_state(config)
-            state_file = os.path.join(tmp, name + '.npz')
-            np.savez(state_file, q=q, v=v)
-            trees = [('new', REPO)] + ([('old', baseline)] if baseline else [])
-            found: Dict[str, Any] = {}
-            for k in range(rounds):  # alternate the trees, so both see the same load
-                for tag, tree in trees:
-                    log(f'{name}: {tag} tree, {repeats} x {duration_s:g} s simulated '
-                        f'(round {k + 1} of {rounds})')
-                    got = whole_run(tree, path, state_file, duration_s, repeats)
-                    if got is None:
-                        continue
-                    prev = found.get(tag)
-                    if prev is None or got['cpu_s'] < prev['cpu_s']:
-                        wall = min(got['wall_s'], prev['wall_s']) if prev else got['wall_s']
-                        found[tag] = dict(got, wall_s=wall, rtf=got['sim_s'] / wall)
-                    else:
-                        prev['wall_s'] = min(prev['wall_s'], got['wall_s'])
-                        prev['rtf'] = prev['sim_s'] / prev['wall_s']
-            sim = Simulator(config)
-            rows.append({'file': name, 'label': label, 'goal': goal, 'runs': found,
-                         'flops': flop_model(sim), 'load': os.getloadavg()})
+    for name, label, goal in CASES:
+        path = os.path.join(HERE, name)
+        config = load_yaml(path)
+        trees = [('new', REPO)] + ([('old', baseline)] if baseline else [])
+        found: Dict[str, Any] = {}
+        for k in range(rounds):  # alternate the trees, so both see the same load
+            for tag, tree in trees:
+                log(f'{name}: {tag} tree, {repeats} x {duration_s:g} s simulated '
+                    f'(round {k + 1} of {rounds})')
+                got = whole_run(tree, path, duration_s, repeats)
+                if got is None:
+                    continue
+                prev = found.get(tag)
+                if prev is None or got['cpu_s'] < prev['cpu_s']:
+                    wall = min(got['wall_s'], prev['wall_s']) if prev else got['wall_s']
+                    found[tag] = dict(got, wall_s=wall, rtf=got['sim_s'] / wall)
+                else:
+                    prev['wall_s'] = min(prev['wall_s'], got['wall_s'])
+                    prev['rtf'] = prev['sim_s'] / prev['wall_s']
+        sim = Simulator(config)
+        rows.append({'file': name, 'label': label, 'goal': goal, 'runs': found,
+                     'flops': flop_model(sim), 'load': os.getloadavg()})
     return rows
 
 
@@ -502,9 +502,9 @@ class ScipyProblem:
         return np.concatenate(parts), time.perf_counter() - w0, nfev
 
 
-def simulator_window(config: SimConfig, state, n_samples: int) -> Tuple[np.ndarray, float]:
+def simulator_window(config: SimConfig, n_samples: int) -> Tuple[np.ndarray, float]:
     """Return the coordinates (K, n) of ``n_samples`` periods in 10 ms blocks, and the wall s."""
-    run = Run(config, start_state=state)
+    run = Run(config)
     per_chunk = int(round(CHUNK_S / run.sim.period_s))
     parts = []
     w0 = time.perf_counter()
@@ -535,7 +535,7 @@ def bench_scipy(config: SimConfig, state, after_shock_s: float,
         return float(np.max(np.abs(q - ref)) / peak)
 
     log('scipy: the simulator on the same window')
-    runs = [simulator_window(config, state, n_samples) for _ in range(repeats)]
+    runs = [simulator_window(config, n_samples) for _ in range(repeats)]
     sim_q = runs[0][0]
     sim_wall = min(r[1] for r in runs)
     sim_err = error(sim_q)
@@ -570,16 +570,15 @@ def bench_scipy(config: SimConfig, state, after_shock_s: float,
     return out
 
 
-def bench_recording(config: SimConfig, state, duration_s: float) -> Dict[str, Any]:
+def bench_recording(config: SimConfig, duration_s: float) -> Dict[str, Any]:
     """Section 5: run_offline with and without an MCAP recording (issue 5)."""
     log(f'recording: run_offline without output, {duration_s:g} s simulated')
-    plain = offline.run_offline(config, duration_s=duration_s, progress=False,
-                                start_state=state)
+    plain = offline.run_offline(config, duration_s=duration_s, progress=False)
     with tempfile.TemporaryDirectory(prefix='ring_gyro_bench_') as tmp:
         path = os.path.join(tmp, 'bench.mcap')
         log(f'recording: run_offline to {path}')
         recorded = offline.run_offline(config, duration_s=duration_s, output=path,
-                                       progress=False, start_state=state)
+                                       progress=False)
         size = os.path.getsize(path)
     return {
         'sim_s': plain.sim_time_s, 'rtf_plain': plain.real_time_factor,
@@ -760,12 +759,12 @@ def main(argv: Optional[List[str]] = None) -> int:
     r['stages'] = {}
     for name, _, _ in CASES:
         config = load_yaml(os.path.join(HERE, name))
-        r['stages'][name] = stage_costs(config, drive_initial_state(config))
+        r['stages'][name] = stage_costs(config, start_state(config))
     if everything:
         paper = paper_config()
-        paper_state = drive_initial_state(paper)
+        paper_state = start_state(paper)
         r['scipy'] = bench_scipy(paper, paper_state, after_shock_s, repeats=3 if quick else 5)
-        r['recording'] = bench_recording(paper, paper_state, record_s)
+        r['recording'] = bench_recording(paper, record_s)
     r['machine']['load_end'] = os.getloadavg()
     r['total_wall_s'] = time.perf_counter() - t_start
     log(f'done in {r["total_wall_s"]:.0f} s')

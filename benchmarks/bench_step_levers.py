@@ -46,8 +46,8 @@ import time
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import bench_simulator as bench  # noqa: E402,I100 - the same problem and reference as make bench
 import numpy as np  # noqa: E402
-from ring_gyro_sim.analysis.nnm import drive_initial_state  # noqa: E402
 from ring_gyro_sim.core import forces, kernels  # noqa: E402
+from ring_gyro_sim.core.gyro.operating_point import start_state  # noqa: E402
 from ring_gyro_sim.paramfile import load_yaml  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -81,7 +81,7 @@ class Prototype:
     def __init__(self) -> None:
         config = load_yaml(os.path.join(HERE, 'paper.yaml'))
         self.problem = bench.ScipyProblem(config)
-        self.state = drive_initial_state(config)
+        self.state = start_state(config)
         self.period = config.run.output_period_ns * 1e-9
         self.n_samples = int(round(WINDOW_S / self.period))
         self.t_eval = self.period * np.arange(1, self.n_samples + 1)

@@ -92,8 +92,8 @@ device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
 3. Shock (12.17, the environment series): per shock amplitude (1 000, 3 000, 10 000 g, a
    half-sine along x, ``shock.duration``) and per loop mode, one run at 10 deg/s with the
    shock at 1 s, 40 s after it (``--quick``: 1 000 and 10 000 g at 0.2 s, 0.6 s after).
-   **Peak rate error** and **recovery** are the run's own figures (``rate.RateStats``: back
-   within ``max(1 % of the rate, 4 sigma of the pre-shock error)`` for good, ``None`` if not
+   **Peak rate error** and **recovery** are the run's own figures (``core.gyro.stats``:
+   back within ``max(1 % of the rate, 4 sigma of the pre-shock error)`` for good, ``None`` if not
    by the end). **Jumped**: the drive pick-off over the last 0.5 s is below half its mean
    over the 0.5 s before the shock (the drive has not come back; in the paper's Case 3 it
    sits at ~0.1 on its lower branch); with a record as short as ``--quick``'s a drive still
@@ -130,8 +130,7 @@ import warnings
 import numpy as np
 
 from ring_gyro_sim.core.errors import ParameterError
-from ring_gyro_sim.core.params import (build_config, SimConfig, SPECS, STANDARD_GRAVITY,
-                                       to_flat)
+from ring_gyro_sim.core.params import build_config, SimConfig, SPECS, STANDARD_GRAVITY
 from ring_gyro_sim.run import Run, Sink
 
 __all__ = ['FULL', 'LOOP_PARAMETER', 'Plan', 'QUICK', 'allan_fit', 'available_loops',
@@ -159,7 +158,7 @@ DRIVE_BAND = 0.01
 DRIVE_WINDOW_S = 0.5
 """Windows of the pre-shock and final drive pick-off, s."""
 HOLD_S = 0.1
-"""A recovery counts when it held for at least this long at the end (as ``rate.RateStats``)."""
+"""A recovery counts when it held for at least this long at the end (``core.gyro.stats``)."""
 SLOPE_ONLY_TC = 10.0
 """The plain -1/2 fit starts at this many time constants."""
 TAU_FRACTION = 8.0
@@ -309,7 +308,7 @@ class _Trace(Sink):
         s = block.samples
         at = np.clip(np.searchsorted(s.t, rate.t), 0, len(s) - 1)
         drive = np.hypot(block.demod.values[at, 2], block.demod.values[at, 3])
-        self.parts.append((rate.t, rate.rate, s.rate[at], drive))
+        self.parts.append((rate.t, rate.rate, s.applied_rate[at], drive))
 
     def arrays(self) -> Tuple[np.ndarray, ...]:
         if not self.parts:
@@ -351,31 +350,13 @@ class _Bar:
         self.progress.close()
 
 
-_ORBITS: Dict[str, Any] = {}
-
-
-def _start_state(config: SimConfig, values: Mapping[str, Any]):
-    """``drive_initial_state`` with one shooting per device and loop mode (not per rate)."""
-    from ring_gyro_sim.analysis import nnm
-    rest = build_config({k: v for k, v in values.items() if not k.startswith('scenario.')})
-    key = json.dumps({k: v for k, v in to_flat(rest).items() if k != 'duration'},
-                     sort_keys=True)
-    if key not in _ORBITS:
-        with warnings.catch_warnings():
-            warnings.simplefilter('ignore', RuntimeWarning)  # unstable to the companions
-            if len(_ORBITS) >= 8:
-                _ORBITS.clear()
-            _ORBITS[key] = nnm.drive_initial_state(rest)
-    orbit = _ORBITS[key]
-    return None if orbit is None else nnm.with_rate_response(config, orbit)
-
-
 def _simulate(values: Mapping[str, Any], duration_s: float, bar: _Bar, note: str) -> _Record:
     """Run the device on ``values`` for ``duration_s`` (stops at contact)."""
     config = build_config(dict(values))
-    state = _start_state(config, values)
     trace = _Trace()
-    run = Run(config, start_state=state, sink=trace)
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore', RuntimeWarning)  # unstable to the companions
+        run = Run(config, sink=trace)  # one shooting per device and drive (memoised)
     total = int(round(duration_s / (config.run.output_period_ns * 1e-9)))
     block = config.run.block_samples
     done = 0
@@ -390,7 +371,7 @@ def _simulate(values: Mapping[str, Any], duration_s: float, bar: _Bar, note: str
         run.close()
     bar.finish_run(duration_s)
     t, rate, applied, drive = trace.arrays()
-    el = run.gyro.electronics
+    el = run.sim.sense.electronics
     return _Record(t=t, rate=rate, applied=applied, drive=drive,
                    scale_factor=float(el.scale_factor),
                    drive_amplitude_m=float(el.drive_amplitude_m), electronics=el,

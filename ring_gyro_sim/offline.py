@@ -33,7 +33,6 @@ from typing import List, Optional, Sequence
 
 import numpy as np
 
-from ring_gyro_sim.analysis.nnm import drive_initial_state
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.params import build_config, SimConfig
 from ring_gyro_sim.core.simulator import channel_names
@@ -76,7 +75,7 @@ def run_offline(config: SimConfig, duration_s: Optional[float] = None,
     namespace : str
         Node namespace written into the recorded topic names and metadata.
     start_state : (q, v), optional
-        Initial state; default from ``drive.start_on``.
+        Initial state (a recording's); default: the run starts itself (``drive.start_on``).
     inputs : sequence of Input
         Inputs with their acting times (``at_ns``), e.g. a recording's (re-simulation). Each
         is applied before the block that holds its time, as the node applied it.
@@ -103,8 +102,7 @@ def run_offline(config: SimConfig, duration_s: Optional[float] = None,
             output, config, names, namespace, publish_clock=config.run.publish_clock),
             frame_id=config.gyro.frame_id)
     try:
-        state = drive_initial_state(config) if start_state is None else start_state
-        run = Run(config, start_state=state, sink=sink)
+        run = Run(config, start_state=start_state, sink=sink)
     except BaseException:
         sink.discard()
         raise

@@ -19,15 +19,15 @@ Reads ``/ring_gyro/rate`` (``recording.reader.read_rate``), the parameters and t
 they acted (``offline.load_recording``), rebuilds the applied rate at every rate sample with
 the simulator's own rules (the ``scenario.rate_*`` knots, linear between them, and each
 streamed ``~/angular_rate`` a step that replaces the knots after it:
-``Simulator.set_rate``), and writes
+``core.rate_profile.RateProfile``), and writes
 
 * ``DIR/rate.png``: the rate output and the applied rate, their difference (log scale, the
   1 % band drawn) in deg/s, and the drive pick-off over its value at the start (from
   ``/ring_gyro/demodulator`` when recorded), the first shock marked
   (``analysis.plotting.plot_rate``);
 * ``DIR/rate.csv``: ``t_s, rate_rad_s, applied_rad_s, error_rad_s``;
-* the figures of ``ring_gyro run --json`` over the record (``rate.RateStats``), returned and
-  printed as one JSON object.
+* the figures of ``ring_gyro run --json`` over the record (``core.gyro.stats.RateStats``),
+  returned and printed as one JSON object.
 """
 
 import csv
@@ -37,9 +37,9 @@ from typing import Any, Dict
 
 import numpy as np
 
-from ring_gyro_sim.core.electronics import RateSamples
-from ring_gyro_sim.core.simulator import Simulator
-from ring_gyro_sim.rate import RateStats
+from ring_gyro_sim.core.gyro.electronics import RateSamples
+from ring_gyro_sim.core.gyro.stats import RateStats
+from ring_gyro_sim.core.rate_profile import RateProfile
 from ring_gyro_sim.run import AngularRate, Shock
 
 __all__ = ['applied_rate', 'rate_report']
@@ -47,11 +47,11 @@ __all__ = ['applied_rate', 'rate_report']
 
 def applied_rate(config, inputs, t_ns: np.ndarray) -> np.ndarray:
     """Return the applied rate (rad/s) at the times ``t_ns``: configuration and inputs."""
-    sim = Simulator(config)
+    profile = RateProfile.of(config)
     for event in sorted((e for e in inputs if isinstance(e, AngularRate)),
                         key=lambda e: e.at_ns):
-        sim.set_rate(int(event.at_ns), float(event.z))
-    return sim.rates_at(np.asarray(t_ns, dtype=np.int64))  # as Samples.rate has them
+        profile.step(int(event.at_ns), float(event.z))
+    return profile.at(np.asarray(t_ns, dtype=np.int64))  # as Samples.applied_rate has them
 
 
 def rate_report(path: str, out_dir: str) -> Dict[str, Any]:

@@ -18,7 +18,7 @@ The one run path: every way of running the simulator drives a :class:`Run`.
 The node (``ros/node.py``), ``ring_gyro run`` and ``--from`` (``offline.py``), the paper
 cases (``analysis/cases.py``) and the benchmark all do the same three things::
 
-    run = Run(config, start_state=..., sink=...)   # Simulator + start state + statistics
+    run = Run(config, sink=...)                    # Simulator + start state + statistics
     run.apply(Shock(x=..., at_ns=...))             # any input, validated and timed here
     block = run.advance(n_samples)                 # samples of every channel
 
@@ -63,12 +63,13 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
-from ring_gyro_sim.core.control import ControlSamples, update_rows
-from ring_gyro_sim.core.electronics import DemodSamples, RateSamples
 from ring_gyro_sim.core.errors import InputError, ParameterError
+from ring_gyro_sim.core.gyro import operating_point
+from ring_gyro_sim.core.gyro.control import ControlSamples, update_rows
+from ring_gyro_sim.core.gyro.electronics import DemodSamples, RateSamples
+from ring_gyro_sim.core.gyro.stats import DriveStats, RateStats
 from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.core.simulator import channel_names, Samples, Simulator, Status
-from ring_gyro_sim.rate import DriveStats, GyroChannel, RateStats
 
 __all__ = ['AngularRate', 'BaseAcceleration', 'Block', 'Diagnostics', 'DriveAmplitude',
            'DriveFrequency',
@@ -196,7 +197,7 @@ class Block:
         demodulator's channels at every sample (``~/demodulator``); None otherwise.
     control : ControlSamples or None
         With ``control.drive_loop: closed``: the loops' updates in the block (``~/control``,
-        at ``control.rate``; ``core.control.update_rows``); None otherwise.
+        at ``control.rate``; ``core.gyro.control.update_rows``); None otherwise.
 
     """
 
@@ -389,7 +390,7 @@ class RunSummary:
         """
         Return one JSON object (a non-finite number, e.g. no gap seen yet, is null).
 
-        The ``extra`` figures (the rate channel's, ``rate.RateStats``) are top-level keys.
+        The ``extra`` figures (the rate channel's, ``core.gyro.stats``) are top-level keys.
         """
         values = asdict(self)
         values.update(values.pop('extra'))
@@ -416,9 +417,11 @@ class Run:
     config : SimConfig
         Validated configuration (``scenario.*`` shocks are scheduled).
     start_state : (q, v), optional
-        Initial coordinates (m) and velocities (m/s); None = rest. The caller computes the
-        ``drive.start_on`` orbit (``analysis.nnm.drive_initial_state``), which lives above
-        this layer.
+        Initial coordinates (m) and velocities (m/s), for a run that continues a recorded
+        one (``ring_gyro run --from``). None (the default): the run starts itself, at rest or
+        on the drive's branch of ``drive.start_on``
+        (``core.gyro.operating_point.start_state``: the orbit is computed once per device
+        and drive and memoised).
     sink : Sink, optional
         Receives inputs as they act, blocks and diagnostics (default :class:`NullSink`).
     late_tolerance_ns : int
@@ -426,31 +429,28 @@ class Run:
         0, every input has its exact time).
     clock : callable
         Wall clock for the summary, s (``time.monotonic``).
+    log : callable, optional
+        Told what takes a while at construction (computing a start state), one line each.
 
     """
 
     def __init__(self, config: SimConfig, start_state=None, sink: Optional[Sink] = None,
                  late_tolerance_ns: int = 0,
-                 clock: Callable[[], float] = time.monotonic) -> None:
-        self.sim = Simulator(config)
-        self.start_state: Tuple[np.ndarray, np.ndarray]
-        n = self.sim.model.n_coordinates
-        if start_state is not None:
-            self.sim.set_state(*start_state)
-            self.start_state = (np.array(start_state[0], dtype=np.float64),
-                                np.array(start_state[1], dtype=np.float64))
-        else:
-            self.start_state = (np.zeros(n), np.zeros(n))
-        self.gyro: Optional[GyroChannel] = None
+                 clock: Callable[[], float] = time.monotonic,
+                 log: Optional[Callable[[str], None]] = None) -> None:
+        if start_state is None:
+            start_state = operating_point.start_state(config, log)
+        self.sim = Simulator(config, start_state)
+        self.start_state: Tuple[np.ndarray, np.ndarray] = (self.sim.q.copy(),
+                                                           self.sim.v.copy())
         self.rate_stats: Optional[RateStats] = None
         if config.gyro.enabled:
-            self.gyro = GyroChannel(config, self.sim, start_state)
             self.rate_stats = RateStats(config.gyro.output_rate)
         self.drive_stats: Optional[DriveStats] = (
             DriveStats(self.sim.loop) if self.sim.loop is not None else None)
         self.sink: Sink = sink if sink is not None else NullSink()
-        if self.gyro is not None:
-            self.sink.set_rate_variance(self.gyro.electronics.rate_variance())
+        if self.sim.sense is not None:
+            self.sink.set_rate_variance(self.sim.sense.electronics.rate_variance())
         self.late_tolerance_ns = int(late_tolerance_ns)
         self.stats = RunStats(self.sim.coordinates, self.sim.period_ns, self.sim.model.gap)
         self.rejected: Dict[str, int] = {topic: 0 for topic in INPUT_TOPICS}
@@ -697,9 +697,7 @@ class Run:
             heapq.heappop(self._shock_ends)
         while self._future_profile and self._future_profile[0] <= end_ns:
             heapq.heappop(self._future_profile)
-        rate = demod = None
-        if self.gyro is not None:
-            demod, rate = self.gyro.process(first, samples)
+        rate, demod = samples.rate_output, samples.demod
         channels = [samples.q, samples.gap, samples.min_gap, samples.capacitance]
         if samples.control is not None:
             channels.append(samples.control)
@@ -710,9 +708,9 @@ class Run:
             self.withheld_blocks += 1
             return None
         self.stats.add(samples, sim.sample_index)
-        if rate is not None and self.rate_stats is not None and samples.rate is not None:
+        if rate is not None and self.rate_stats is not None:
             at = np.clip(np.searchsorted(samples.t, rate.t), 0, max(0, len(samples) - 1))
-            self.rate_stats.add(rate, samples.rate[at])
+            self.rate_stats.add(rate, samples.applied_rate[at])
         if self.drive_stats is not None and samples.control is not None:
             self.drive_stats.add(samples.t, samples.control)
         updates = None
@@ -782,8 +780,8 @@ class Run:
             if not loop['pll_locked']:
                 gyro_warning = (f'PLL out of lock since t = {sim.loop.unlocked_since_s:.6f} s '
                                 f'(phase error {loop["pll_phase_error_rad"]:.3g} rad)')
-        if self.gyro is not None:
-            gyro = self.gyro.diagnostics_values()
+        if self.sim.sense is not None:
+            gyro = self.sim.sense.diagnostics_values()
             values.update(gyro)
             if not gyro.get('scale_factor_valid', True) and not gyro_warning:
                 gyro_warning = (f'scale factor collapsed: drive pick-off at '
@@ -823,15 +821,16 @@ class Run:
         """
         Return the rate channel's and the drive loop's figures, {} without either.
 
-        ``rate.RateStats`` with the gyroscope on, ``rate.DriveStats`` with the closed loop.
+        ``core.gyro.stats.RateStats`` with the gyroscope on, ``DriveStats`` with the closed
+        loop.
         """
         out: Dict[str, Any] = {}
         if self.drive_stats is not None:
             out.update(self.drive_stats.figures())
-        if self.gyro is None or self.rate_stats is None:
+        if self.sim.sense is None or self.rate_stats is None:
             return out
         out.update(self.rate_stats.figures())
-        diag = self.gyro.diagnostics_values()
+        diag = self.sim.sense.diagnostics_values()
         for key in ('rate_scale_factor_v_per_rad_s', 'scale_factor_valid',
                     'drive_amplitude_ratio', 'predicted_arw_deg_per_sqrt_h', 'bandwidth_hz'):
             if key in diag:

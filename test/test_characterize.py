@@ -32,7 +32,6 @@ import numpy as np
 import pytest
 from ring_gyro_sim import characterize as ch
 from ring_gyro_sim import cli
-from ring_gyro_sim.analysis.nnm import drive_initial_state
 from ring_gyro_sim.core.params import build_config
 from ring_gyro_sim.run import Run
 from scipy import signal
@@ -67,7 +66,7 @@ def electronics():
     values = ch.load_device(str(GYRO))
     values = {k: v for k, v in values.items() if not k.startswith('scenario.')}
     config = build_config(values)
-    return Run(config, start_state=drive_initial_state(config)).gyro.electronics
+    return Run(config).sim.sense.electronics
 
 
 def test_the_run_succeeds_and_prints_its_summary_last(quick, sheet):

@@ -29,7 +29,6 @@ import allantools
 import numpy as np
 import pytest
 from ring_gyro_sim import cli
-from ring_gyro_sim.analysis.nnm import drive_initial_state
 from ring_gyro_sim.core.params import build_config, STANDARD_GRAVITY
 from ring_gyro_sim.paramfile import check_params_file
 from ring_gyro_sim.rate_record import applied_rate
@@ -50,8 +49,8 @@ def gyro_values(**extra):
 
 def run_blocks(config, seconds, state='orbit', inputs=()):
     """Run ``config`` in its blocks; return (t, rate, applied, run)."""
-    start = drive_initial_state(config) if state == 'orbit' else None
-    run = Run(config, start_state=start)
+    assert state == 'orbit' or config.drive.start_on == 'rest'
+    run = Run(config)
     for event in inputs:
         run.apply(event)
     t, rate, applied = [], [], []
@@ -61,7 +60,7 @@ def run_blocks(config, seconds, state='orbit', inputs=()):
         t.append(b.rate.t)
         rate.append(b.rate.rate)
         at = np.searchsorted(b.samples.t, b.rate.t)
-        applied.append(b.samples.rate[at])
+        applied.append(b.samples.applied_rate[at])
     return np.concatenate(t), np.concatenate(rate), np.concatenate(applied), run
 
 
@@ -116,10 +115,9 @@ def test_a_rate_step_shows_the_documented_bandwidth():
                                          'gyro.temperature': 0.0,
                                          'gyro.input_noise_density': 0.0}))
     t_step = 0.2
-    probe = Run(config, start_state=None)
-    tau = 1.0 / (2.0 * math.pi * probe.gyro.electronics.bandwidth_hz)
-    assert probe.gyro.electronics.bandwidth_hz == pytest.approx(15800.0 / (2 * 64700.0),
-                                                                rel=1e-4)
+    bandwidth_hz = Run(config).sim.sense.electronics.bandwidth_hz
+    tau = 1.0 / (2.0 * math.pi * bandwidth_hz)
+    assert bandwidth_hz == pytest.approx(15800.0 / (2 * 64700.0), rel=1e-4)
     t, rate, applied, run = run_blocks(
         config, t_step + 2.2 * tau,
         inputs=[AngularRate(z=TEN_DEG_S, at_ns=int(t_step * 1e9))])
@@ -175,7 +173,7 @@ def test_angle_random_walk_matches_the_noise_sources():
     v = np.zeros(4)
     q[1], v[1] = c.real, (1j * w * c).real
     run = Run(config, start_state=(q, v))
-    el = run.gyro.electronics
+    el = run.sim.sense.electronics
     n_total, n_thermo, n_el = el.predicted_arw()
     rate = []
     for _ in range(3000):
@@ -249,9 +247,8 @@ def test_the_paper_case_3_collapses_the_scale_factor_and_says_so():
               'scenario.rate_times': [0.0], 'scenario.rate_values': [TEN_DEG_S]}
     config = build_config(values)
     with warnings.catch_warnings():
-        warnings.simplefilter('ignore')  # the upper branch's companion instability (nnm)
-        start = drive_initial_state(config)
-    run = Run(config, start_state=start)
+        warnings.simplefilter('ignore')  # the upper branch's companion instability
+        run = Run(config)
     for _ in range(5):
         run.advance(config.run.block_samples)
     assert run.diagnostics().level == 'OK'

@@ -31,8 +31,8 @@ from mcap_ros2.decoder import DecoderFactory
 import numpy as np
 import pytest
 from ring_gyro_sim import offline, progress, run
-from ring_gyro_sim.analysis.nnm import drive_initial_state
 from ring_gyro_sim.core.errors import ParameterError
+from ring_gyro_sim.core.gyro.operating_point import start_state
 from ring_gyro_sim.core.params import build_config, STANDARD_GRAVITY
 from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.paramfile import load_yaml
@@ -103,7 +103,7 @@ def test_summary_matches_direct_simulator_run():
     config = build_config({'scenario.shock_times': [0.005],
                            'scenario.shock_peaks': [2000 * STANDARD_GRAVITY]})
     summary = offline.run_offline(config, 0.03, progress=False)
-    sim, out = direct_run(config, 0.03, drive_initial_state(config))
+    sim, out = direct_run(config, 0.03, start_state(config))
     assert summary.sim_time_s == pytest.approx(0.03, abs=1e-12)
     assert summary.samples == len(out) == 6000
     assert summary.wall_time_s > 0.0

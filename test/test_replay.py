@@ -501,8 +501,8 @@ def gyro_recording(tmp_path_factory):
     simulator's own rows, 50 per block of 50 ms at 1 kHz).
     """
     from ring_gyro_sim import run as run_mod
-    from ring_gyro_sim.core.control import update_rows
-    from ring_gyro_sim.core.electronics import DemodSamples, RateSamples
+    from ring_gyro_sim.core.gyro.control import update_rows
+    from ring_gyro_sim.core.gyro.electronics import DemodSamples, RateSamples
     from ring_gyro_sim.core.simulator import Simulator
     from ring_gyro_sim.ros.recorder import RunRecorder
     from ring_gyro_sim.ros.sinks import RosSink

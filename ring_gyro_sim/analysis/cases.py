@@ -31,7 +31,7 @@ Conventions
   ``shock_angle_deg`` from x towards y (needs ``modes.companions``); 0 and 0 are the paper's.
 * Branches: the upper and lower periodic responses to the drive with the ring otherwise at
   rest (q1 = q3 = 0 is invariant under the drive alone, so they do not depend on Q_1) are
-  found by shooting (:func:`ring_gyro_sim.analysis.nnm.forced_orbit`). The threshold
+  found by shooting (:func:`ring_gyro_sim.core.gyro.operating_point.forced_orbit`). The threshold
   between them is their geometric mean (0.11 um for the defaults): the q2 envelope is
   "on the upper branch" above it.
 * Final values are means of the envelope over the last :data:`FINAL_WINDOW_S`; the run is
@@ -59,8 +59,9 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 from ring_gyro_sim.analysis import envelope as env
-from ring_gyro_sim.analysis import nnm, plotting
+from ring_gyro_sim.analysis import plotting
 from ring_gyro_sim.core.errors import SimulationError
+from ring_gyro_sim.core.gyro import operating_point
 from ring_gyro_sim.core.params import build_config, SimConfig, STANDARD_GRAVITY
 from ring_gyro_sim.core.simulator import coordinate_names, Status
 from ring_gyro_sim.progress import Progress
@@ -283,7 +284,7 @@ def drive_branches(config: SimConfig) -> Optional[Branches]:
     found = []
     for guess in (peak, 0.1 * peak):
         try:
-            orbit = nnm.forced_orbit(config, d.frequency, guess, d.amplitude)
+            orbit = operating_point.forced_orbit(config, d.frequency, guess, d.amplitude)
         except SimulationError:
             found.append(math.nan)
             continue
@@ -302,30 +303,31 @@ def drive_branches(config: SimConfig) -> Optional[Branches]:
 @dataclass(frozen=True)
 class DriveSetup:
     """
-    What a case computes before it runs: the drive branches and the start state.
+    What a case computes before it runs: the drive branches and the drive's orbit.
 
     Both depend on the configuration only (shooting, about 1.5 s): :func:`drive_setup`
     computes them, a caller that runs many cases on one configuration (a sweep over the
-    shock) may compute them once and pass them to :func:`run_case`.
+    shock, on several workers) may compute them once and pass them to :func:`run_case`.
 
     Attributes
     ----------
     branches : Branches or None
         :func:`drive_branches` of the configuration.
-    start_state : (ndarray, ndarray) or None
-        ``(q m, v m/s)`` of ``drive.start_on``, from
-        :func:`~ring_gyro_sim.analysis.nnm.drive_initial_state` (None: rest).
+    orbit : (ndarray, ndarray) or None
+        ``(q m, v m/s)`` of the resting sensor on ``drive.start_on``
+        (``core.gyro.operating_point.resting_orbit``; None: rest), which the case's ``Run``
+        starts from.
 
     """
 
     branches: Optional[Branches]
-    start_state: Optional[Tuple[np.ndarray, np.ndarray]]
+    orbit: Optional[Tuple[np.ndarray, np.ndarray]]
 
 
 def drive_setup(config: SimConfig) -> DriveSetup:
-    """Return the :class:`DriveSetup` of ``config`` (branches, then start state)."""
+    """Return the :class:`DriveSetup` of ``config`` (branches, then the drive's orbit)."""
     return DriveSetup(branches=drive_branches(config),
-                      start_state=nnm.drive_initial_state(config))
+                      orbit=operating_point.resting_orbit(config))
 
 
 def envelope_channels(config: SimConfig) -> List[str]:
@@ -560,8 +562,10 @@ def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
     shock = shock_input(spec, config)
     if setup is None:
         setup = drive_setup(config)
+    else:  # computed elsewhere (a sweep's setup task): the run here starts from it
+        operating_point.remember_orbit(config, setup.orbit)
     branches = setup.branches
-    run = Run(config, start_state=setup.start_state)
+    run = Run(config)
     sim = run.sim
     if spec.shock_g:
         run.apply(shock)

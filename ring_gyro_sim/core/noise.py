@@ -79,9 +79,9 @@ __all__ = ['STREAM_BROWNIAN', 'STREAM_PICKOFF', 'STREAM_FLICKER', 'MAX_KEY_WORD'
 STREAM_BROWNIAN = 1
 """Thermomechanical force noise of the modes (simulator kernel): width = coordinates x steps."""
 STREAM_PICKOFF = 2
-"""Electronic noise of the pick-off amplifiers (core/electronics.py): width 2 (sense, drive)."""
+"""Electronic noise of the pick-off amplifiers (core/gyro/electronics.py): width 2."""
 STREAM_FLICKER = 3
-"""Flicker (bias-instability) rate noise (core/electronics.py), at the rate samples."""
+"""Flicker (bias-instability) rate noise (core/gyro/electronics.py), at the rate samples."""
 
 MAX_KEY_WORD = 2 ** 64 - 1
 """Largest seed and stream: each is one 64-bit word of the Philox key."""

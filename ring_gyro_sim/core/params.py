@@ -672,7 +672,7 @@ class GyroParams:
 @_parameter_group('control')
 class ControlParams:
     """
-    The closed-loop drive (PLL + AGC) and force-to-rebalance (``core.control``).
+    The closed-loop drive (PLL + AGC) and force-to-rebalance (``core.gyro.control``).
 
     ``drive_loop: open`` (the default) is the paper's fixed-frequency drive; ``closed`` locks
     an NCO to the drive mode and holds its amplitude (doc/control.md).

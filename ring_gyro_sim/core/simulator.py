@@ -58,9 +58,12 @@ from typing import Any, Callable, List, Mapping, Optional, Tuple
 
 import numpy as np
 
-from ring_gyro_sim.core import control, electronics, forces, kernels, noise, structure
+from ring_gyro_sim.core import forces, kernels, noise, structure
 from ring_gyro_sim.core.errors import InputError, SimulationError
+from ring_gyro_sim.core.gyro import control, electronics
+from ring_gyro_sim.core.gyro.channel import SenseChain
 from ring_gyro_sim.core.params import BOLTZMANN, build_config, EPSILON_0, SimConfig, to_flat
+from ring_gyro_sim.core.rate_profile import RateProfile
 
 _EMPTY = np.empty(0)
 _NO_NOISE = np.empty((0, 1))
@@ -163,6 +166,20 @@ class Status(str, enum.Enum):
         return self.value
 
 
+def _joined(t: np.ndarray, parts) -> Tuple[electronics.DemodSamples, electronics.RateSamples]:
+    """Join the sense chain's outputs of consecutive stretches into those of the call."""
+    if len(parts) == 1:
+        return parts[0]
+    demod = [d.values for d, _ in parts] or [np.empty((0, len(electronics.DEMOD_CHANNELS)))]
+    rates = [r for _, r in parts]
+
+    def column(name):
+        return np.concatenate([getattr(r, name) for r in rates]) if rates else np.empty(0)
+    return (electronics.DemodSamples(t=t, values=np.concatenate(demod)),
+            electronics.RateSamples(t=column('t'), rate=column('rate'),
+                                    quadrature=column('quadrature')))
+
+
 def _kernel_status(status: int) -> Status:
     """Translate a kernel's integer status (``kernels.STATUS_*``, not OK) to a :class:`Status`."""
     return Status.FAILED if status == kernels.STATUS_NONFINITE else Status.CONTACT
@@ -188,11 +205,17 @@ class Samples:
     drive_phase : ndarray, shape (K,) or None
         Phase of the drive force ``A cos(phase)`` at each sample time, rad (the reference of
         the sense electronics); None when the gyroscope is off.
-    rate : ndarray, shape (K,) or None
+    applied_rate : ndarray, shape (K,) or None
         Angular rate of the sensor frame at each sample time, rad/s (None: gyroscope off).
     control : ndarray, shape (K, len(control.CONTROL_CHANNELS)) or None
-        The closed loop's state in force at each sample (``core.control``, C9); None open
+        The closed loop's state in force at each sample (``core.gyro.control``, C9); None open
         loop.
+    demod : electronics.DemodSamples or None
+        The sense chain's demodulator at every sample (``~/demodulator``); None: gyroscope
+        off.
+    rate_output : electronics.RateSamples or None
+        The gyroscope's rate output (``~/rate``, at ``gyro.output_rate``); None: gyroscope
+        off.
 
     """
 
@@ -203,8 +226,10 @@ class Samples:
     min_gap: np.ndarray
     capacitance: np.ndarray
     drive_phase: Optional[np.ndarray] = None
-    rate: Optional[np.ndarray] = None
+    applied_rate: Optional[np.ndarray] = None
     control: Optional[np.ndarray] = None
+    demod: Optional[electronics.DemodSamples] = None
+    rate_output: Optional[electronics.RateSamples] = None
 
     def __len__(self) -> int:
         return int(self.t.size)
@@ -227,7 +252,8 @@ class Simulator:
 
     """
 
-    def __init__(self, config: SimConfig) -> None:
+    def __init__(self, config: SimConfig,
+                 start_state: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> None:
         self._config = config
         self.period_ns = config.run.output_period_ns
         self.period_s = self.period_ns * 1e-9
@@ -248,26 +274,25 @@ class Simulator:
         self._profile_x: List[float] = []
         self._profile_y: List[float] = []
         self._profile_head = 0
-        # The angular-rate profile: knots (ns, non-decreasing) and rates (rad/s).
-        self._rate_t: List[int] = []
-        self._rate_w: List[float] = []
-        self._rate_cache = None
-        self._rate_version = 0  # counts the changes of the knots (rates_at's cache)
-        for t_s, w in zip(config.run.rate_times, config.run.rate_values):
-            self._rate_t.append(int(round(t_s * 1e9)))
-            self._rate_w.append(float(w))
+        self.rate_profile = RateProfile.of(config)  # the angular rate of the sensor frame
         self._events: List[Tuple[int, int, Callable[[], None]]] = []
         self._event_seq = 0
         # The drive's amplitude and frequency are those of the configuration in force (the one
         # source); the phase reference moves when they change, so the phase is continuous.
         self._drive_t_ref = 0.0
         self._drive_phase = 0.0
+        # The pick-off amplifiers (read by the loops and the sense chain alike), the loops
+        # and the sense chain: the simulator owns them and rebuilds them with the
+        # configuration (_apply_config).
+        self.pickoff: Optional[electronics.PickOff] = None
         self.loop: Optional[control.DriveLoop] = None
+        self.sense: Optional[SenseChain] = None
         self._loop_volts: Optional[np.ndarray] = None
         self._loop_phase: Optional[np.ndarray] = None
+        if config.control.closed or config.gyro.enabled:
+            self.pickoff = electronics.PickOff(config, self, noisy=config.gyro.enabled)
         if config.control.closed:
-            pickoff = electronics.PickOff(config, self, noisy=config.gyro.enabled)
-            self.loop = control.DriveLoop(config, pickoff)
+            self.loop = control.DriveLoop(config, self.pickoff)
             self._loop_volts = np.empty((self.loop.window, 2))
             self._loop_phase = np.empty(self.loop.window)
             self._drive_phase = self.loop.start(self.q, self.v, self._rate_at_start())
@@ -275,6 +300,11 @@ class Simulator:
         self.steps_taken = 0
         for at_ns, peak_x, peak_y in config.run.scheduled_shocks():
             self.shock(peak_x, peak_y, at_ns=at_ns)
+        if start_state is not None:
+            self._set_state(*start_state)
+        self._start_state = (self.q.copy(), self.v.copy())
+        if config.gyro.enabled:
+            self.sense = SenseChain(config, self, self._start_state, self.pickoff)
 
     # ------------------------------------------------------------------ configuration
     def _build(self, config: SimConfig) -> None:
@@ -446,8 +476,13 @@ class Simulator:
             self._rephase_drive()
         self._config = config
         self._build(config)
-        if self.loop is not None:  # the voltages set the pick-off's gains
-            self.loop.pickoff = electronics.PickOff(config, self, noisy=config.gyro.enabled)
+        if self.pickoff is not None:  # the voltages set the amplifiers' gains
+            self.pickoff = electronics.PickOff(config, self, noisy=config.gyro.enabled)
+        if self.loop is not None:
+            self.loop.pickoff = self.pickoff
+        if self.sense is not None:  # the gains and the model's scale factor, state kept
+            self.sense = SenseChain(config, self, self._start_state, self.pickoff,
+                                    previous=self.sense)
         self._drive = self._drive_args()
         if self.status == Status.RUNNING:
             self._refresh_acceleration()
@@ -534,13 +569,7 @@ class Simulator:
         if at_ns < self.time_ns:
             raise InputError(f'angular_rate: time {at_ns * 1e-9:.9f} s is in the past '
                              f'(simulation time {self.time_s:.9f} s)')
-        before = float(self.rates_at(np.array([at_ns]))[0])
-        keep = bisect.bisect_right(self._rate_t, at_ns)
-        del self._rate_t[keep:]
-        del self._rate_w[keep:]
-        self._rate_t += [at_ns, at_ns]
-        self._rate_w += [before, float(rate)]
-        self._rate_version += 1
+        self.rate_profile.step(at_ns, rate)
 
     def set_drive(self, amplitude: Optional[float] = None, frequency_hz: Optional[float] = None,
                   at_ns: Optional[int] = None) -> None:
@@ -579,7 +608,7 @@ class Simulator:
         """
         Return the kernels' drive from the current phase reference.
 
-        Open loop the configuration's; closed loop the loops' commands (``core.control``).
+        Open loop the configuration's; closed loop the loops' commands (``core.gyro.control``).
         """
         if self.loop is not None:
             omega, force, rb_amp, rb_lag = self.loop.commands()
@@ -620,7 +649,19 @@ class Simulator:
         self._schedule(at_ns, apply)
 
     def set_state(self, q: np.ndarray, v: np.ndarray) -> None:
-        """Set the coordinates (m) and velocities (m/s) now."""
+        """
+        Set the coordinates (m) and velocities (m/s) now.
+
+        At t = 0 this is the start state: the loops start in lock there and the sense chain
+        is built at its operating point (as ``Simulator(config, start_state)`` does).
+        """
+        self._set_state(q, v)
+        if self.sample_index == 0:
+            self._start_state = (self.q.copy(), self.v.copy())
+            if self.sense is not None:
+                self.sense = SenseChain(self._config, self, self._start_state, self.pickoff)
+
+    def _set_state(self, q: np.ndarray, v: np.ndarray) -> None:
         q = np.asarray(q, dtype=np.float64)
         v = np.asarray(v, dtype=np.float64)
         n = self.model.n_coordinates
@@ -637,7 +678,7 @@ class Simulator:
             self.v[:] = old_v
             raise
         if self.loop is not None and self.sample_index == 0:
-            # The loops start in lock at the state (core.control.DriveLoop.start).
+            # The loops start in lock at the state (core.gyro.control.DriveLoop.start).
             self._drive_phase = self.loop.start(self.q, self.v, self._rate_at_start())
             self._drive_t_ref = 0.0
             self._drive = self._drive_args()
@@ -657,20 +698,27 @@ class Simulator:
         n = self.model.n_coordinates
         out_q = np.empty((n_samples, n))
         out_v = np.empty((n_samples, n))
-        phase = rate = rows = channels = None
+        phase = rate = rows = channels = volts = None
         loop = self.loop
         if self.gyro or loop is not None:
             phase = np.empty(n_samples)
             rate = np.empty(n_samples)
         force_noise = pickoff_noise = None
+        sensed = []  # the sense chain's outputs per stretch
+        if self.pickoff is not None:
+            # The electronics read every stretch as it is integrated, with the configuration
+            # in force over it: the channels, the amplifiers' volts (computed once for the
+            # loops and the sense chain), their noise for the whole call (addressed by sample
+            # index, so the same as per stretch).
+            channels = self._channel_arrays(n_samples)
+            volts = np.empty((n_samples, 2))
+            pickoff_noise = self.pickoff.noise(self.sample_index, n_samples)
         if loop is not None:
             rows = np.empty((n_samples, len(control.CONTROL_CHANNELS)))
-            channels = self._channel_arrays(n_samples)
             # The normals of the whole call at once (addressed by sample index, so the same
             # as per stretch; scaled per stretch, by the levels then in force): a generator
             # per 1 ms stretch cost more than its numbers.
             force_noise = self._unit_force_noise(n_samples)
-            pickoff_noise = loop.pickoff.noise(self.sample_index, n_samples)
         # The sample times: the block's, and the drive phase's per stretch.
         t = (np.arange(self.sample_index, self.sample_index + n_samples) + 1) * self.period_s
         done = 0
@@ -687,11 +735,11 @@ class Simulator:
                 d = self._drive
                 np.add(d.omega * (t[done:done + stop] - d.t_ref), d.phase,
                        out=phase[done:done + stop])
-                if rate_version != self._rate_version:
+                if rate_version != self.rate_profile.version:
                     # The knots change only by set_rate (between calls) or by a compaction
                     # of past ones (same values): the rates of all the call's samples left
                     # at once (per 1 ms loop stretch its numpy calls cost ~50 us).
-                    rate_version = self._rate_version
+                    rate_version = self.rate_profile.version
                     self._rates(self.sample_index, n_samples - done, rate[done:])
             first = self.sample_index
             noise_part = None
@@ -701,30 +749,36 @@ class Simulator:
                     * self._noise_sigma[None, :])
             self._integrate(stop, out_q[done:done + stop], out_v[done:done + stop],
                             noise_part)
-            if loop is not None and stop > 0:
+            if channels is not None and stop > 0:
                 part = slice(done, done + stop)
                 self._channels(out_q[part], *(c[part] for c in channels))
-                rows[part] = loop.row()
-                self._feed_loop(first, channels[2][part], phase[part],
-                                pickoff_noise[part] if pickoff_noise is not None else None)
+                self.pickoff.clean_volts(channels[2][part], out=volts[part])
+                if pickoff_noise is not None:
+                    volts[part] += pickoff_noise[part]
+                if loop is not None:
+                    rows[part] = loop.row()
+                    self._feed_loop(first, volts[part], phase[part])
+                if self.sense is not None:
+                    sensed.append(self.sense.process(first, t[part], volts[part], phase[part],
+                                                     None if rows is None else rows[part]))
             done += stop
         self._run_due_events()
-        if loop is None:
+        if channels is None:
             return self._samples(t, out_q, out_v, phase if self.gyro else None, rate)
         gap, min_gap, cap = channels
+        demod = rate_output = None
+        if self.sense is not None:
+            demod, rate_output = _joined(t, sensed)
         return Samples(t=t, q=out_q, v=out_v, gap=gap, min_gap=min_gap, capacitance=cap,
-                       drive_phase=phase, rate=rate if self.gyro else None, control=rows)
+                       drive_phase=phase, applied_rate=rate if self.gyro else None,
+                       control=rows, demod=demod, rate_output=rate_output)
 
-    def _feed_loop(self, first: int, cap: np.ndarray, phase: np.ndarray,
-                   pickoff_noise: Optional[np.ndarray]) -> None:
+    def _feed_loop(self, first: int, volts: np.ndarray, phase: np.ndarray) -> None:
         """Collect a stretch into the loop period; at its end, update the loop (C1, C2)."""
         loop = self.loop
         at = first % loop.window
-        count = cap.shape[0]
-        volts = self._loop_volts[at:at + count]
-        loop.pickoff.clean_volts(cap, out=volts)
-        if pickoff_noise is not None:
-            volts += pickoff_noise
+        count = volts.shape[0]
+        self._loop_volts[at:at + count] = volts
         self._loop_phase[at:at + count] = phase
         if at + count < loop.window or self.status != Status.RUNNING:
             return
@@ -763,7 +817,7 @@ class Simulator:
         pulse_max_sub = (float(np.min(pulse_arr[:, 1])) / PULSE_SUBSTEPS_PER_DURATION
                          if len(active) else self.h)
         prof_t, prof_x, prof_y = self._profile_arrays(t_start, t_end)
-        rate_t, rate_w = self._rate_arrays(t_start, t_end)
+        rate_t, rate_w = self.rate_profile.stretch(t_start, t_end)
         forcing = kernels.Forcing(pulses=pulse_arr, pulse_max_sub=pulse_max_sub,
                                   profile_t=prof_t, profile_x=prof_x, profile_y=prof_y,
                                   y_index=self._y_index, rate_t=rate_t, rate_w=rate_w,
@@ -794,22 +848,6 @@ class Simulator:
         if not np.all(np.isfinite(self.q)) or not np.all(np.isfinite(self.v)):
             self.q[:] = 0.0  # never expose NaN; the status says it failed
         self.v[:] = 0.0
-
-    def _rate_arrays(self, t_start: float, t_end: float):
-        """Knots of the angular-rate profile (s, rad/s) for a stretch; empty: no rotation."""
-        if not self._rate_t:
-            return _EMPTY, _EMPTY
-        times = self._rate_t
-        t0_ns = int(round(t_start * 1e9))
-        keep = max(0, bisect.bisect_right(times, t0_ns) - 1)
-        if keep > 64:  # knots before the last one at or before now are over
-            del self._rate_t[:keep]
-            del self._rate_w[:keep]
-            self._rate_version += 1
-            keep = 0
-        end = min(len(times), bisect.bisect_right(times, int(round(t_end * 1e9))) + 1)
-        return (np.array(times[keep:end], dtype=np.float64) * 1e-9,
-                np.array(self._rate_w[keep:end], dtype=np.float64))
 
     def _force_noise(self, count: int) -> np.ndarray:
         """Velocity impulses (m/s) of the thermomechanical noise for ``count`` samples."""
@@ -876,7 +914,7 @@ class Simulator:
         gap, min_gap, cap = self._channel_arrays(len(t))
         self._channels(q, gap, min_gap, cap)
         return Samples(t=t, q=q, v=v, gap=gap, min_gap=min_gap, capacitance=cap,
-                       drive_phase=drive_phase, rate=rate)
+                       drive_phase=drive_phase, applied_rate=rate)
 
     def _rates(self, first: int, count: int, rate_out: np.ndarray) -> None:
         """Set ``rate_out`` to the angular rate (rad/s) at samples ``first ..`` on."""
@@ -890,27 +928,9 @@ class Simulator:
         """
         Angular rate of the profile (rad/s) at the times ``t_ns`` (ns; after a step there).
 
-        ``Samples.rate`` holds these values at the sample times.
+        ``Samples.applied_rate`` holds these values at the sample times.
         """
-        t_ns = np.asarray(t_ns, dtype=np.int64)
-        if not self._rate_t:
-            return np.zeros(t_ns.shape)
-        key = self._rate_version
-        if self._rate_cache is None or self._rate_cache[0] != key:
-            # The knots change rarely (a streamed rate, a compaction); a loop asks per period.
-            self._rate_cache = (key, np.asarray(self._rate_t, dtype=np.int64),
-                                np.asarray(self._rate_w, dtype=np.float64))
-        times, rates = self._rate_cache[1], self._rate_cache[2]
-        k = np.searchsorted(times, t_ns, side='right') - 1  # the value after a step at t
-        inside = (k >= 0) & (k < times.size - 1)
-        kk = np.clip(k, 0, max(0, times.size - 2))
-        if times.size > 1:
-            dt = (times[kk + 1] - times[kk]).astype(np.float64)
-            frac = np.where(inside, (t_ns - times[kk]) / np.where(dt > 0, dt, 1.0), 0.0)
-            value = rates[kk] + (rates[np.minimum(kk + 1, times.size - 1)] - rates[kk]) * frac
-        else:
-            value = np.full(t_ns.shape, rates[0])
-        return np.where(k < 0, 0.0, np.where(k >= times.size - 1, rates[-1], value))
+        return self.rate_profile.at(t_ns)
 
     def outputs_for(self, q: np.ndarray) -> Samples:
         """

@@ -46,8 +46,8 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import AccelStamped, Vector3Stamped
 import numpy as np
-from ring_gyro_sim.core.control import CONTROL_CHANNELS
-from ring_gyro_sim.core.electronics import DEMOD_CHANNELS
+from ring_gyro_sim.core.gyro.control import CONTROL_CHANNELS
+from ring_gyro_sim.core.gyro.electronics import DEMOD_CHANNELS
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
@@ -58,7 +58,7 @@ DEMODULATOR_TOPIC = 'demodulator'
 """The gyroscope's block topic (``gyro.enabled``): ``t`` and the demodulator channels."""
 CONTROL_TOPIC = 'control'
 """The closed loop's block topic (``control.drive_loop: closed``): ``t`` and the
-``core.control.CONTROL_CHANNELS``, one row per loop update (at ``control.rate``)."""
+``core.gyro.control.CONTROL_CHANNELS``, one row per loop update (at ``control.rate``)."""
 RATE_TOPIC = 'rate'
 """The gyroscope's rate output (``gyro.enabled``): sensor_msgs/Imu, one per rate sample."""
 ANGULAR_RATE_TOPIC = 'angular_rate'
@@ -113,7 +113,7 @@ def output_blocks(samples, channel_names: Dict[str, List[str]]) -> Dict[str, Flo
 
 
 def demodulator_block(demod) -> Float64MultiArray:
-    """Build the ``~/demodulator`` block of a ``core.electronics.DemodSamples``."""
+    """Build the ``~/demodulator`` block of a ``core.gyro.electronics.DemodSamples``."""
     values = np.asarray(demod.values, dtype=np.float64)
     if values.shape != (len(demod.t), len(DEMOD_CHANNELS)):
         raise ValueError(f'demodulator values have shape {values.shape}, expected '
@@ -123,7 +123,7 @@ def demodulator_block(demod) -> Float64MultiArray:
 
 def control_block(control) -> Float64MultiArray:
     """
-    Build the ``~/control`` block of a ``core.control.ControlSamples``.
+    Build the ``~/control`` block of a ``core.gyro.control.ControlSamples``.
 
     One row per loop update in the block (``t`` = the update time, then the
     ``CONTROL_CHANNELS``); a block without an update (shorter than a loop period) gives a
@@ -185,7 +185,7 @@ def sample_times_ns(t_s: np.ndarray) -> List[int]:
 
 def rate_messages(rate, frame_id: str,
                   covariance: Optional[np.ndarray] = None) -> List[Tuple[int, Imu]]:
-    """Return ``[(t_ns, Imu)]`` of a ``core.electronics.RateSamples`` (``~/rate``)."""
+    """Return ``[(t_ns, Imu)]`` of a ``core.gyro.electronics.RateSamples`` (``~/rate``)."""
     return [(t_ns, imu_message(t_ns, z, frame_id, covariance))
             for t_ns, z in zip(sample_times_ns(rate.t), np.asarray(rate.rate).tolist())]
 

@@ -111,7 +111,6 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 from ring_gyro_sim import run as run_mod
-from ring_gyro_sim.analysis.nnm import drive_initial_state
 from ring_gyro_sim.core.errors import InputError, ParameterError, RingGyroError
 from ring_gyro_sim.paramfile import check_node_arguments
 from ring_gyro_sim.recording.errors import RecordingError
@@ -193,14 +192,10 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
                                                   rate_pub),
                             stamp_ns=lambda: self.get_clock().now().nanoseconds,
                             frame_id=config.gyro.frame_id)
-        state = None
-        if config.drive.start_on != 'rest':
-            log.info(f'computing the start state ({config.drive.start_on} of the drive at '
-                     f'{config.drive.frequency} Hz)')
-            state = drive_initial_state(config)
         block_samples = max(1, int(round(config.run.block_duration * config.run.output_rate)))
-        self.run = run_mod.Run(config, start_state=state, sink=self.sink,
-                               late_tolerance_ns=block_samples * config.run.output_period_ns)
+        self.run = run_mod.Run(config, sink=self.sink,
+                               late_tolerance_ns=block_samples * config.run.output_period_ns,
+                               log=log.info)
         run_mod.Run(config).advance(1)  # load the compiled kernels before pacing
         self.block_samples = block_samples
         self.total_samples = (int(round(config.run.duration * config.run.output_rate))

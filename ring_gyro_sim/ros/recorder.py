@@ -32,7 +32,7 @@ What a recording holds (interface.md, Recording):
   ``<ns>/angular_rate`` (Vector3Stamped, stamped and logged at the time it acted);
 * with ``control.drive_loop: closed`` (and only then): the block topic ``<ns>/control``, the
   loops' updates of each block (one row per update, ``t`` and
-  ``core.control.CONTROL_CHANNELS``), logged at the block's end as the other block topics;
+  ``core.gyro.control.CONTROL_CHANNELS``), logged at the block's end as the other block topics;
 * a metadata record ``ring_gyro_sim`` with the full resolved parameters (YAML), the package
   version, the git revision, the namespace, the exact initial state (JSON, repr floats), and
   how the recording was cut: ``output_period_ns``, ``block_samples`` (samples per block of

@@ -29,7 +29,7 @@ the block topic ``~/demodulator`` next to the other three.
 
 The closed loop (a block with ``control``, i.e. ``control.drive_loop: closed``): the loops'
 updates in the block become the block topic ``~/control`` (:func:`conversions.control_block`:
-one row per update, ``t`` and ``core.control.CONTROL_CHANNELS``; no rows in a block shorter
+one row per update, ``t`` and ``core.gyro.control.CONTROL_CHANNELS``; no rows in a block shorter
 than a loop period), published and recorded with the other block messages, at the block's
 end time.
 

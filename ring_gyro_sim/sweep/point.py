@@ -16,7 +16,7 @@
 A sweep point: (parameter set) -> metrics, by one pure function.
 
 :func:`evaluate` runs the point as a paper case (:func:`~ring_gyro_sim.analysis.cases.run_case`:
-``Run(config, start_state=...)``, ``run.apply(Shock(...))``, ``run.advance(n)``)
+``Run(config)``, ``run.apply(Shock(...))``, ``run.advance(n)``)
 and keeps the numbers of :data:`METRICS`, which are the case's numbers (branch logic and
 all: cases.py's, not a copy). The result depends on the point only: not on the worker, the
 order or what ran before in the process. What a point needs before it runs is the drive

@@ -32,6 +32,7 @@ import pytest
 from ring_gyro_sim import cli
 from ring_gyro_sim.analysis import hbm, nnm
 from ring_gyro_sim.core import forces
+from ring_gyro_sim.core.gyro import operating_point
 from ring_gyro_sim.core.params import build_config
 from scipy.integrate import solve_ivp
 
@@ -162,7 +163,7 @@ def test_frf_branches_match_shooting(config, marker_orbits):
     lower, _, upper = marker_orbits
     a_e = config.drive.amplitude
     for orbit, guess in ((upper, 0.43e-6), (lower, 0.03e-6)):
-        shot = nnm.forced_orbit(config, MARKER_HZ, guess, a_e)
+        shot = operating_point.forced_orbit(config, MARKER_HZ, guess, a_e)
         assert orbit.amplitude_m[1] == pytest.approx(shot.amplitude_m[1], rel=1e-5)
         # Hill's method against the finite-difference monodromy of the shooting
         assert np.sort(np.abs(orbit.floquet_multipliers)) == pytest.approx(

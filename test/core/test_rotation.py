@@ -143,7 +143,7 @@ def test_accuracy_against_dop853_with_a_fast_rate_ramp():
     print(f'error / peak q1 = {err:.2e}; rotation effect {effect:.2e}')
     assert effect > 1e-2
     assert err < 1e-4
-    assert np.allclose(out.rate[after], slope * out.t[after], rtol=0, atol=1e-12)
+    assert np.allclose(out.applied_rate[after], slope * out.t[after], rtol=0, atol=1e-12)
 
 
 def sense_ratio_closed_form(config, rate):
@@ -225,8 +225,8 @@ def test_streamed_rate_steps_at_its_time_and_replaces_later_knots():
     sim.set_rate(sim.time_ns + 12_345, -1.5)  # between samples
     out = sim.advance_samples(10)
     # Before the step the ramp (10 rad/s per s), after it -1.5 held (the ramp is replaced).
-    assert out.rate[0] == pytest.approx(10.0 * out.t[0], rel=1e-12)
-    assert np.all(out.rate[3:] == -1.5)
+    assert out.applied_rate[0] == pytest.approx(10.0 * out.t[0], rel=1e-12)
+    assert np.all(out.applied_rate[3:] == -1.5)
     with pytest.raises(InputError, match='past'):
         sim.set_rate(0, 1.0)
     with pytest.raises(InputError, match='finite'):

@@ -65,14 +65,13 @@ CHANNELS = ('t', 'q', 'gap', 'min_gap', 'capacitance')
 def compute():
     """Return the channels of the reference scenario as a dict of arrays."""
     sys.path.insert(0, str(REPO))
-    from ring_gyro_sim.analysis.nnm import drive_initial_state
     from ring_gyro_sim.core.params import build_config, to_flat
     from ring_gyro_sim.paramfile import load_yaml
     from ring_gyro_sim.run import Run
 
     base = load_yaml(str(REPO / 'config' / 'demo.yaml'))
     config = build_config({**to_flat(base), **OVERRIDES})
-    run = Run(config, start_state=drive_initial_state(config))  # the one run path
+    run = Run(config)  # the one run path
     parts = [run.advance(n).samples for n in BLOCK_SAMPLES]
     return {name: np.ascontiguousarray(np.concatenate([getattr(p, name) for p in parts]))
             for name in CHANNELS}

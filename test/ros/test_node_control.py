@@ -29,7 +29,7 @@ import signal
 from node_harness import connected, NodeProcess, params_yaml, Probe, REPO_ROOT
 import numpy as np
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
-from ring_gyro_sim.core.control import CONTROL_CHANNELS
+from ring_gyro_sim.core.gyro.control import CONTROL_CHANNELS
 from ring_gyro_sim.recording.reader import decode, read_block_topic, read_messages
 from ring_gyro_sim.ros import conversions
 from std_msgs.msg import Float64MultiArray

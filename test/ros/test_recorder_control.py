@@ -32,8 +32,7 @@ from mcap_ros2.decoder import DecoderFactory
 import numpy as np
 import pytest
 from ring_gyro_sim import cli
-from ring_gyro_sim.analysis.nnm import drive_initial_state
-from ring_gyro_sim.core.control import CONTROL_CHANNELS, ControlSamples
+from ring_gyro_sim.core.gyro.control import CONTROL_CHANNELS, ControlSamples
 from ring_gyro_sim.core.params import build_config, to_flat
 from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.paramfile import load_yaml
@@ -77,7 +76,7 @@ def direct(params):
     """Return the configuration and the blocks of a direct Run, cut as ``ring_gyro run`` cuts."""
     config = load_yaml(str(params))
     assert config.control.closed and config.gyro.enabled
-    run = Run(config, start_state=drive_initial_state(config))
+    run = Run(config)
     per_block = int(round(config.run.block_duration * config.run.output_rate))
     blocks = [run.advance(per_block) for _ in BLOCK_ENDS_NS]
     assert [b.end_ns for b in blocks] == BLOCK_ENDS_NS

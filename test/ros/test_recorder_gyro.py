@@ -35,7 +35,7 @@ from mcap_ros2.decoder import DecoderFactory
 import numpy as np
 import pytest
 from ring_gyro_sim import run as run_mod
-from ring_gyro_sim.core.electronics import DEMOD_CHANNELS, DemodSamples, RateSamples
+from ring_gyro_sim.core.gyro.electronics import DEMOD_CHANNELS, DemodSamples, RateSamples
 from ring_gyro_sim.core.params import build_config
 from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.recording.reader import (

@@ -174,7 +174,7 @@ Flicker (bias instability, E13)
     ``tau = 0.01 / FLICKER_LOWEST_HZ``.
 
 Force-to-rebalance readout (E14)
-    With ``control.rebalance`` the sense mode is held at 0 by a loop (``core.control``,
+    With ``control.rebalance`` the sense mode is held at 0 by a loop (``core.gyro.control``,
     C6-C8) and the rate is read from its force: the rebalance rate ``S_c / (2 kappa omega X)``
     and quadrature ``S_s / (2 kappa omega X)`` of each sample (``Samples.control``) pass the
     same Butterworth (own state, started at the rate at t = 0) and the same decimation;
@@ -193,8 +193,9 @@ import numbers
 from typing import Dict, Optional, Tuple, Union
 
 import numpy as np
-from ring_gyro_sim.core import control, forces, kernels, noise, structure
+from ring_gyro_sim.core import forces, kernels, noise, structure
 from ring_gyro_sim.core.errors import InputError
+from ring_gyro_sim.core.gyro import control
 from ring_gyro_sim.core.params import BOLTZMANN, SimConfig
 
 
@@ -461,7 +462,7 @@ class PickOff:
     The two charge amplifiers of the pick-off (E1) with their noise (E2).
 
     Shared by the sense chain (:class:`SenseElectronics`) and the closed-loop drive
-    (``core.control``), which read the same amplifiers: the same voltages, the same noise
+    (``core.gyro.control``), which read the same amplifiers: the same voltages, the same noise
     samples (addressed by sample index), on when ``noisy`` and ``gyro.input_noise_density > 0``.
 
     Parameters
@@ -568,7 +569,8 @@ class SenseElectronics:
     """
 
     def __init__(self, config: SimConfig, sim, drive_amplitude_m: float,
-                 drive_phase_rad: float, start_rate: float = 0.0) -> None:
+                 drive_phase_rad: float, start_rate: float = 0.0,
+                 pickoff: Optional['PickOff'] = None) -> None:
         for name, val in (('drive_amplitude_m', drive_amplitude_m),
                           ('drive_phase_rad', drive_phase_rad)):
             if not (isinstance(val, numbers.Real) and math.isfinite(val)):
@@ -584,7 +586,7 @@ class SenseElectronics:
         self.sample_rate_hz = float(config.run.output_rate)
         self.decimation = int(round(config.run.output_rate / g.output_rate))
         self.noise_seed = int(g.noise_seed)
-        self.pickoff = PickOff(config, sim)
+        self.pickoff = PickOff(config, sim) if pickoff is None else pickoff
         po = self.pickoff
         self.sense_index = po.sense_index
         self.drive_index = po.drive_index
@@ -695,6 +697,22 @@ class SenseElectronics:
         self._zi = signal.sosfilt_zi(self._sos)[:, :, None] * steady[None, None, :]
         self._latest = steady.copy()
 
+    def continue_from(self, previous: 'SenseElectronics') -> None:
+        """
+        Take over the running state of the chain this one replaces (a parameter change).
+
+        The filters' states, the flicker bank, the next sample index and the latest outputs
+        carry over: the physical electronics do not restart when a bias voltage or a Q
+        changes, only their gains and the model's scale factor do.
+        """
+        self._zi = previous._zi.copy()
+        self._zi_rb = previous._zi_rb.copy()
+        self._latest = previous._latest.copy()
+        self._latest_quadrature = previous._latest_quadrature
+        self._latest_rate = previous._latest_rate
+        self._next_index = previous._next_index
+        self.flicker = previous.flicker
+
     def rate_variance(self) -> float:
         """
         Return the predicted variance of the rate output, (rad/s)^2 (0 without a scale factor).
@@ -757,16 +775,37 @@ class SenseElectronics:
             previous call (the message names the argument).
 
         """
-        first_index = _check_index('first_index', first_index)
-        if self._next_index is not None and first_index != self._next_index:
-            raise InputError(f'first_index: the electronics continue at sample '
-                             f'{self._next_index}, got {first_index} (blocks must follow '
-                             f'each other)')
+        first_index = self._check_next(first_index)
         count = np.shape(t)[0] if np.ndim(t) == 1 else -1
         t = _check_array('t', t, (count,))
         capacitance = _check_array('capacitance', capacitance, (count, self.n_electrodes))
         drive_phase = _check_array('drive_phase', drive_phase, (count,))
         volts = self.pickoff.volts(first_index, capacitance)  # (E1, E2), (K, 2)
+        return self.process_volts(first_index, t, volts, drive_phase, rebalance)
+
+    def _check_next(self, first_index) -> int:
+        first_index = _check_index('first_index', first_index)
+        if self._next_index is not None and first_index != self._next_index:
+            raise InputError(f'first_index: the electronics continue at sample '
+                             f'{self._next_index}, got {first_index} (blocks must follow '
+                             f'each other)')
+        return first_index
+
+    def process_volts(self, first_index: int, t: np.ndarray, volts: np.ndarray,
+                      drive_phase: np.ndarray, rebalance: Optional[np.ndarray] = None
+                      ) -> Tuple[DemodSamples, RateSamples]:
+        """
+        Run the chain from the amplifiers' outputs: :meth:`process` after (E1, E2).
+
+        ``volts`` (K, 2): the sense and drive amplifiers' outputs (``PickOff.volts``) at the
+        samples ``first_index ..``, V; the simulator computes them once for the loops and
+        this chain. The other arguments and the result as :meth:`process`.
+        """
+        first_index = self._check_next(first_index)
+        count = np.shape(t)[0] if np.ndim(t) == 1 else -1
+        t = _check_array('t', t, (count,))
+        volts = _check_array('volts', volts, (count, 2))
+        drive_phase = _check_array('drive_phase', drive_phase, (count,))
         phi = drive_phase + self.drive_phase_rad
         two_cos = 2.0 * np.cos(phi)
         two_sin = 2.0 * np.sin(phi)

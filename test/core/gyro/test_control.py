@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The closed-loop drive (``core/control.py``, issue 14): PLL, AGC and force-to-rebalance.
+The closed-loop drive (``core/gyro/control.py``, issue 14): PLL, AGC and force-to-rebalance.
 
 Physics: the PLL locks on the 2theta backbone (harmonic balance, an independent method) and
 follows the softening as the AGC raises the amplitude tenfold; the AGC brings the drive back
@@ -30,15 +30,15 @@ import warnings
 import numpy as np
 import pytest
 from ring_gyro_sim.analysis import hbm
-from ring_gyro_sim.analysis.nnm import _cos_only, drive_initial_state
-from ring_gyro_sim.core import control
 from ring_gyro_sim.core.errors import InputError, ParameterError
+from ring_gyro_sim.core.gyro import control
+from ring_gyro_sim.core.gyro.operating_point import cos_only, start_state
 from ring_gyro_sim.core.params import build_config
 from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.paramfile import check_params_file
 from ring_gyro_sim.run import AngularRate, Run
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 TEN_DEG_S = math.radians(10.0)
 QUIET = {'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0}
 PAPER_DRIVE = {'drive.amplitude': 0.065, 'drive.frequency': 15798.6}
@@ -59,12 +59,12 @@ def config_of(name, **extra):
 def start_of(config):
     with warnings.catch_warnings():
         warnings.simplefilter('ignore', RuntimeWarning)  # the paper orbit's whirl warning
-        return drive_initial_state(config)
+        return start_state(config)
 
 
 def run_for(config, seconds, start='orbit'):
     """Run ``config`` for ``seconds`` in 0.1 s blocks; return (run, list of blocks)."""
-    run = Run(config, start_state=start_of(config) if start == 'orbit' else start)
+    run = Run(config) if start == 'orbit' else Run(config, start_state=start)
     n = int(round(0.1 * config.run.output_rate))
     blocks = [run.advance(n) for _ in range(int(round(seconds / 0.1)))]
     return run, blocks
@@ -84,7 +84,7 @@ def test_pll_follows_the_softening_onto_the_backbone():
     loop = run.sim.loop
     assert loop.lost_lock_at_s is None
     assert np.max(np.abs(rows[:, COL['phase_error_rad']])) < config.control.lock_threshold
-    backbone = hbm.backbone_frequency(_cos_only(config), target, mode=2)
+    backbone = hbm.backbone_frequency(cos_only(config), target, mode=2)
     softening = config.drive.frequency - backbone
     assert softening == pytest.approx(1.45, abs=0.02)  # what the loop has to follow
     start_hz = rows[0, COL['frequency_hz']]
@@ -167,7 +167,7 @@ def test_force_to_rebalance_bandwidth_is_the_loops():
     config = config_of('gyro.yaml', **QUIET, **{
         'control.drive_loop': 'closed', 'control.rebalance': True,
         'scenario.rate_times': [], 'scenario.rate_values': []})
-    run = Run(config, start_state=start_of(config))
+    run = Run(config)
     run.apply(AngularRate(z=TEN_DEG_S, at_ns=100_000_000))
     t, rate = [], []
     for _ in range(3):

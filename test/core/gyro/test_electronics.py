@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The sense electronics (core/electronics.py) on synthesized trajectories.
+The sense electronics (core/gyro/electronics.py) on synthesized trajectories.
 
 The operating point is the gyroscope's (issue 12): a tenth of the paper's drive at 15 800 Hz,
 linear response ``A = drive.amplitude Q_2 / omega^2 = 42.7 nm``. The trajectories are
@@ -27,9 +27,10 @@ import math
 import allantools
 import numpy as np
 import pytest
-from ring_gyro_sim.core import electronics
-from ring_gyro_sim.core.electronics import FlickerNoise, orbit_sense_response, SenseElectronics
 from ring_gyro_sim.core.errors import InputError
+from ring_gyro_sim.core.gyro import electronics
+from ring_gyro_sim.core.gyro.electronics import (FlickerNoise, orbit_sense_response,
+                                                 SenseElectronics)
 from ring_gyro_sim.core.params import BOLTZMANN, build_config, EPSILON_0
 from ring_gyro_sim.core.simulator import Simulator
 from scipy import signal
