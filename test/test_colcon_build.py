@@ -172,7 +172,7 @@ def test_install_space_imports_the_installed_package(workspace):
 
 OUTPUT_TOPICS = ('/ring_gyro/modal_displacement', '/ring_gyro/radial_gap',
                  '/ring_gyro/sense_electrodes')
-"""The output topics (interface.md); demo.yaml records every topic."""
+"""The output topics (doc/interface.md); demo.yaml records every topic."""
 
 
 def recorded_counts(path):

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The import boundary of ``ring_gyro_sim.core`` (style.md, convention 1).
+The import boundary of ``ring_gyro_sim.core`` (doc/architecture.md, "Layers").
 
 ``core`` imports only the standard library, numpy, scipy and numba: never rclpy, a message
 package, mcap or matplotlib, nor the layers above it (``ros``, ``recording``, ``analysis``).
@@ -156,7 +156,7 @@ def test_the_static_check_itself(source, forbidden):
 @pytest.mark.parametrize('path', sorted(PACKAGE_DIR.rglob('*.py')),
                          ids=lambda p: str(p.relative_to(PACKAGE_DIR)))
 def test_only_the_plotting_module_imports_matplotlib(path):
-    """style.md 8: matplotlib is imported only in ``analysis/plotting.py``."""
+    """Matplotlib is imported only in ``analysis/plotting.py`` (doc/architecture.md)."""
     relative = path.relative_to(PACKAGE_DIR.parent).with_suffix('')
     module_name = '.'.join(relative.parts)
     imports = imported_modules(path.read_text(encoding='utf-8'), module_name)

@@ -83,7 +83,7 @@ PAPER = {
     'symmetric_rest': 'q2 = 0 for all t',
     'symmetric_drive': 'q2 jumps; q1 -> q3 transfer near t = 0.1 s',
 }
-"""The paper's numbers (physics.md, "Results the project must reproduce")."""
+"""The paper's numbers (doc/physics.md, "Results reproduced")."""
 
 DIFFERENCES = (
     'Outer voltage: the paper does not give V_o. The exact Fig. 4 fit (10.6 kHz at 6 um) needs '

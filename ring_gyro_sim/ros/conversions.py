@@ -19,7 +19,7 @@ No node, no publisher here: functions take and return messages and plain values,
 the offline recorder and the tests share them. Times are integer ns (``*_ns``) everywhere;
 ``builtin_interfaces/Time`` appears only at this boundary.
 
-Block layout (interface.md): ``layout.dim[0] = {label: 'sample', size: K, stride: K * C}``,
+Block layout (doc/interface.md): ``layout.dim[0] = {label: 'sample', size: K, stride: K * C}``,
 ``layout.dim[1] = {label: 't,<channels>', size: C, stride: C}``, ``data`` row-major.
 
 The gyroscope's rate output ``~/rate`` is one ``sensor_msgs/msg/Imu`` per rate sample

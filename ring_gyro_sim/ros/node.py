@@ -18,7 +18,7 @@
 
 Run it with ``ring_gyro_node --ros-args --params-file config/default.yaml`` (or
 ``python -m ring_gyro_sim.ros.node ...``). The topics, parameters and services are those of
-``interface.md``. The simulation itself is a :class:`~ring_gyro_sim.run.Run` (the one run
+``doc/interface.md``. The simulation itself is a :class:`~ring_gyro_sim.run.Run` (the one run
 path: when inputs act, refusals, statistics, diagnostics keys); this node adds only pacing and
 ROS plumbing, and this docstring says how it keeps them.
 
@@ -91,7 +91,7 @@ Diagnostics (about 1 Hz)
     ``~/reset`` recovers). The keys are those of :meth:`ring_gyro_sim.run.Run.diagnostics`.
 """
 
-# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# Google import order, as ament_flake8 checks it; ruff's default isort order differs.
 # isort: off
 import math
 import re

@@ -15,7 +15,7 @@
 """
 Recording of one run to a ROS 2 bag, shared by the node and the offline command line.
 
-What a recording holds (interface.md, Recording):
+What a recording holds (doc/interface.md, "Recording (MCAP)"):
 
 * the output blocks (``<ns>/modal_displacement``, ``radial_gap``, ``sense_electrodes``),
   ``/diagnostics`` and, when published, ``/clock``; log time = simulation time of the last

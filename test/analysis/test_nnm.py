@@ -95,7 +95,7 @@ def test_small_amplitude_limit_is_table1_frequency(config):
 
 
 def test_small_amplitude_limit_moves_when_kc_is_kept_explicit(config):
-    # physics.md, known traps: keeping K_c explicit shifts f1 by several hundred Hz (down:
+    # doc/physics.md, "Known traps": keeping K_c explicit shifts f1 by several hundred Hz (down:
     # the k = 2 term softens).
     explicit = build_config({'electrodes.fold_linear_stiffness': False})
     point, = nnm.nonlinear_mode(explicit, [1e-9])

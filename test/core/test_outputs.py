@@ -44,9 +44,9 @@ from scipy import integrate, optimize
 GAP = 10e-6  # electrodes.gap default, m
 EPS0 = 8.8541878128e-12  # CODATA 2018, F/m (typed here, not imported from the package)
 LENGTH = 150e-6  # ring.length default (paper Table 1), m
-OUTER_RADIUS = 1.5e-3 + 0.5 * (18e-6 + GAP)  # r + (h + d_g) / 2, interface.md default, m
+OUTER_RADIUS = 1.5e-3 + 0.5 * (18e-6 + GAP)  # r + (h + d_g) / 2, doc/interface.md default, m
 CAP_SCALE = EPS0 * LENGTH * OUTER_RADIUS  # eps = 1 by default, F / rad
-# Paper Table 1 (physics.md): frequencies and Q of the 1theta..5theta modes.
+# Paper Table 1 (doc/physics.md): frequencies and Q of the 1theta..5theta modes.
 FREQUENCIES = [11200.0, 15800.0, 22000.0, 36300.0, 59200.0]
 QUALITY = [120000.0, 64700.0, 170000.0, 80000.0, 50000.0]
 # Round-off of w = sum of at most 10 terms each below d_g: a few 1e-16 d_g; 1e-13 d_g is far

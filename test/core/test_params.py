@@ -228,7 +228,7 @@ def test_exponent_forms_that_rcl_reads_as_double(literal, value):
     The node's parser (rcl_yaml_param_parser, strtod) reads all of these as doubles.
 
     PyYAML's YAML 1.1 resolver reads ``150.0e9``, ``1e-5`` and ``2e5`` as strings; the same
-    file must drive the node and the offline command line (style.md, convention 5).
+    file must drive the node and the offline command line (doc/architecture.md).
     """
     flat = parameters_from_yaml_text(f'ring_gyro:\n  ros__parameters:\n    duration: {literal}\n')
     assert flat == {'duration': value}

@@ -20,7 +20,7 @@ machine, set here before rclpy is initialised and passed to every node process, 
 sessions and other machines do not see each other.
 """
 
-# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# Google import order, as ament_flake8 checks it; ruff's default isort order differs.
 # isort: off
 import contextlib
 import os

@@ -23,7 +23,7 @@ receiving a flood costs any rclpy process on this host: the unit in which ``test
 judges what the flood costs the node. SIGINT ends it and prints the count.
 """
 
-# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# Google import order, as ament_flake8 checks it; ruff's default isort order differs.
 # isort: off
 import sys
 

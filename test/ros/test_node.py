@@ -20,7 +20,7 @@ reset, rejected inputs, a flood, and SIGTERM at the end, which also checks the r
 The node is paced to the wall clock (real_time_factor 1); outputs at 100 kHz.
 """
 
-# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# Google import order, as ament_flake8 checks it; ruff's default isort order differs.
 # isort: off
 import math
 import pathlib

@@ -22,7 +22,7 @@ rclpy across processes (``node_harness``). The open-loop nodes of ``test_node_gy
 that the publisher exists only with the closed loop.
 """
 
-# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# Google import order, as ament_flake8 checks it; ruff's default isort order differs.
 # isort: off
 import signal
 

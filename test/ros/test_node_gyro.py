@@ -24,7 +24,7 @@ and counted, the recording's channels); :func:`test_rate_output_end_to_end` chec
 contents of ``~/rate`` and skips, saying why, while the blocks carry no rate.
 """
 
-# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# Google import order, as ament_flake8 checks it; ruff's default isort order differs.
 # isort: off
 import math
 import signal

@@ -20,7 +20,7 @@ Inputs stamped far ahead are refused with the reason and counted, and do not loc
 clock and names the instance (the node runs under a remapped name here).
 """
 
-# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# Google import order, as ament_flake8 checks it; ruff's default isort order differs.
 # isort: off
 import time
 

@@ -19,7 +19,7 @@ All the node processes of this module are started at once by one fixture (none o
 a second node) and each test checks one of them.
 """
 
-# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# Google import order, as ament_flake8 checks it; ruff's default isort order differs.
 # isort: off
 import math
 import re

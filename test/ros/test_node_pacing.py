@@ -20,7 +20,7 @@ wall clock, not taken from the node's own diagnostics (they are printed beside i
 Run with ``pytest -s`` to see the numbers.
 """
 
-# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# Google import order, as ament_flake8 checks it; ruff's default isort order differs.
 # isort: off
 import signal
 import time

@@ -21,7 +21,7 @@ parameter. A params file the node and ``ring_gyro run`` would read differently s
 with one FATAL line, the same reason ``check_params_file`` gives.
 """
 
-# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# Google import order, as ament_flake8 checks it; ruff's default isort order differs.
 # isort: off
 import math
 import time

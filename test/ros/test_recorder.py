@@ -19,7 +19,7 @@ Recordings are read back with readers that share no code with ours (``mcap`` wit
 ``mcap_ros2`` decoder, and ``rosbags``) wherever the layout is what is tested.
 """
 
-# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# Google import order, as ament_flake8 checks it; ruff's default isort order differs.
 # isort: off
 import dataclasses
 import json

@@ -22,7 +22,7 @@ Tests of the closed loop's block topic ``~/control`` in the sink, the recorder a
 ``Block.control`` of a direct :class:`~ring_gyro_sim.run.Run` of the same configuration.
 """
 
-# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# Google import order, as ament_flake8 checks it; ruff's default isort order differs.
 # isort: off
 import json
 import pathlib

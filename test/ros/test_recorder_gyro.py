@@ -24,7 +24,7 @@ Recordings are read back with ``mcap`` + ``mcap_ros2`` and ``rosbags``, which sh
 with ours.
 """
 
-# Google import order, as ament_flake8 checks it (style.md); ruff's default isort order differs.
+# Google import order, as ament_flake8 checks it; ruff's default isort order differs.
 # isort: off
 import functools
 import math
