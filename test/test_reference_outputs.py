@@ -17,7 +17,7 @@ The physics did not change: a short ``config/demo.yaml`` run against a stored re
 
 ``test/data/demo_reference.npz`` was written by ``test/data/make_demo_reference.py`` with the
 tree before the run-path redesign (issue 9), and regenerated with an unchanged tree when the
-numerical libraries or the machine changed (its docstring says when and why). Under the library
+numerical libraries or the machine changed (CHANGELOG.md says when and why). Under the library
 versions and on the CPU it records, every output channel must come out bit for bit the same
 (the SHA-256 of each complete channel, and the stored samples for a readable diff). Under other
 versions or on another CPU the last bits may move (the start state is a scipy shooting solve

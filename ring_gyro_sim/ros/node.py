@@ -73,8 +73,9 @@ QoS
     run refuses every shock until the next block (``run.MAX_SHOCKS_PER_BLOCK`` accepted), the
     shocks still waiting are taken undecoded and counted as refused: 10 000 shocks per second
     cost the node 1.1-1.5 times what they cost a process that only receives them and takes them
-    raw (the middleware's reliable receive: 41-57 us each on the host of 2026-12-03), and the
-    node keeps its pace through them (``test/ros/test_node.py``, the flood test).
+    raw (the middleware's reliable receive, tens of us each; doc/performance.md, "The node under
+    a shock flood"), and the node keeps its pace through them (``test/ros/test_node.py``, the
+    flood test).
     ``/diagnostics`` and ``/clock``: reliable, keep last 10. The gyroscope (``gyro.enabled``;
     the publishers exist only then): ``~/demodulator`` as the block topics, ``~/rate``
     (sensor_msgs/Imu, one message per rate sample, published with its block) reliable, keep

@@ -19,33 +19,19 @@ The scenario is ``config/demo.yaml`` (upper-branch drive start, a 10 000 g shock
 shock moved to 10 ms and 40 ms simulated. Stored: every ``DECIMATION``-th sample of every
 channel (q, gap at each electrode centre, smallest gap, capacitances) as float64, and the
 SHA-256 of each channel's complete array (all 8000 samples), so that the file stays small and
-still pins every sample. It was made with the tree of commit 14aa740 (before the run-path
-redesign of issue 9); ``test/test_reference_outputs.py`` checks that the current tree
-reproduces it bit for bit. Run ``python test/data/make_demo_reference.py`` only when the
-physics is meant to change, and say why in the commit. (The file was written through the
-Simulator directly; it is now computed through :class:`ring_gyro_sim.run.Run`, the one run
-path, which must give the same samples.)
+still pins every sample. ``test/test_reference_outputs.py`` checks that the current tree
+reproduces it bit for bit, computed through :class:`ring_gyro_sim.run.Run`, the one run path.
+Run ``python test/data/make_demo_reference.py`` only when the physics is meant to change, or
+when the numerical libraries or the CI machine moved the last bits; say why in the commit and
+add the regeneration to CHANGELOG.md ("Reference outputs"), which lists every one so far.
 
 The samples depend on the numerical libraries and on the CPU in their last bits (the start
 state is a shooting solve through scipy, whose OpenBLAS picks its kernels by the CPU: on one
 host, ``OPENBLAS_CORETYPE=Sandybridge`` moves the start state's q1 by 4e-12 of itself against
 the default Zen/Haswell kernels; numba compiles the kernel through LLVM for the host CPU), so
 the file records the versions (:func:`versions`) and the machine (:func:`machine`) it was made
-with. CI machines differ: on 2026-12-02 the reference made on one host failed bit for bit on
-the next one (4.9e-16 in q, 4e-11 of the peak after the shock).
-
-It was regenerated on 2026-12-02 with the tree of commit fd02a0a when new wheels (numpy 2.4.6,
-scipy 1.17.1, numba 0.68.1, llvmlite 0.50.0) moved the 14aa740 reference by up to 8.6e-11 of a
-channel's peak (1e-12 in the first sample, the start state; the 10 000 g shock amplifies it);
-fd02a0a and the tree of issue 14 give the same samples bit for bit under those versions. It was
-regenerated again the same day, with the unchanged tree of commit 9f5620c, on a znver3 host, to
-record its machine (the samples moved by up to 4.3e-11 of a peak, the start state by 1.1e-12:
-the CPU, not the tree). It was regenerated on 2026-12-03 (commit a4378ba's kernels, an Intel
-host LLVM calls rocketlake) because the physics' arithmetic changed on purpose (issue 11: the
-series by Estrin's scheme instead of Horner's rule, kick and drift fused, the capacitances
-summed four nodes per division): the tree moved the 9f5620c reference by up to 9.6e-11 of a
-channel's peak (q; 8.1e-11 the smallest gap, 6.6e-11 the capacitances), round-off that the
-10 000 g shock amplifies, as the CPU alone did before.
+with. A reference made on one CI host can fail bit for bit on the next (4.9e-16 in q, 4e-11 of
+the peak once the 10 000 g shock has amplified it).
 """
 
 import hashlib

@@ -410,20 +410,21 @@ FLOOD_PROGRESS_BOUND = 0.5
 """
 Least simulated time the node must cover during the flood, as a fraction of what it covers in
 the reference window, in which the same flood goes to a reference process instead
-(``raw_drain.py``), so that the host carries the same load in both. Measured 1.00-1.01 with the
-node of today and with the node of f66527b^ (which decoded and refused every shock) on the host
-of 2026-12-03; 0.21 in an earlier session, before the node drained its queues undecoded, when
-a flood starved its one thread.
+(``raw_drain.py``), so that the host carries the same load in both. Measured 1.00-1.01, both
+with this node and with the node before it took the excess shocks undecoded (it decoded and
+refused every shock); 0.21 with an earlier node, before it drained its queues undecoded, when a
+flood starved its one thread (doc/performance.md, "The node under a shock flood").
 """
 
 FLOOD_COST_BOUND = 3.0
 """
 Most CPU time a flood message may cost the node, in units of what the same message costs the
 reference process (the middleware's reliable receive plus a raw take, measured in the same
-test on the same host). Measured 1.10-1.51 in five runs of today's node (41-57 us per message
-for the reference), 1.87 for the node of f66527b^: the ratio moves with the scheduling of
-three busy processes on two cores, so this bound separates only a gross regression (a log
-line or a decode-and-refuse with an exception per message), not those two trees.
+test on the same host). Measured 1.10-1.51 in five runs of this node (41-57 us per message
+for the reference), 1.87 for the node that decoded and refused every shock: the ratio moves
+with the scheduling of three busy processes on two cores, so this bound separates only a gross
+regression (a log line or a decode-and-refuse with an exception per message), not those two
+nodes.
 """
 
 

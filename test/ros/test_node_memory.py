@@ -36,8 +36,8 @@ OUTPUT_RATE_HZ = 20000.0
 here), the executor wakes as often (blocks stay 10 ms), so the leak is the same."""
 SHORT_BOUND_KB_S = 25.0
 """Slope allowed over one minute, kB/s. Measured here over 90 s after a 30 s warm-up at 20 kHz,
-both runs at once: today's node 78.3 kB/s; the same node spinning a SingleThreadedExecutor
-with ``spin_once`` instead of ``spin_until_future_complete`` 2.6 kB/s (the recorder's indexes
+both runs at once: the node spun with ``spin_until_future_complete`` 78.3 kB/s; the same node
+spinning a SingleThreadedExecutor with ``spin_once`` instead 2.6 kB/s (the recorder's indexes
 grow with the messages). The bound is ~10 times the fixed node's slope and ~3 times below the
 leak. At 200 kHz one 1.5 MB step of the allocator put the fixed node at 43 kB/s over 60 s:
 hence the lower rate."""

@@ -221,7 +221,8 @@ def test_recorded_qos_is_the_qos_module(tmp_path):
 def test_recorded_qos_is_what_the_live_node_offers(tmp_path, ros):
     """A real node records; its publishers and subscriptions are asked for their QoS live."""
     # A best-effort or transient-local mutation of a qos.py profile that node.py does not use
-    # (today: all of them) makes this fail; the depth is checked by the two tests above.
+    # (as node.py stands: all of them) makes this fail; the depth is checked by the two tests
+    # above.
     path = tmp_path / 'live.mcap'
     params = tmp_path / 'live.yaml'
     params.write_text(params_yaml({'drive.start_on': 'rest', 'duration': 0.0, **GYRO,
