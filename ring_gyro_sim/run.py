@@ -67,7 +67,7 @@ from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.gyro import operating_point
 from ring_gyro_sim.core.gyro.control import ControlSamples, update_rows
 from ring_gyro_sim.core.gyro.electronics import DemodSamples, RateSamples
-from ring_gyro_sim.core.gyro.stats import DriveStats, RateStats
+from ring_gyro_sim.core.gyro.stats import describe, DriveStats, RateStats
 from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.core.simulator import channel_names, Samples, Simulator, Status
 
@@ -838,8 +838,11 @@ class Run:
         return out
 
     def summary_text(self) -> str:
-        """Return the run's numbers in one line (the node's log)."""
+        """Return the run's numbers in one line (the node's log), the gyroscope's included."""
         text = self.stats.text()
+        gyro = describe(self.gyro_figures())
+        if gyro:
+            text += f'; {gyro}'
         if not self.running:
             text += f'; {self.sim.status}: {self.sim.message}'
         return text

@@ -55,8 +55,8 @@ import numpy as np
 from ring_gyro_sim.core.gyro.control import CONTROL_CHANNELS
 from ring_gyro_sim.core.gyro.electronics import RateSamples
 
-__all__ = ['DriveStats', 'MEAN_WINDOW_S', 'RateStats', 'RECOVERY_BAND', 'RECOVERY_HOLD_S',
-           'RECOVERY_NOISE_SIGMAS']
+__all__ = ['describe', 'DriveStats', 'MEAN_WINDOW_S', 'RateStats', 'RECOVERY_BAND',
+           'RECOVERY_HOLD_S', 'RECOVERY_NOISE_SIGMAS']
 
 RECOVERY_BAND = 0.01
 """Relative band of the recovery time: within 1 % of the applied rate (issue 12)."""
@@ -170,7 +170,10 @@ class DriveStats(_Recovery):
         """Add a block's sample times (s) and ``Samples.control`` rows."""
         if t.size == 0:
             return
-        ratio = control[:, self._column] / self.loop.setpoint_m
+        setpoint = self.loop.setpoint_m
+        # A set-point of 0 (the drive off from the start) has no ratio: 0, never inf.
+        ratio = (control[:, self._column] / setpoint if setpoint > 0.0
+                 else np.zeros(t.size))
         self.last_t = float(t[-1])
         self.last_ratio = float(ratio[-1])
         if self.shock_s is None:
@@ -192,3 +195,48 @@ class DriveStats(_Recovery):
         if self.shock_s is not None:
             out['drive_amplitude_recovery_s'] = self.recovery()[1]
         return out
+
+
+def describe(figures: Dict[str, Any]) -> str:
+    """
+    Say in one line what a run's rate output and drive did (``Run.gyro_figures``).
+
+    The rate read at the end against the applied rate; after a shock the error's peak and when
+    the output came back within its band; whether the drive left its operating point (the
+    closed loop's lock and amplitude, or the open loop's pick-off against its operating
+    point: a drive that fell to its lower branch leaves ``~/rate`` without a scale factor).
+    """
+    deg = 180.0 / math.pi
+    parts = []
+    if 'rate_mean_rad_s' in figures:
+        parts.append(f'~/rate {figures["rate_mean_rad_s"] * deg:.4f} deg/s over the last '
+                     f'{MEAN_WINDOW_S:g} s (applied {figures["rate_true_mean_rad_s"] * deg:.4f})')
+    if 'rate_error_peak_rad_s' in figures:
+        peak = figures['rate_error_peak_rad_s'] * deg
+        if figures.get('rate_recovered'):
+            back = f'back within its band {figures["rate_recovery_s"]:.3f} s after the shock'
+        else:
+            back = 'not back within its band by the end'
+        parts.append(f'after the first shock its error peaked at {peak:.4g} deg/s, {back}')
+    if 'pll_lost_lock' in figures:
+        if not figures['pll_lost_lock']:
+            drive = 'the drive held its operating point (the PLL never lost lock)'
+        else:
+            relocked = figures.get('pll_relocked_at_s')
+            drive = (f'the drive left its operating point: PLL out of lock from '
+                     f'{figures["pll_lock_lost_at_s"]:.3f} s, '
+                     + (f'locked again at {relocked:.3f} s' if relocked is not None
+                        else 'not locked again'))
+        recovery = figures.get('drive_amplitude_recovery_s')
+        if 'drive_amplitude_recovery_s' in figures:
+            drive += (f', amplitude within 1 % of its set-point {recovery:.3f} s after the '
+                      f'shock' if recovery is not None else ', amplitude not back by the end')
+        parts.append(drive)
+    elif 'rate_drive_amplitude_ratio' in figures:
+        ratio = figures['rate_drive_amplitude_ratio']
+        if figures.get('rate_scale_factor_valid', True):
+            parts.append(f'the drive on its operating point (pick-off at {ratio:.3g} of it)')
+        else:
+            parts.append(f'the drive left its branch (pick-off at {ratio:.3g} of its operating '
+                         f'point): ~/rate is not a measurement')
+    return '; '.join(parts)
