@@ -69,7 +69,8 @@ def _parser() -> argparse.ArgumentParser:
 
     cal = sub.add_parser('calibrate', help='outer voltage that puts the 1theta backbone '
                                            'through a target point (Fig. 4)')
-    cal.add_argument('params', nargs='?', help='params YAML (default: the embedded default)')
+    cal.add_argument('params', nargs='?',
+                     help="params YAML (default: the paper's resonator, config/paper.yaml)")
     cal.add_argument('--target-hz', type=float, default=10.6e3)
     cal.add_argument('--amplitude', type=float, default=6e-6, help='m')
     cal.add_argument('--low', type=float, default=40.0, help='voltage bracket low, V')
@@ -133,7 +134,8 @@ def _add_sweep_verb(sub) -> None:
 def _add_harmonic_balance_verbs(sub) -> None:
     bb = sub.add_parser('backbone', help='backbone of a nonlinear mode by harmonic balance '
                                          '(Fig. 4); writes CSV and PNG')
-    bb.add_argument('params', nargs='?', help='params YAML (default: the embedded default)')
+    bb.add_argument('params', nargs='?',
+                    help="params YAML (default: the paper's resonator, config/paper.yaml)")
     bb.add_argument('--mode', type=int, default=1, help='n of the n-theta mode (default 1)')
     bb.add_argument('--taylor-terms', type=int, help='N_T (default: from the params; 0 = '
                                                      'untruncated)')
@@ -147,7 +149,8 @@ def _add_harmonic_balance_verbs(sub) -> None:
 
     fr = sub.add_parser('frf', help='forced response to the 2theta drive by harmonic balance '
                                     'and continuation (Fig. 9); writes CSV and PNG')
-    fr.add_argument('params', nargs='?', help='params YAML (default: the embedded default)')
+    fr.add_argument('params', nargs='?',
+                    help="params YAML (default: the paper's resonator, config/paper.yaml)")
     fr.add_argument('--mode', type=int, default=2,
                     help='n of the coordinate whose amplitude is reported (default 2)')
     fr.add_argument('--f-range', type=float, nargs=2, default=(15.70e3, 15.85e3),
@@ -167,9 +170,10 @@ def _add_harmonic_balance_verbs(sub) -> None:
 
 
 def _load(path: Optional[str], node_name: str = 'ring_gyro'):
-    from ring_gyro_sim.core.params import build_config
+    """Return the configuration of a params file; none: the paper's resonator."""
+    from ring_gyro_sim.core.params import paper_config
     from ring_gyro_sim.paramfile import load_yaml
-    return load_yaml(path, node_name) if path else build_config({})
+    return load_yaml(path, node_name) if path else paper_config()
 
 
 def cmd_run(args) -> int:

@@ -32,7 +32,7 @@ import numpy as np
 import pytest
 from ring_gyro_sim import characterize as ch
 from ring_gyro_sim import cli
-from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.core.params import paper_config
 from ring_gyro_sim.run import Run
 from scipy import signal
 
@@ -65,7 +65,7 @@ def electronics():
     """Return the device's electronics at rest (zero rate): the model's predictions."""
     values = ch.load_device(str(GYRO))
     values = {k: v for k, v in values.items() if not k.startswith('scenario.')}
-    config = build_config(values)
+    config = paper_config(values)
     return Run(config).sim.sense.electronics
 
 
@@ -216,7 +216,7 @@ def test_the_pngs_are_written_and_embedded(quick):
 
 
 def test_a_resonator_file_is_refused_naming_gyro_enabled(tmp_path, capsys):
-    code = cli.main(['characterize', str(REPO_ROOT / 'config' / 'default.yaml'), '--out',
+    code = cli.main(['characterize', str(REPO_ROOT / 'config' / 'paper.yaml'), '--out',
                      str(tmp_path / 'x'), '--quick', '--no-progress'])
     assert code == 1
     err = capsys.readouterr().err
@@ -241,7 +241,7 @@ def test_a_bad_loop_mode_is_refused_naming_the_option(tmp_path, capsys):
 
 def test_the_exit_status_of_the_command_is_1_on_a_bad_file(tmp_path):
     result = subprocess.run([sys.executable, '-m', 'ring_gyro_sim.cli', 'characterize',
-                             str(REPO_ROOT / 'config' / 'default.yaml'), '--out',
+                             str(REPO_ROOT / 'config' / 'paper.yaml'), '--out',
                              str(tmp_path / 'x')], capture_output=True, text=True,
                             timeout=120, check=False, cwd=REPO_ROOT)
     assert result.returncode == 1

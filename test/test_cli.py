@@ -44,13 +44,25 @@ SUMMARY_KEYS = {'sim_time_s', 'wall_time_s', 'real_time_factor', 'peak_abs_m', '
 SHOCK_10000G = 10_000 * STANDARD_GRAVITY
 
 
+RESONATOR = {'modes': '{companions: false}', 'gyro': '{enabled: false}',
+             'control': '{drive_loop: open, rebalance: false}'}
+"""The paper's resonator (config/paper.yaml) in YAML flow text, group by group."""
+
+
 def scenario(path, duration=0.05, **groups):
-    """Write a params file: 10 000 g at t = 0 from rest, plus ``groups`` (YAML flow text)."""
-    lines = ['ring_gyro:', '  ros__parameters:',
+    """
+    Write a params file: the paper's resonator, 10 000 g at t = 0 from rest, plus ``groups``.
+
+    ``groups``: YAML flow mappings by group name, merged into the resonator's.
+    """
+    lines = ['/**:', '  ros__parameters:',
              '    drive: {amplitude: 0.0, start_on: rest}',
              f'    duration: {duration}',
              f'    scenario: {{shock_times: [0.0], shock_peaks: [{SHOCK_10000G!r}]}}']
-    lines += [f'    {name}: {text}' for name, text in groups.items()]
+    merged = dict(RESONATOR)
+    for name, text in groups.items():
+        merged[name] = (merged[name][:-1] + ', ' + text[1:]) if name in merged else text
+    lines += [f'    {name}: {text}' for name, text in merged.items()]
     path = pathlib.Path(path)
     path.write_text('\n'.join(lines) + '\n', encoding='utf-8')
     return path

@@ -29,7 +29,7 @@ import allantools
 import numpy as np
 import pytest
 from ring_gyro_sim import cli
-from ring_gyro_sim.core.params import build_config, STANDARD_GRAVITY
+from ring_gyro_sim.core.params import paper_config, STANDARD_GRAVITY
 from ring_gyro_sim.paramfile import check_params_file
 from ring_gyro_sim.rate_record import applied_rate
 from ring_gyro_sim.run import AngularRate, Run
@@ -97,7 +97,7 @@ def test_ring_gyro_run_measures_10_deg_s_within_1_percent(tmp_path, capsys):
 
 
 def test_minus_10_deg_s_reads_the_opposite_sign():
-    config = build_config(gyro_values(**{'scenario.rate_values': [-TEN_DEG_S],
+    config = paper_config(gyro_values(**{'scenario.rate_values': [-TEN_DEG_S],
                                          'gyro.temperature': 0.0}))
     t, rate, applied, _ = run_blocks(config, 0.5)
     assert np.all(applied == -TEN_DEG_S)
@@ -111,7 +111,7 @@ def test_a_rate_step_shows_the_documented_bandwidth():
     # 1 - 1/e of the step, after two 1 - 1/e^2, within 2 % of the step (the 2theta pair
     # split by 2 kappa Omega = 0.28 rad/s against its 0.77 rad/s half-width bends the curve
     # a little).
-    config = build_config(gyro_values(**{'scenario.rate_times': [], 'scenario.rate_values': [],
+    config = paper_config(gyro_values(**{'scenario.rate_times': [], 'scenario.rate_values': [],
                                          'gyro.temperature': 0.0,
                                          'gyro.input_noise_density': 0.0}))
     t_step = 0.2
@@ -164,7 +164,7 @@ def test_angle_random_walk_matches_the_noise_sources():
                             'modes.quality_factors': [120000.0, 500.0],
                             'scenario.rate_times': [], 'scenario.rate_values': [],
                             'drive.start_on': 'rest', 'gyro.noise_seed': 5})
-    config = build_config(values)
+    config = paper_config(values)
     # Start on the drive's linear response (rest would need ~10 time constants to build up).
     w = 2 * math.pi * config.drive.frequency
     w2 = 2 * math.pi * config.modes.frequencies[1]
@@ -196,13 +196,13 @@ def test_angle_random_walk_matches_the_noise_sources():
 
 def test_same_seed_same_record_other_seed_other_record_bit_for_bit():
     base = gyro_values(**{'gyro.bias_instability': 1.0})
-    a = run_blocks(build_config(base), 0.05)[1]
-    b = run_blocks(build_config(base), 0.05)[1]
-    c = run_blocks(build_config({**base, 'gyro.noise_seed': 2}), 0.05)[1]
+    a = run_blocks(paper_config(base), 0.05)[1]
+    b = run_blocks(paper_config(base), 0.05)[1]
+    c = run_blocks(paper_config({**base, 'gyro.noise_seed': 2}), 0.05)[1]
     assert np.array_equal(a, b)
     assert not np.array_equal(a, c)
     # and the record does not depend on how it is cut into blocks
-    cut = build_config({**base, 'output.block_duration': 0.003})
+    cut = paper_config({**base, 'output.block_duration': 0.003})
     d = run_blocks(cut, 0.051)[1][:a.size]
     assert np.array_equal(a, d)
 
@@ -218,7 +218,7 @@ def test_shock_figures_and_recovery():
                             'drive.amplitude': 0.0065 * 64700.0 / 2000.0,
                             'scenario.shock_times': [0.1],
                             'scenario.shock_peaks': [10_000 * STANDARD_GRAVITY]})
-    config = build_config(values)
+    config = paper_config(values)
     t, rate, applied, run = run_blocks(config, 0.8)
     figures = run.gyro_figures()
     err = np.abs(rate - applied)
@@ -245,7 +245,7 @@ def test_the_paper_case_3_collapses_the_scale_factor_and_says_so():
               'modes.quality_factors': [40000.0, 64700.0, 170000.0],
               'scenario.shock_times': [0.05], 'scenario.shock_peaks': [10_000 * STANDARD_GRAVITY],
               'scenario.rate_times': [0.0], 'scenario.rate_values': [TEN_DEG_S]}
-    config = build_config(values)
+    config = paper_config(values)
     with warnings.catch_warnings():
         warnings.simplefilter('ignore')  # the upper branch's companion instability
         run = Run(config)
@@ -263,7 +263,7 @@ def test_the_paper_case_3_collapses_the_scale_factor_and_says_so():
 
 
 def test_applied_rate_rebuilt_from_inputs_matches_the_simulator():
-    config = build_config(gyro_values(**{'scenario.rate_times': [0.0, 0.02, 0.02, 0.03],
+    config = paper_config(gyro_values(**{'scenario.rate_times': [0.0, 0.02, 0.02, 0.03],
                                          'scenario.rate_values': [0.0, 1.0, -1.0, 2.0],
                                          'gyro.temperature': 0.0}))
     step = AngularRate(z=0.5, at_ns=25_000_123)

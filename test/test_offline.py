@@ -33,7 +33,7 @@ import pytest
 from ring_gyro_sim import offline, progress, run
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.gyro.operating_point import start_state
-from ring_gyro_sim.core.params import build_config, STANDARD_GRAVITY
+from ring_gyro_sim.core.params import paper_config, STANDARD_GRAVITY
 from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.paramfile import load_yaml
 from ring_gyro_sim.run import (BaseAcceleration, DriveAmplitude, DriveFrequency,
@@ -51,7 +51,7 @@ def shock_from_rest(peak=SHOCK_10000G, at_s=0.0, **extra):
     values = {'drive.amplitude': 0.0, 'drive.start_on': 'rest',
               'scenario.shock_times': [at_s], 'scenario.shock_peaks': [peak]}
     values.update(extra)
-    return build_config(values)
+    return paper_config(values)
 
 
 def decoded(path, topics=None):
@@ -100,7 +100,7 @@ def direct_run(config, duration_s, state=None):
 
 def test_summary_matches_direct_simulator_run():
     # Default configuration: starts on the upper branch of the drive, a 2000 g shock at 5 ms.
-    config = build_config({'scenario.shock_times': [0.005],
+    config = paper_config({'scenario.shock_times': [0.005],
                            'scenario.shock_peaks': [2000 * STANDARD_GRAVITY]})
     summary = offline.run_offline(config, 0.03, progress=False)
     sim, out = direct_run(config, 0.03, start_state(config))
@@ -225,7 +225,7 @@ def test_resimulation_is_bit_identical(tmp_path, shock_recording):
 
 def test_resimulation_from_the_upper_branch_with_inputs(tmp_path):
     # Drive on (start state from the metadata) plus inputs of every kind the node records.
-    config = build_config({})
+    config = paper_config({})
     original = tmp_path / 'run.mcap'
     inputs = [Shock(2000 * STANDARD_GRAVITY, 0.0, at_ns=2_000_000),
               DriveFrequency(15790.0, at_ns=4_000_000),
@@ -245,7 +245,7 @@ def test_resimulation_from_the_upper_branch_with_inputs(tmp_path):
 def test_parameter_changes_scheduled_ahead_apply_at_their_time(tmp_path):
     # The drive is switched on (5 m/s^2) at 8 ms and off again at 12 ms by run-time parameter
     # changes; q2 is exactly zero before 8 ms and rings after.
-    config = build_config({'drive.amplitude': 0.0, 'drive.start_on': 'rest'})
+    config = paper_config({'drive.amplitude': 0.0, 'drive.start_on': 'rest'})
     original = tmp_path / 'params.mcap'
     inputs = [ParameterChange({'drive.amplitude': 5.0}, at_ns=8_000_000),
               ParameterChange({'drive.amplitude': 0.0}, at_ns=12_000_000)]
@@ -276,11 +276,11 @@ def test_shock_after_a_shock_duration_change_uses_the_new_duration():
     peak = 2000 * STANDARD_GRAVITY
     rest = {'drive.amplitude': 0.0, 'drive.start_on': 'rest'}
     changed = offline.run_offline(
-        build_config(rest), 0.01, progress=False,
+        paper_config(rest), 0.01, progress=False,
         inputs=[ParameterChange({'shock.duration': 20e-6}, at_ns=2_000_000),
                 Shock(peak, 0.0, at_ns=5_000_000)])
     from_start = offline.run_offline(
-        build_config({**rest, 'shock.duration': 20e-6}), 0.01, progress=False,
+        paper_config({**rest, 'shock.duration': 20e-6}), 0.01, progress=False,
         inputs=[Shock(peak, 0.0, at_ns=5_000_000)])
     # A 20 us pulse carries about 3x the impulse of the default 6.33 us one.
     assert changed.peak_abs_m['q1'] == pytest.approx(from_start.peak_abs_m['q1'], rel=1e-6)
@@ -381,7 +381,7 @@ GYRO_TOPICS = [f'{NS}/rate', f'{NS}/demodulator', f'{NS}/angular_rate']
 
 def test_a_gyro_run_records_the_gyro_topics(tmp_path):
     path = tmp_path / 'gyro.mcap'
-    offline.run_offline(build_config(GYRO), 0.02, output=str(path), progress=False)
+    offline.run_offline(paper_config(GYRO), 0.02, output=str(path), progress=False)
     with open(path, 'rb') as stream:
         summary = make_reader(stream).get_summary()
     types = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
@@ -389,7 +389,7 @@ def test_a_gyro_run_records_the_gyro_topics(tmp_path):
     assert types[f'{NS}/demodulator'] == 'std_msgs/msg/Float64MultiArray'
     assert types[f'{NS}/angular_rate'] == 'geometry_msgs/msg/Vector3Stamped'
     resonator = tmp_path / 'resonator.mcap'
-    offline.run_offline(build_config({**GYRO, 'gyro.enabled': False}), 0.02,
+    offline.run_offline(paper_config({**GYRO, 'gyro.enabled': False}), 0.02,
                         output=str(resonator), progress=False)
     with open(resonator, 'rb') as stream:
         topics = {c.topic for c in make_reader(stream).get_summary().channels.values()}
@@ -400,7 +400,7 @@ def test_load_recording_reads_the_angular_rates_that_acted(tmp_path):
     """--from applies the recorded rates again, except the scheduled knots (scheduled anew)."""
     from ring_gyro_sim.ros import conversions
     from ring_gyro_sim.ros.recorder import RunRecorder
-    config = build_config({**GYRO, 'scenario.rate_times': [0.0, 0.004],
+    config = paper_config({**GYRO, 'scenario.rate_times': [0.0, 0.004],
                            'scenario.rate_values': [0.0, 0.174533]})
     sim = Simulator(config)
     path = tmp_path / 'rates.mcap'
@@ -418,7 +418,7 @@ def test_load_recording_reads_the_angular_rates_that_acted(tmp_path):
 
 def test_resimulation_with_angular_rates_is_bit_identical(tmp_path):
     """A run with streamed angular rates re-simulated from its recording: bit for bit."""
-    config = build_config(GYRO)
+    config = paper_config(GYRO)
     original = tmp_path / 'run.mcap'
     inputs = [run.AngularRate(z=0.174533, at_ns=2_000_000),
               run.AngularRate(z=-0.174533, at_ns=11_000_000)]

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The physics did not change: a short ``config/demo.yaml`` run against a stored reference.
+The physics did not change: a short run of the paper's resonator against a stored reference.
 
 ``test/data/demo_reference.npz`` was written by ``test/data/make_demo_reference.py`` with the
 tree before the run-path redesign (issue 9), and regenerated with an unchanged tree when the

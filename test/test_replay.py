@@ -43,7 +43,7 @@ import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from ring_gyro_sim import cli
-from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.core.params import paper_config
 from ring_gyro_sim.offline import run_offline
 from ring_gyro_sim.recording.reader import decode, read_messages, read_topics
 from ring_gyro_sim.recording.schemas import message_class
@@ -82,7 +82,7 @@ def replay_command():
 def recording(tmp_path_factory):
     """Record 0.6 s: a 2000 g shock at t = 0, blocks every 50 ms (12 per block topic)."""
     path = tmp_path_factory.mktemp('replay') / 'run.mcap'
-    config = build_config({'drive.amplitude': 0.0, 'drive.start_on': 'rest',
+    config = paper_config({'drive.amplitude': 0.0, 'drive.start_on': 'rest',
                            'output.rate': 20000.0, 'output.block_duration': BLOCK_S,
                            'scenario.shock_times': [0.0], 'scenario.shock_peaks': [19613.3]})
     run_offline(config, DURATION_S, output=str(path), progress=False)
@@ -345,7 +345,7 @@ def ended_after_signal(got, signaller):
 def long_recording(tmp_path_factory):
     """Record 2 s without a shock: 40 blocks per block topic, so replay takes 5 s in all."""
     path = tmp_path_factory.mktemp('replay_long') / 'long.mcap'
-    config = build_config({'drive.amplitude': 0.0, 'drive.start_on': 'rest',
+    config = paper_config({'drive.amplitude': 0.0, 'drive.start_on': 'rest',
                            'output.rate': 20000.0, 'output.block_duration': BLOCK_S})
     run_offline(config, 2.0, output=str(path), progress=False)
     return path
@@ -507,7 +507,7 @@ def gyro_recording(tmp_path_factory):
     from ring_gyro_sim.ros.recorder import RunRecorder
     from ring_gyro_sim.ros.sinks import RosSink
     path = tmp_path_factory.mktemp('replay_gyro') / 'gyro.mcap'
-    config = build_config({'drive.start_on': 'rest', 'modes.companions': True,
+    config = paper_config({'drive.start_on': 'rest', 'modes.companions': True,
                            'gyro.enabled': True, 'output.rate': 20000.0,
                            'output.block_duration': BLOCK_S, 'control.drive_loop': 'closed'})
     sim = Simulator(config)

@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 from ring_gyro_sim import run as run_mod
 from ring_gyro_sim.core.errors import InputError, ParameterError
-from ring_gyro_sim.core.params import build_config, STANDARD_GRAVITY
+from ring_gyro_sim.core.params import paper_config, STANDARD_GRAVITY
 from ring_gyro_sim.run import (BaseAcceleration, DriveAmplitude, ParameterChange, Reset, Run,
                                Shock, Sink)
 
@@ -54,7 +54,7 @@ class Collect(Sink):
 
 
 def rest_run(sink=None, **extra):
-    return Run(build_config({**REST, **extra}), sink=sink)
+    return Run(paper_config({**REST, **extra}), sink=sink)
 
 
 def test_a_stamp_beyond_the_horizon_is_refused_counted_and_changes_nothing():
@@ -73,7 +73,7 @@ def test_a_stamp_beyond_the_horizon_is_refused_counted_and_changes_nothing():
 
 
 def test_late_and_past_stamps():
-    run = Run(build_config(REST), late_tolerance_ns=BLOCK * 5000)
+    run = Run(paper_config(REST), late_tolerance_ns=BLOCK * 5000)
     run.advance(3 * BLOCK)
     now = run.time_ns
     assert run.apply(Shock(x=PEAK, at_ns=now - BLOCK * 5000)) == now  # late: acts now

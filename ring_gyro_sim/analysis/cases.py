@@ -62,7 +62,7 @@ from ring_gyro_sim.analysis import envelope as env
 from ring_gyro_sim.analysis import plotting
 from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.gyro import operating_point
-from ring_gyro_sim.core.params import build_config, SimConfig, STANDARD_GRAVITY
+from ring_gyro_sim.core.params import paper_config, SimConfig, STANDARD_GRAVITY
 from ring_gyro_sim.core.simulator import coordinate_names, Status
 from ring_gyro_sim.progress import Progress
 from ring_gyro_sim.run import format_number, Run, Shock
@@ -135,19 +135,21 @@ class CaseSpec:
         """
         Build the configuration of this case on top of ``base`` (flat dotted names).
 
-        ``modes.quality_factors[0]`` is replaced by :attr:`q1_quality`, ``drive.start_on``
-        and ``output.rate`` are set; :attr:`overrides` win over ``base``.
+        ``base`` is laid over the paper's resonator (``core.params.paper_config``), whatever
+        the package's defaults; ``modes.quality_factors[0]`` is replaced by
+        :attr:`q1_quality`, ``drive.start_on`` and ``output.rate`` are set; :attr:`overrides`
+        win over ``base``.
         """
         flat = dict(base or {})
         flat.update(dict(self.overrides))
         flat['drive.start_on'] = self.start_on
         flat['output.rate'] = float(output_rate_hz)
-        cfg = build_config(flat)
+        cfg = paper_config(flat)
         if self.q1_quality is not None:
             qf = list(cfg.modes.quality_factors)
             qf[0] = float(self.q1_quality)
             flat['modes.quality_factors'] = qf
-            cfg = build_config(flat)
+            cfg = paper_config(flat)
         return cfg
 
 
@@ -194,7 +196,7 @@ def inner_electrode_cases(base: Optional[Mapping[str, Any]] = None,
     ``electrodes.inner_voltage`` is set by :func:`symmetric_inner_voltage` for the
     configuration ``base``; the shock is 10 000 g, Q_1 from the parameters.
     """
-    cfg = build_config(dict(base or {}))
+    cfg = paper_config(base)
     vi = symmetric_inner_voltage(cfg)
     s = float(duration_scale)
     return {

@@ -63,7 +63,7 @@ from ring_gyro_sim.analysis import cases
 from ring_gyro_sim.analysis import envelope as env
 from ring_gyro_sim.analysis import hbm, plotting
 from ring_gyro_sim.core.errors import RingGyroError
-from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.core.params import build_config, PAPER_RESONATOR
 from ring_gyro_sim.run import format_number
 
 PAPER = {
@@ -172,7 +172,7 @@ def make_plan(quick: bool = False, base: Optional[Mapping[str, Any]] = None) -> 
     electrodes 2 s (rest) and 20 s (drive). Quick: a tenth of the case durations, three Q_1
     for 2 s, N_R runs of 0.3 s, backbones for N_T = 4 and 10 only.
     """
-    base = dict(base or {})
+    base = {**PAPER_RESONATOR, **dict(base or {})}  # the paper's device, whatever the defaults
     scale = 0.1 if quick else 1.0
     drive = tuple(cases.paper_cases(scale).values())
     if quick:
@@ -614,7 +614,8 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
     progress : bool
         Progress lines on stderr.
     base : mapping, optional
-        Flat parameters under every run (default: the package defaults).
+        Flat parameters under every run, laid over the paper's resonator
+        (``core.params.PAPER_RESONATOR``; default: the resonator itself).
 
     Returns
     -------

@@ -53,9 +53,14 @@ Physical limits (see each row's ``range_note``)
     * times (``duration``, ``scenario.shock_times``, ``inputs.horizon``) <=
       :data:`MAX_TIME_S`: ROS stamps (``builtin_interfaces/Time.sec``) are int32.
 
-Defaults are the studied device of the paper (section 3.1, Table 1), N_R = 3, N_T = 10, with
-the calibrated outer voltage (see ``config/default.yaml`` and ``doc/calibration.md`` for how it
-was obtained).
+Defaults are **the gyroscope**: the studied device of the paper (section 3.1, Table 1),
+N_R = 3, N_T = 10, with the calibrated outer voltage and drive (``doc/calibration.md``), its sine
+companions (the sense mode is the sin 2theta companion), the sense electronics and the closed
+loops the paper calls for (section 3.4): a PLL and an AGC hold the drive on its backbone at the
+paper's amplitude (q2 = 0.39 um), force-to-rebalance holds the sense mode at zero and gives the
+rate (``config/default.yaml`` says why this operating point). :data:`PAPER_RESONATOR` (and
+``config/paper.yaml``) is the paper's resonator as the paper runs it: no companions, no
+gyroscope, the drive open loop.
 """
 
 from dataclasses import dataclass, field, fields
@@ -86,6 +91,18 @@ DEFAULT_OUTER_VOLTAGE = 78.0
 # from its fold, and a 2 000 g shock knocks it down for good (Case 1 then disagrees).
 DEFAULT_DRIVE_AMPLITUDE = 0.065
 DEFAULT_DRIVE_FREQUENCY = 15798.6
+PAPER_RESONATOR: Dict[str, Any] = {
+    'modes.companions': False,
+    'gyro.enabled': False,
+    'control.drive_loop': 'open',
+    'control.rebalance': False,
+}
+"""
+What the paper's resonator sets over the defaults (``config/paper.yaml``): the cos modes only,
+no rotation or electronics, the 2theta drive open loop at ``drive.amplitude`` and
+``drive.frequency`` (section 3.4). Everything that reproduces the paper starts from it
+(:func:`paper_config`).
+"""
 DRIVE_START_CHOICES = ('rest', 'upper_branch', 'lower_branch')
 INTEGRATOR_METHODS = ('bm6', 'bm4', 'strang')
 RECORD_COMPRESSIONS = ('zstd', 'lz4', 'none')
@@ -198,7 +215,7 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
     ParamSpec('modes.count', 'modes.count', 'int', 0, '-',
               'number of modes N_R when modes.frequencies is empty (0 = use its length)',
               0, MAX_MODES, range_note='the kernels support up to 20 modes'),
-    ParamSpec('modes.companions', 'modes.companions', 'bool', False, '-',
+    ParamSpec('modes.companions', 'modes.companions', 'bool', True, '-',
               'also simulate the sin(n theta) companion coordinates q_n^s'),
     ParamSpec('modes.companion_frequencies', 'modes.companion_frequencies', 'float_list', [],
               'Hz', 'frequencies of the companions (empty = same as modes.frequencies)',
@@ -320,7 +337,7 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
     ParamSpec('scenario.rate_values', 'run.rate_values', 'float_list', [], 'rad/s',
               'angular rate about z (REP-103: counter-clockwise seen from +z) at each knot '
               '(same length as scenario.rate_times); needs gyro.enabled'),
-    ParamSpec('gyro.enabled', 'gyro.enabled', 'bool', False, '-',
+    ParamSpec('gyro.enabled', 'gyro.enabled', 'bool', True, '-',
               'the gyroscope: rotation of the sensor frame (Coriolis coupling), sense '
               'electronics, ~/rate and ~/demodulator; needs modes.companions (the sense mode '
               'is the sin 2theta companion)'),
@@ -355,7 +372,7 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
     ParamSpec('gyro.noise_seed', 'gyro.noise_seed', 'int', 0, '-',
               'seed of every random stream (recorded with the run; same seed, same noise)',
               0, 2 ** 63 - 1, range_note='a 64-bit key of the counter-based generator'),
-    ParamSpec('control.drive_loop', 'control.drive_loop', 'str', 'open', '-',
+    ParamSpec('control.drive_loop', 'control.drive_loop', 'str', 'closed', '-',
               'the 2theta drive: open (the paper: drive.amplitude at drive.frequency) or '
               'closed (a PLL on the drive pick-off sets the frequency, an AGC the amplitude; '
               'doc/control.md)', choices=('open', 'closed')),
@@ -378,7 +395,7 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
     ParamSpec('control.drive_limit', 'control.drive_limit', 'float', 1.0, 'm/s^2',
               'largest drive force amplitude the AGC may command (the DAC range)',
               **_POSITIVE),
-    ParamSpec('control.rebalance', 'control.rebalance', 'bool', False, '-',
+    ParamSpec('control.rebalance', 'control.rebalance', 'bool', True, '-',
               'force-to-rebalance: a loop nulls the sense mode q2s and ~/rate is read from '
               'its force; needs control.drive_loop: closed and gyro.enabled'),
     ParamSpec('control.rebalance_bandwidth', 'control.rebalance_bandwidth', 'float', 20.0,
@@ -896,9 +913,14 @@ class SimConfig:
                         f'{format_number(most / r.output_rate)} s at this rate)')
 
     def block_values_per_sample(self) -> int:
-        """Values per sample in the three block messages: t + q, t + K gaps + min, t + K C."""
+        """
+        Values per sample in the block messages: t + q, t + K gaps + min, t + K C.
+
+        With the gyroscope also ``~/demodulator`` (t + 4 channels at every sample);
+        ``~/control`` has a row per loop update, not per sample, and is left out.
+        """
         n = self.modes.count * (2 if self.modes.companions else 1)
-        return 4 + n + 2 * self.electrodes.count
+        return 4 + n + 2 * self.electrodes.count + (5 if self.gyro.enabled else 0)
 
     @property
     def outer_radius(self) -> float:
@@ -1009,6 +1031,16 @@ def build_config(values: Mapping[str, Any], *, frequencies_from_legs=None) -> Si
                 built['ring'], built['legs'], flat['modes.count'])
         built[group] = cls(**kwargs[group])
     return SimConfig(**built)
+
+
+def paper_config(values: Optional[Mapping[str, Any]] = None) -> SimConfig:
+    """
+    Return the paper's resonator (:data:`PAPER_RESONATOR`) with ``values`` laid over it.
+
+    What reproduces the paper (its cases, Figs. 4 and 9, the calibration) builds its
+    configuration here, so that it does not depend on the defaults, which are the gyroscope.
+    """
+    return build_config({**PAPER_RESONATOR, **dict(values or {})})
 
 
 def _frequencies_from_structure(ring: RingParams, legs: LegParams,

@@ -17,7 +17,8 @@ The sweep spec (``ring_gyro sweep SPEC.yaml``): a base parameter file, fixed val
 
 A spec is a YAML mapping (every key optional but ``axes``)::
 
-    base: default.yaml        # params file, relative to the spec (omitted: the defaults)
+    base: paper.yaml          # params file, relative to the spec (omitted: the paper's
+                              # resonator, core.params.PAPER_RESONATOR)
     node_name: ring_gyro      # whose ros__parameters to read in it
     duration: 30.0            # simulated s per point (omitted: the base file's duration)
     output_rate: 100000.0     # Hz, envelope input (cases.DEFAULT_OUTPUT_RATE_HZ)
@@ -46,11 +47,12 @@ Names
 Points
     The Cartesian product of the axes, the last axis fastest. Each point has a key: the
     first 16 hex digits of the SHA-256 of its canonical JSON (the parameters that differ
-    from the defaults, after the table's coercion, the shock, the run length, output rate,
-    envelope window, the package version and, when there are any, the envelope channels
-    it keeps), so ``5000`` and ``5000.0`` are one point, and a point is recognised whatever
-    spec, axis order or file it came from. A point that keeps envelopes is another record
-    than the same point without (its record holds them), hence another key.
+    from the paper's resonator, after the table's coercion: the points are its cases,
+    ``analysis.cases``, which a base file or ``set`` values change; the shock, the run
+    length, output rate, envelope window, the package version and, when there are any, the
+    envelope channels it keeps), so ``5000`` and ``5000.0`` are one point, and a point is
+    recognised whatever spec, axis order or file it came from. A point that keeps envelopes
+    is another record than the same point without (its record holds them), hence another key.
 
 Envelopes
     ``envelopes`` names channels of the point's 1 ms envelopes to keep over time: ``q1``,
@@ -80,7 +82,8 @@ from ring_gyro_sim import __version__
 from ring_gyro_sim.analysis import cases
 from ring_gyro_sim.analysis import envelope as env
 from ring_gyro_sim.core.errors import ParameterError
-from ring_gyro_sim.core.params import build_config, coerce, defaults, LIST_KINDS, SPECS
+from ring_gyro_sim.core.params import (coerce, defaults, LIST_KINDS, paper_config,
+                                       PAPER_RESONATOR, SPECS)
 from ring_gyro_sim.paramfile import check_params_file, DEFAULT_NODE_NAME, RosYamlLoader
 import yaml
 
@@ -298,8 +301,8 @@ class SweepSpec:
 
 
 def _differences(flat: Mapping[str, Any]) -> Dict[str, Any]:
-    """Return the entries of ``flat`` (coerced) that differ from the table's defaults."""
-    base = defaults()
+    """Return the entries of ``flat`` (coerced) that differ from the paper's resonator."""
+    base = {**defaults(), **PAPER_RESONATOR}
     out = {}
     for name, value in flat.items():
         value = coerce(name, value)
@@ -474,7 +477,7 @@ def parse_spec(data: Any, source: str = '<text>', directory: str = '.',
     elif base_params is not None:
         base = {str(k): v for k, v in base_params.items()}
     try:
-        base_config = build_config(base)
+        base_config = paper_config(base)
     except ParameterError as exc:
         raise SweepSpecError(f'{_where(source, "base")}: {exc}') from None
     if base_config.run.shock_times:

@@ -29,7 +29,7 @@ import sys
 import numpy as np
 import pytest
 from ring_gyro_sim.analysis import cases
-from ring_gyro_sim.core.params import build_config, STANDARD_GRAVITY
+from ring_gyro_sim.core.params import paper_config, STANDARD_GRAVITY
 
 UPPER_M = 0.394e-6
 LOWER_M = 0.037e-6
@@ -55,7 +55,7 @@ def test_paper_cases_match_section_3_4():
 
 def test_case_config_sets_q1_start_and_rate_only():
     cfg = cases.paper_cases()['case3'].config(output_rate_hz=100000.0)
-    default = build_config({})
+    default = paper_config({})
     assert cfg.modes.quality_factors[0] == 40000.0
     assert list(cfg.modes.quality_factors[1:]) == list(default.modes.quality_factors[1:])
     assert cfg.drive.start_on == 'upper_branch'
@@ -64,7 +64,7 @@ def test_case_config_sets_q1_start_and_rate_only():
 
 
 def test_symmetric_inner_voltage_cancels_the_even_terms():
-    cfg = build_config({})
+    cfg = paper_config({})
     vi = cases.symmetric_inner_voltage(cfg)
     assert cfg.inner_radius * vi ** 2 == pytest.approx(cfg.outer_radius
                                                        * cfg.electrodes.outer_voltage ** 2)
@@ -74,12 +74,12 @@ def test_symmetric_inner_voltage_cancels_the_even_terms():
 
 
 def test_branches_at_the_paper_drive():
-    b = cases.drive_branches(build_config({}))
+    b = cases.drive_branches(paper_config({}))
     assert b.upper_m == pytest.approx(UPPER_M, rel=0.02)
     assert b.lower_m == pytest.approx(LOWER_M, rel=0.05)
     assert b.threshold_m == pytest.approx(math.sqrt(b.upper_m * b.lower_m))
     assert b.classify(0.3e-6) == 'upper' and b.classify(0.05e-6) == 'lower'
-    assert cases.drive_branches(build_config({'drive.amplitude': 0.0})) is None
+    assert cases.drive_branches(paper_config({'drive.amplitude': 0.0})) is None
 
 
 def test_shock_pulls_q2_off_the_upper_branch_and_control_stays():

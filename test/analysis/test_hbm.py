@@ -33,7 +33,7 @@ from ring_gyro_sim import cli
 from ring_gyro_sim.analysis import hbm, nnm
 from ring_gyro_sim.core import forces
 from ring_gyro_sim.core.gyro import operating_point
-from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.core.params import paper_config
 from scipy.integrate import solve_ivp
 
 MARKER_HZ = 15798.3   # the drive frequency of the paper's marker in Fig. 9 (15.7983 kHz)
@@ -41,7 +41,7 @@ MARKER_HZ = 15798.3   # the drive frequency of the paper's marker in Fig. 9 (15.
 
 @pytest.fixture(scope='module')
 def config():
-    return build_config({})
+    return paper_config({})
 
 
 @pytest.fixture(scope='module')

@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 from ring_gyro_sim.analysis import nnm
 from ring_gyro_sim.core import forces
-from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.core.params import paper_config
 from scipy.integrate import solve_ivp
 
 PAPER_BACKBONE_HZ = 10.6e3
@@ -41,7 +41,7 @@ DRIVE_HZ = 15798.3
 @pytest.fixture(scope='module')
 def config():
     """Return the default configuration (N_R = 3, N_T = 10, calibrated V_o, drive on)."""
-    return build_config({})
+    return paper_config({})
 
 
 @pytest.fixture(scope='module')
@@ -97,7 +97,7 @@ def test_small_amplitude_limit_is_table1_frequency(config):
 def test_small_amplitude_limit_moves_when_kc_is_kept_explicit(config):
     # doc/physics.md, "Known traps": keeping K_c explicit shifts f1 by several hundred Hz (down:
     # the k = 2 term softens).
-    explicit = build_config({'electrodes.fold_linear_stiffness': False})
+    explicit = paper_config({'electrodes.fold_linear_stiffness': False})
     point, = nnm.nonlinear_mode(explicit, [1e-9])
     print(f'backbone at 1 nm, K_c explicit: {point.frequency_hz:.1f} Hz')
     assert point.frequency_hz < TABLE1_F1_HZ - 100.0
@@ -129,8 +129,8 @@ def test_backbone_orbit_is_periodic_in_an_independent_integration(config):
 def test_taylor_order_changes_the_backbone(config, backbone_6um):
     # Fig. 4: N_T = 4 is visibly off at 6 um; N_T >= 10 is converged. The truncated series
     # has only positive terms (outer electrode), so fewer terms soften less.
-    f4 = nnm.frequency_at_amplitude(build_config({'electrodes.taylor_terms': 4}), 6e-6)
-    f12 = nnm.frequency_at_amplitude(build_config({'electrodes.taylor_terms': 12}), 6e-6)
+    f4 = nnm.frequency_at_amplitude(paper_config({'electrodes.taylor_terms': 4}), 6e-6)
+    f12 = nnm.frequency_at_amplitude(paper_config({'electrodes.taylor_terms': 12}), 6e-6)
     print(f'backbone at 6 um: N_T = 4 {f4:.1f} Hz, 10 {backbone_6um:.1f} Hz, 12 {f12:.1f} Hz')
     assert f4 - backbone_6um > 100.0
     assert abs(f12 - backbone_6um) < 0.25 * (f4 - backbone_6um)

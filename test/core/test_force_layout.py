@@ -30,7 +30,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 from ring_gyro_sim.core import forces, kernels
-from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.core.params import paper_config
 
 FREQUENCIES = [11200.0, 15800.0, 22000.0, 36300.0, 59200.0]  # Table 1 of the paper
 
@@ -96,7 +96,7 @@ def plain_force(x, kernel):
     (3, False), (4, False), (5, False), (9, False), (10, False), (13, False), (17, False)])
 @pytest.mark.parametrize('n_modes, companions', [(3, False), (3, True), (5, True)])
 def test_kernel_force_is_the_plain_loop_bit_for_bit(taylor_terms, fold, n_modes, companions):
-    config = build_config({'modes.frequencies': FREQUENCIES[:n_modes],
+    config = paper_config({'modes.frequencies': FREQUENCIES[:n_modes],
                            'modes.quality_factors': [1e5] * n_modes,
                            'modes.companions': companions, 'drive.amplitude': 0.0,
                            'electrodes.taylor_terms': taylor_terms,
@@ -121,7 +121,7 @@ def test_kernel_force_is_the_plain_loop_bit_for_bit(taylor_terms, fold, n_modes,
                          [(6, True, 4), (10, True, 8), (14, True, 12), (18, True, 16),
                           (19, True, 0), (10, False, 12), (16, False, 16)])
 def test_series_layout_and_its_values_against_exact_arithmetic(taylor_terms, fold, slots):
-    config = build_config({'modes.frequencies': FREQUENCIES[:3],
+    config = paper_config({'modes.frequencies': FREQUENCIES[:3],
                            'modes.quality_factors': [1e5] * 3, 'drive.amplitude': 0.0,
                            'electrodes.taylor_terms': taylor_terms,
                            'electrodes.fold_linear_stiffness': fold})

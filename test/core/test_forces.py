@@ -32,7 +32,7 @@ import numpy as np
 import pytest
 from ring_gyro_sim.core import forces
 from ring_gyro_sim.core.errors import SimulationError
-from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.core.params import paper_config
 import sympy as sp
 
 GAP = 10e-6
@@ -55,7 +55,7 @@ def make_config(n_modes=3, taylor_terms=10, outer_voltage=80.0, inner_voltage=0.
         'drive.amplitude': 0.0,
     }
     flat.update(extra)
-    return build_config(flat)
+    return paper_config(flat)
 
 
 @functools.lru_cache(maxsize=None)

@@ -37,9 +37,9 @@ CHILD = textwrap.dedent("""
     # Import the read-only copy, not the editable install of the development environment.
     sys.meta_path = [f for f in sys.meta_path if 'editable' not in getattr(f, '__module__', '')]
     from ring_gyro_sim.core import kernels
-    from ring_gyro_sim.core.params import build_config
+    from ring_gyro_sim.core.params import paper_config
     from ring_gyro_sim.core.simulator import Simulator
-    sim = Simulator(build_config({'drive.start_on': 'rest'}))
+    sim = Simulator(paper_config({'drive.start_on': 'rest'}))
     sim.shock(1000.0)
     sim.advance(0.001)
     stats = {name: getattr(kernels, name).stats

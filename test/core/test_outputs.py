@@ -37,7 +37,7 @@ import math
 import numpy as np
 import pytest
 from ring_gyro_sim.core.errors import InputError
-from ring_gyro_sim.core.params import build_config, STANDARD_GRAVITY
+from ring_gyro_sim.core.params import paper_config, STANDARD_GRAVITY
 from ring_gyro_sim.core.simulator import GAP_FLOOR_RATIO, GAP_GRID_POINTS_PER_MODE, Simulator
 from scipy import integrate, optimize
 
@@ -65,7 +65,7 @@ def make_sim(n_modes, companions, **extra):
               'modes.companions': companions, 'drive.amplitude': 0.0,
               'drive.start_on': 'rest'}
     values.update(extra)
-    return Simulator(build_config(values))
+    return Simulator(paper_config(values))
 
 
 def terms(names):

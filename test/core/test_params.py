@@ -19,8 +19,8 @@ from pathlib import Path
 
 import pytest
 from ring_gyro_sim.core.errors import ParameterError, RingGyroError
-from ring_gyro_sim.core.params import (build_config, defaults, PARAMETERS, SimConfig, SPECS,
-                                       to_flat)
+from ring_gyro_sim.core.params import (build_config, defaults, paper_config, PAPER_RESONATOR,
+                                       PARAMETERS, SimConfig, SPECS, to_flat)
 from ring_gyro_sim.paramfile import load_yaml, parameters_from_yaml_text
 
 PACKAGE_ROOT = Path(__file__).resolve().parents[2]
@@ -359,11 +359,28 @@ def test_default_yaml_loads_and_matches_the_table():
 
 
 def test_demo_yaml_loads():
+    # make run: the default gyroscope at 10 deg/s, 10 000 g at 0.5 s.
     config = load_yaml(str(PACKAGE_ROOT / 'config' / 'demo.yaml'))
     assert config.run.shock_times == (0.5,)
     assert config.run.shock_peaks == (98066.5,)
-    assert config.run.duration == 3.0
+    assert config.run.rate_values == (math.radians(10.0),)
+    assert config.run.duration == 8.0
     assert config.run.record_path == 'out/demo.mcap'
+    default = build_config({})
+    assert (config.gyro, config.control, config.modes) == (default.gyro, default.control,
+                                                           default.modes)
+
+
+def test_the_defaults_are_the_gyroscope_and_paper_yaml_the_resonator():
+    default = build_config({})
+    assert default.gyro.enabled and default.modes.companions
+    assert default.control.closed and default.control.rebalance
+    paper = load_yaml(str(PACKAGE_ROOT / 'config' / 'paper.yaml'))
+    assert paper == paper_config() == build_config(PAPER_RESONATOR)
+    assert not paper.gyro.enabled and not paper.modes.companions and not paper.control.closed
+    # The resonator is the same device as the gyroscope: only PAPER_RESONATOR differs.
+    differ = {k for k, v in to_flat(paper).items() if to_flat(default)[k] != v}
+    assert differ == set(PAPER_RESONATOR)
 
 
 def test_missing_file_fails_with_parameter_error(tmp_path):
@@ -418,18 +435,25 @@ def test_block_memory_is_bounded():
     """
     At most MAX_BLOCK_BYTES (4 MiB) of block messages per block.
 
-    Default channels: t + 3 q, t + 8 gaps + min gap, t + 8 C = 23 values = 184 bytes per
-    sample, so 4 MiB / 184 B = 22795 samples: 0.11 s at 200 kHz fits, 0.12 s does not.
+    The paper's resonator: t + 3 q, t + 8 gaps + min gap, t + 8 C = 23 values = 184 bytes per
+    sample, so 4 MiB / 184 B = 22795 samples: 0.11 s at 200 kHz fits, 0.12 s does not. The
+    gyroscope (the defaults) adds 3 companions and ~/demodulator's t + 4 channels: 31 values,
+    16912 samples, 0.08 s.
     """
-    assert build_config({}).block_values_per_sample() == 23
-    assert build_config({'output.block_duration': 0.11}).run.block_samples == 22000
-    message = rejects({'output.block_duration': 0.12}, 'output.block_duration')
+    assert paper_config().block_values_per_sample() == 23
+    assert build_config({}).block_values_per_sample() == 31
+    assert paper_config({'output.block_duration': 0.11}).run.block_samples == 22000
+    message = rejects({**PAPER_RESONATOR, 'output.block_duration': 0.12},
+                      'output.block_duration')
     assert '22795 samples per block' in message and 'MiB' in message
+    build_config({'output.block_duration': 0.08})
+    assert '16912 samples per block' in rejects({'output.block_duration': 0.09},
+                                                'output.block_duration')
     # 10 MHz with the default 10 ms block: 100 000 samples, refused before any allocation.
     rejects({'output.rate': 1e7}, 'output.block_duration')
-    build_config({'output.rate': 1e7, 'output.block_duration': 0.002})
+    paper_config({'output.rate': 1e7, 'output.block_duration': 0.002})
     # More channels, fewer samples: 360 electrodes -> 4 + 3 + 720 values per sample.
-    rejects({'electrodes.count': 360}, 'output.block_duration')
+    rejects({**PAPER_RESONATOR, 'electrodes.count': 360}, 'output.block_duration')
 
 
 def test_every_numeric_row_is_checked_by_its_dataclass():

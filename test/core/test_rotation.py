@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 from ring_gyro_sim.core import forces, structure
 from ring_gyro_sim.core.errors import InputError
-from ring_gyro_sim.core.params import BOLTZMANN, build_config, STANDARD_GRAVITY
+from ring_gyro_sim.core.params import BOLTZMANN, paper_config, STANDARD_GRAVITY
 from ring_gyro_sim.core.simulator import Simulator
 from scipy.integrate import solve_ivp
 
@@ -37,7 +37,7 @@ GYRO = {'gyro.enabled': True, 'modes.companions': True, 'gyro.temperature': 0.0}
 def gyro_config(**extra):
     values = dict(GYRO)
     values.update(extra)
-    return build_config(values)
+    return paper_config(values)
 
 
 def test_kappa_and_bryan_factor_closed_forms():
@@ -82,7 +82,7 @@ def test_no_rate_leaves_companions_exactly_zero_and_matches_the_resonator():
     # gyro.enabled with zero rate and no noise is the resonator with companions, bit for bit.
     base = {'modes.companions': True, 'drive.start_on': 'rest',
             'scenario.shock_times': [0.001], 'scenario.shock_peaks': [5000 * STANDARD_GRAVITY]}
-    a = Simulator(build_config(base)).advance(0.005)
+    a = Simulator(paper_config(base)).advance(0.005)
     b = Simulator(gyro_config(**base)).advance(0.005)
     assert np.array_equal(a.q, b.q)
     assert np.all(b.q[:, 3:] == 0.0)
@@ -176,7 +176,7 @@ def test_linear_sense_response_matches_the_closed_form():
     print(f'q2s/q2 = {ratio:.6f}, closed form {expected:.6f}')
     assert ratio == pytest.approx(expected, rel=2e-3)
     # The opposite rate gives the opposite sense response.
-    config_neg = build_config({**{k: v for k, v in GYRO.items()},
+    config_neg = paper_config({**{k: v for k, v in GYRO.items()},
                                'drive.amplitude': 0.00065, 'drive.frequency': 15800.0,
                                'drive.start_on': 'rest',
                                'modes.quality_factors': [120000.0, 2000.0, 170000.0],
@@ -231,6 +231,6 @@ def test_streamed_rate_steps_at_its_time_and_replaces_later_knots():
         sim.set_rate(0, 1.0)
     with pytest.raises(InputError, match='finite'):
         sim.set_rate(sim.time_ns, math.nan)
-    plain = Simulator(build_config({}))
+    plain = Simulator(paper_config({}))
     with pytest.raises(InputError, match='gyro.enabled'):
         plain.set_rate(0, 1.0)

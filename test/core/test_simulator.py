@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 from ring_gyro_sim.core import forces, kernels
 from ring_gyro_sim.core.errors import InputError
-from ring_gyro_sim.core.params import build_config, STANDARD_GRAVITY
+from ring_gyro_sim.core.params import paper_config, STANDARD_GRAVITY
 from ring_gyro_sim.core.simulator import _kernel_status, Simulator, Status
 from scipy.integrate import solve_ivp
 
@@ -34,7 +34,7 @@ def paper_shock(**extra):
     values = {'drive.amplitude': 0.0, 'drive.start_on': 'rest',
               'scenario.shock_times': [0.0], 'scenario.shock_peaks': [SHOCK]}
     values.update(extra)
-    return build_config(values)
+    return paper_config(values)
 
 
 def reference_solution(config, t_end, t_eval):
@@ -112,7 +112,7 @@ def test_splitting_orders():
     # Halving the step divides the error by 2^p: p = 2, 4, 6 for strang, bm4, bm6, measured
     # on a smooth problem (a 5 um free oscillation: the shock's kinks are tested above).
     def run(method, h):
-        sim = Simulator(build_config({'drive.amplitude': 0.0, 'drive.start_on': 'rest',
+        sim = Simulator(paper_config({'drive.amplitude': 0.0, 'drive.start_on': 'rest',
                                       'integrator.method': method, 'output.rate': 50000.0,
                                       'integrator.max_step': h * (1 + 1e-9)}))
         sim.set_state(np.array([5e-6, 0.0, 0.0]), np.zeros(3))
@@ -134,7 +134,7 @@ def _flat(config):
 
 def test_undamped_energy_does_not_drift():
     # Issue 3: no damping, N_T = 10, 5 um oscillation, 1 s: drift < 1e-6 relative.
-    config = build_config({'modes.quality_factors': [1e30, 1e30, 1e30],
+    config = paper_config({'modes.quality_factors': [1e30, 1e30, 1e30],
                            'drive.amplitude': 0.0, 'drive.start_on': 'rest'})
     sim = Simulator(config)
     sim.set_state(np.array([5e-6, 0.0, 0.0]), np.zeros(3))
@@ -154,7 +154,7 @@ def test_undamped_energy_does_not_drift():
 
 def test_free_decay_matches_exponential():
     # Issue 3: damping on, no electrostatics: amplitude follows exp(-omega t / 2Q) to 0.1 %.
-    config = build_config({'electrodes.outer_voltage': 0.0, 'drive.amplitude': 0.0,
+    config = paper_config({'electrodes.outer_voltage': 0.0, 'drive.amplitude': 0.0,
                            'drive.start_on': 'rest'})
     sim = Simulator(config)
     sim.set_state(np.array([1e-6, 0.5e-6, 0.2e-6]), np.zeros(3))
@@ -322,13 +322,13 @@ def test_samples_layout_and_outputs():
     exact = 10e-6 - np.max(out.q @ shapes.T, axis=1)
     assert np.max(np.abs(out.min_gap - exact)) < 1e-4 * 10e-6
     # At rest the capacitance of one electrode is eps0 l r_o span / d_g.
-    rest = Simulator(build_config({'drive.amplitude': 0.0})).advance(1e-5)
+    rest = Simulator(paper_config({'drive.amplitude': 0.0})).advance(1e-5)
     c0 = 8.8541878128e-12 * 150e-6 * (1.5e-3 + 14e-6) * (2 * np.pi / 8) / 10e-6
     assert rest.capacitance[0, 0] == pytest.approx(c0, rel=1e-12)
 
 
 def test_drive_phase_is_continuous_across_frequency_change():
-    config = build_config({'electrodes.outer_voltage': 0.0, 'drive.amplitude': 1.0,
+    config = paper_config({'electrodes.outer_voltage': 0.0, 'drive.amplitude': 1.0,
                            'drive.frequency': 15000.0, 'drive.start_on': 'rest'})
     sim = Simulator(config)
     sim.advance(0.001)

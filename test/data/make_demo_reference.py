@@ -13,10 +13,10 @@
 # limitations under the License.
 
 """
-Write ``demo_reference.npz``: every output channel of a short ``config/demo.yaml`` run.
+Write ``demo_reference.npz``: every output channel of a short run of the paper's resonator.
 
-The scenario is ``config/demo.yaml`` (upper-branch drive start, a 10 000 g shock) with the
-shock moved to 10 ms and 40 ms simulated. Stored: every ``DECIMATION``-th sample of every
+The scenario is the paper's demo (``config/paper.yaml``: the upper-branch drive start; a
+10 000 g shock at 10 ms) for 40 ms. Stored: every ``DECIMATION``-th sample of every
 channel (q, gap at each electrode centre, smallest gap, capacitances) as float64, and the
 SHA-256 of each channel's complete array (all 8000 samples), so that the file stays small and
 still pins every sample. ``test/test_reference_outputs.py`` checks that the current tree
@@ -42,7 +42,8 @@ import numpy as np
 
 HERE = pathlib.Path(__file__).resolve().parent
 REPO = HERE.parents[1]
-OVERRIDES = {'duration': 0.04, 'scenario.shock_times': [0.01], 'record.path': ''}
+OVERRIDES = {'duration': 0.04, 'scenario.shock_times': [0.01],
+             'scenario.shock_peaks': [98066.5]}
 BLOCK_SAMPLES = (2000, 2000, 2000, 1500, 500)
 DECIMATION = 10
 CHANNELS = ('t', 'q', 'gap', 'min_gap', 'capacitance')
@@ -55,7 +56,7 @@ def compute():
     from ring_gyro_sim.paramfile import load_yaml
     from ring_gyro_sim.run import Run
 
-    base = load_yaml(str(REPO / 'config' / 'demo.yaml'))
+    base = load_yaml(str(REPO / 'config' / 'paper.yaml'))
     config = build_config({**to_flat(base), **OVERRIDES})
     run = Run(config)  # the one run path
     parts = [run.advance(n).samples for n in BLOCK_SAMPLES]

@@ -41,6 +41,7 @@ from rcl_interfaces.srv import DescribeParameters, GetParameters, SetParameters
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from ring_gyro_sim.core.params import PAPER_RESONATOR
 from ring_gyro_sim.ros import conversions
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import Float64, Float64MultiArray
@@ -74,11 +75,16 @@ def node_env():
     return env
 
 
-def params_yaml(values, node='ring_gyro'):
-    """Return the text of a ``--params-file`` with the flat ``values`` nested under ``node``."""
+def params_yaml(values, node='ring_gyro', device=PAPER_RESONATOR):
+    """
+    Return the text of a ``--params-file`` with the flat ``values`` nested under ``node``.
+
+    ``values`` are laid over ``device``: by default the paper's resonator, which most node
+    tests run (the defaults are the gyroscope: ``device={}``).
+    """
     import yaml
     tree = {}
-    for name, value in values.items():
+    for name, value in {**device, **values}.items():
         *groups, leaf = name.split('.')
         branch = tree
         for group in groups:

@@ -36,7 +36,7 @@ from node_harness import (connected, MATCH_TIMEOUT_S, node_env, Probe, process_c
                           start_node)
 import numpy as np
 import pytest
-from ring_gyro_sim.core.params import build_config, to_flat
+from ring_gyro_sim.core.params import paper_config, to_flat
 from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.offline import resimulate
 from ring_gyro_sim.paramfile import parameters_from_yaml_text
@@ -91,11 +91,11 @@ def run(ros, tmp_path_factory):
 
 def offline_config(yaml_text, **changes):
     flat = parameters_from_yaml_text(yaml_text)
-    config = build_config(flat)
+    config = paper_config(flat)
     if changes:
         flat = to_flat(config)
         flat.update(changes)
-        config = build_config(flat)
+        config = paper_config(flat)
     return config
 
 

@@ -56,7 +56,7 @@ def test_closed_loop_node_publishes_and_records_control(ros, tmp_path):
     path = tmp_path / 'closed.mcap'
     override = tmp_path / 'closed.yaml'
     override.write_text(params_yaml({'control.drive_loop': 'closed', 'duration': 0.0,
-                                     'record.path': str(path)}), encoding='utf-8')
+                                     'record.path': str(path)}, device={}), encoding='utf-8')
     node = NodeProcess(REPO_ROOT / 'config' / 'gyro.yaml', tmp_path, '--params-file',
                        str(override))
     with connected(node, ControlProbe) as probe:

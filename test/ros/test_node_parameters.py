@@ -29,7 +29,7 @@ import time
 from node_harness import connected, NodeProcess, params_yaml, Probe, start_node
 import pytest
 from ring_gyro_sim.core.errors import ParameterError
-from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.core.params import paper_config
 from ring_gyro_sim.paramfile import check_params_file
 # isort: on
 
@@ -38,7 +38,7 @@ CONFIG = {'output.rate': 100000.0, 'real_time_factor': 1.0, 'drive.start_on': 'r
           'drive.amplitude': 0.0}
 # The default device's voltage limit, from SimConfig.voltage_limits (test_params checks it
 # against eq. 26 independently): 215.59 V.
-V_LIMIT = build_config({}).voltage_limits()[0]
+V_LIMIT = paper_config({}).voltage_limits()[0]
 REFUSED = [
     # (name, value, kind, text the reason must hold)
     ('electrodes.voltage', 80.0, 'undeclared',

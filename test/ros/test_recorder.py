@@ -39,7 +39,7 @@ import pytest
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from ring_gyro_sim import cli
 from ring_gyro_sim.core.errors import ParameterError
-from ring_gyro_sim.core.params import build_config, STANDARD_GRAVITY
+from ring_gyro_sim.core.params import paper_config, STANDARD_GRAVITY
 from ring_gyro_sim.core.simulator import Samples, Simulator
 from ring_gyro_sim.recording.errors import OutputBusyError, OutputExistsError, RecordingError
 from ring_gyro_sim.recording.reader import (
@@ -63,7 +63,7 @@ RESONATOR_INPUTS = [name for name in ALWAYS_RECORDED if name != 'angular_rate']
 
 
 def record(path, threaded):
-    config = build_config({'drive.start_on': 'rest', 'output.rate': 100000.0})
+    config = paper_config({'drive.start_on': 'rest', 'output.rate': 100000.0})
     sim = Simulator(config)
     with RunRecorder(str(path), config, sim.channel_names, threaded=threaded) as rec:
         rec.shock(1_000_000, 2000 * STANDARD_GRAVITY)
@@ -122,7 +122,7 @@ def record_cut(path, config, samples, cut, diagnostics=False, **kwargs):
 @pytest.fixture(scope='module')
 def shocked_samples():
     """Return (config values, 300 samples of a 2000 g shock at 0.5 ms from rest)."""
-    sim = Simulator(build_config(FAST))
+    sim = Simulator(paper_config(FAST))
     sim.shock(2000 * STANDARD_GRAVITY, at_ns=500_000)
     return sim.advance_samples(300)
 
@@ -144,7 +144,7 @@ def test_threaded_recording_equals_the_direct_one(tmp_path):
 
 
 def test_a_write_error_in_the_thread_reaches_the_caller(tmp_path):
-    config = build_config({})
+    config = paper_config({})
     rec = RunRecorder(str(tmp_path / 'x.mcap'), config, Simulator(config).channel_names)
     rec._write('/not/a/registered/topic', conversions.float_message(1.0), 0)
     with pytest.raises(RecordingError):
@@ -158,7 +158,7 @@ def test_a_write_error_in_the_thread_reaches_the_caller(tmp_path):
 
 def test_messages_are_written_in_log_time_order(tmp_path, shocked_samples):
     """A shock scheduled ahead (recorded at the start) lands between the blocks around it."""
-    config = build_config(FAST)
+    config = paper_config(FAST)
     path = tmp_path / 'order.mcap'
     names = Simulator(config).channel_names
     with RunRecorder(str(path), config, names, threaded=True) as rec:
@@ -192,7 +192,7 @@ GYRO = {'gyro.enabled': True, 'modes.companions': True, 'control.drive_loop': 'c
 
 
 def test_recorded_qos_is_the_qos_module(tmp_path):
-    config = build_config({**FAST, **GYRO, 'publish_clock': True})
+    config = paper_config({**FAST, **GYRO, 'publish_clock': True})
     path = tmp_path / 'qos.mcap'
     with RunRecorder(str(path), config, Simulator(config).channel_names, NS,
                      publish_clock=True):
@@ -266,7 +266,7 @@ def test_recorded_qos_is_what_the_live_node_offers(tmp_path, ros):
 
 
 def test_record_topics_selects_topics_and_keeps_the_inputs(tmp_path, shocked_samples):
-    config = build_config({**FAST, 'record.topics': ['radial_gap', '/diagnostics',
+    config = paper_config({**FAST, 'record.topics': ['radial_gap', '/diagnostics',
                                                      f'{NS}/shock']})
     path = record_cut(tmp_path / 'some.mcap', config, shocked_samples, [100, 100, 100],
                       diagnostics=True, namespace=NS, publish_clock=True)
@@ -310,7 +310,7 @@ def test_empty_record_topics_means_every_topic():
 @pytest.mark.parametrize('name', ['modal', '/modal_displacement', 'diagnostics',
                                   '/other_ns/radial_gap', 'drive/*'])
 def test_unknown_record_topic_is_refused_naming_the_parameter(tmp_path, name):
-    config = build_config({**FAST, 'record.topics': ['radial_gap', name]})
+    config = paper_config({**FAST, 'record.topics': ['radial_gap', name]})
     path = tmp_path / 'never.mcap'
     with pytest.raises(ParameterError) as info:
         RunRecorder(str(path), config, Simulator(config).channel_names, NS)
@@ -328,9 +328,9 @@ def test_decimation_keeps_every_nth_global_sample_whatever_the_cut(
         tmp_path, shocked_samples, decimation):
     # 7 does not divide the block sizes, so each block starts at another offset; 150 is longer
     # than the blocks, so some blocks keep no sample at all.
-    full = record_cut(tmp_path / 'full.mcap', build_config(FAST), shocked_samples,
+    full = record_cut(tmp_path / 'full.mcap', paper_config(FAST), shocked_samples,
                       [100, 100, 100])
-    config = build_config({**FAST, 'record.decimation': decimation})
+    config = paper_config({**FAST, 'record.decimation': decimation})
     cuts = [[100, 100, 100], [37, 100, 63, 41, 59]]
     for k, cut in enumerate(cuts):
         path = record_cut(tmp_path / f'decimated{k}.mcap', config, shocked_samples, cut)
@@ -358,14 +358,14 @@ def test_decimation_keeps_every_nth_global_sample_whatever_the_cut(
 def test_block_ends_without_block_topics(tmp_path, shocked_samples):
     cut = [100, 100, 60]  # a run with a duration: the last block is shorter
     ends = list(np.cumsum(cut) * PERIOD_NS)
-    config = build_config({**FAST, 'record.topics': ['/diagnostics']})
+    config = paper_config({**FAST, 'record.topics': ['/diagnostics']})
     path = record_cut(tmp_path / 'diag.mcap', config, shocked_samples, cut, diagnostics=True)
     assert block_end_times_ns(path) == ends
-    config = build_config({**FAST, 'record.topics': ['/clock'], 'publish_clock': True})
+    config = paper_config({**FAST, 'record.topics': ['/clock'], 'publish_clock': True})
     path = record_cut(tmp_path / 'clock.mcap', config, shocked_samples, cut,
                       publish_clock=True)
     assert block_end_times_ns(path) == ends
-    config = build_config({**FAST, 'record.topics': ['shock']})
+    config = paper_config({**FAST, 'record.topics': ['shock']})
     path = record_cut(tmp_path / 'inputs.mcap', config, shocked_samples, cut)
     with pytest.raises(RecordingError, match='no block topic'):
         block_end_times_ns(path)
@@ -377,9 +377,9 @@ def test_block_ends_without_block_topics(tmp_path, shocked_samples):
 @pytest.mark.parametrize('compression, in_file', [('zstd', 'zstd'), ('lz4', 'lz4'),
                                                   ('none', '')])
 def test_compression(tmp_path, shocked_samples, compression, in_file):
-    reference = record_cut(tmp_path / 'reference.mcap', build_config(FAST), shocked_samples,
+    reference = record_cut(tmp_path / 'reference.mcap', paper_config(FAST), shocked_samples,
                            [100, 100, 100])
-    config = build_config({**FAST, 'record.compression': compression})
+    config = paper_config({**FAST, 'record.compression': compression})
     path = record_cut(tmp_path / f'{compression}.mcap', config, shocked_samples,
                       [100, 100, 100])
     with open(path, 'rb') as stream:
@@ -404,7 +404,7 @@ def test_compression(tmp_path, shocked_samples, compression, in_file):
 
 
 def small_recording(path, **values):
-    config = build_config({**FAST, **values})
+    config = paper_config({**FAST, **values})
     with RunRecorder(str(path), config, Simulator(config).channel_names) as rec:
         rec.shock(0, 1.0)
     return path
@@ -471,7 +471,7 @@ def test_parent_directories_are_created_and_an_unwritable_path_is_refused(tmp_pa
 
 
 def test_initial_state_can_be_given_after_construction(tmp_path):
-    config = build_config(FAST)
+    config = paper_config(FAST)
     names = Simulator(config).channel_names
     n = len(names['modal_displacement'])
     with RunRecorder(str(tmp_path / 'late.mcap'), config, names) as rec:
@@ -532,7 +532,7 @@ def tiny_disk(tmp_path):
 
 
 def test_a_full_disk_gives_one_error_and_a_quiet_close(tiny_disk, shocked_samples):
-    config = build_config({**FAST, 'record.compression': 'none'})
+    config = paper_config({**FAST, 'record.compression': 'none'})
     names = Simulator(config).channel_names
     blocks = conversions.output_blocks(sliced(shocked_samples, 0, 100), names)
     rec = RunRecorder(str(tiny_disk / 'full.mcap'), config, names)
@@ -592,7 +592,7 @@ def test_the_node_on_a_full_disk_logs_one_fatal_line(tiny_disk, tmp_path):
 def test_a_decimated_recording_resimulates_with_its_original_block_sizes(tmp_path):
     """offline.load_recording takes block sizes from block_sample_counts, not the layouts."""
     from ring_gyro_sim import offline
-    config = build_config({**FAST, 'record.decimation': 10, 'duration': 0.0035,
+    config = paper_config({**FAST, 'record.decimation': 10, 'duration': 0.0035,
                            'scenario.shock_times': [0.001], 'scenario.shock_peaks': [1e4]})
     first = tmp_path / 'first.mcap'
     offline.run_offline(config, output=str(first), progress=False)

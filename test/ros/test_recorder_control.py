@@ -33,7 +33,7 @@ import numpy as np
 import pytest
 from ring_gyro_sim import cli
 from ring_gyro_sim.core.gyro.control import CONTROL_CHANNELS, ControlSamples
-from ring_gyro_sim.core.params import build_config, to_flat
+from ring_gyro_sim.core.params import paper_config, to_flat
 from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.paramfile import load_yaml
 from ring_gyro_sim.recording.reader import (
@@ -60,7 +60,7 @@ LABELS = ['t', *CONTROL_CHANNELS]
 def closed_loop_params(directory):
     """Write config/gyro.yaml with ``control.drive_loop: closed`` into ``directory``."""
     tree = yaml.safe_load((REPO_ROOT / 'config' / 'gyro.yaml').read_text(encoding='utf-8'))
-    tree['ring_gyro']['ros__parameters']['control'] = {'drive_loop': 'closed'}
+    tree['/**']['ros__parameters']['control'] = {'drive_loop': 'closed'}
     path = pathlib.Path(directory) / 'gyro_closed.yaml'
     path.write_text(yaml.safe_dump(tree), encoding='utf-8')
     return path
@@ -181,7 +181,7 @@ def record_blocks(path, config, blocks):
 def test_decimation_keeps_every_update(tmp_path, direct, decimation):
     """``record.decimation`` thins the output samples, never the loop's updates."""
     config, blocks = direct
-    thinned = build_config({**to_flat(config), 'record.decimation': decimation})
+    thinned = paper_config({**to_flat(config), 'record.decimation': decimation})
     assert thinned.run.record_decimation == decimation
     path = record_blocks(tmp_path / 'decimated.mcap', thinned, blocks)
     kept = read_block_topic(path, 'control')
@@ -195,20 +195,20 @@ def test_decimation_keeps_every_update(tmp_path, direct, decimation):
 
 def test_record_topics_selects_control(tmp_path, direct):
     config, blocks = direct
-    only = build_config({**to_flat(config), 'record.topics': ['control']})
+    only = paper_config({**to_flat(config), 'record.topics': ['control']})
     path = record_blocks(tmp_path / 'only.mcap', only, blocks)
     counts = {}
     for m in read_messages(path):
         counts[m.topic] = counts.get(m.topic, 0) + 1
     assert counts == {TOPIC: len(blocks)}
-    without = build_config({**to_flat(config), 'record.topics': ['radial_gap', 'rate']})
+    without = paper_config({**to_flat(config), 'record.topics': ['radial_gap', 'rate']})
     path = record_blocks(tmp_path / 'without.mcap', without, blocks)
     assert TOPIC not in {m.topic for m in read_messages(path)}
 
 
 def test_an_open_loop_recording_has_no_control_topic(tmp_path):
     # Open loop the run has no loop updates and the node no ~/control, whatever record.topics.
-    config = build_config({'drive.start_on': 'rest', 'modes.companions': True,
+    config = paper_config({'drive.start_on': 'rest', 'modes.companions': True,
                            'gyro.enabled': True, 'output.rate': 20000.0,
                            'record.topics': ['control', 'radial_gap']})
     run = Run(config)

@@ -36,7 +36,7 @@ import numpy as np
 import pytest
 from ring_gyro_sim import run as run_mod
 from ring_gyro_sim.core.gyro.electronics import DEMOD_CHANNELS, DemodSamples, RateSamples
-from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.core.params import paper_config
 from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.recording.reader import (
     block_end_times_ns, read_angular_rate, read_block_topic, read_messages, read_metadata,
@@ -67,7 +67,7 @@ BLOCKS = 4
 @pytest.fixture(scope='module')
 def samples():
     """Return 4 blocks of real samples of a gyroscope configuration (at rest: zeros)."""
-    sim = Simulator(build_config(GYRO))
+    sim = Simulator(paper_config(GYRO))
     return [sim.advance_samples(200) for _ in range(BLOCKS)]
 
 
@@ -85,7 +85,7 @@ def gyro_block(samples, k):
 
 def record(path, samples, values=GYRO, inputs=(), rate_variance=0.0):
     """Record the 4 synthetic blocks through a RosSink; ``inputs`` act before their block."""
-    config = build_config(values)
+    config = paper_config(values)
     names = Simulator(config).channel_names
     sink = RosSink(names, NS, recorder=RunRecorder(str(path), config, names, NS),
                    frame_id=config.gyro.frame_id, rate_variance=rate_variance)
@@ -235,7 +235,7 @@ def test_decimation_thins_the_demodulator_never_the_rate(tmp_path, samples, deci
 
 def test_gyro_topics_only_in_a_gyroscope_run(tmp_path, samples):
     # Without gyro.enabled the node has none of them, whatever record.topics says.
-    config = build_config({**GYRO, 'gyro.enabled': False,
+    config = paper_config({**GYRO, 'gyro.enabled': False,
                            'record.topics': ['rate', 'demodulator', 'radial_gap']})
     names = Simulator(config).channel_names
     path = tmp_path / 'resonator.mcap'

@@ -21,7 +21,7 @@ import math
 import numpy as np
 import pytest
 from ring_gyro_sim.analysis import cases
-from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.core.params import paper_config
 from ring_gyro_sim.sweep import load_spec, point
 from ring_gyro_sim.sweep.store import PointStore
 from sweep_harness import TINY, write_spec
@@ -50,7 +50,7 @@ def test_a_point_is_the_case_run_with_its_parameters(tmp_path):
 
 
 def test_shock_phase_is_a_time_in_drive_periods():
-    cfg = build_config({})
+    cfg = paper_config({})
     spec = cases.CaseSpec('p', '', 1000.0, None, 0.01, shock_phase=0.25, shock_angle_deg=90.0)
     shock = cases.shock_input(spec, cfg)
     assert shock.at_ns == round(0.25 / cfg.drive.frequency * 1e9)   # 15.8 us at 15 798.6 Hz

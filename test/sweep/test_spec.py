@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.core.params import paper_config
 from ring_gyro_sim.sweep import load_spec, parse_spec, SweepSpecError
 from sweep_harness import REPO, TINY, write_spec
 import yaml
@@ -38,7 +38,7 @@ def test_tiny_spec_points_in_c_order_with_q1_by_index(tmp_path):
         (('shock.peak_g', 8000.0), ('shock.phase', 0.0)),
         (('shock.peak_g', 8000.0), ('shock.phase', 0.5))]
     cfg = points[0].case_spec().config(None, spec.output_rate_hz)
-    default = build_config({})
+    default = paper_config({})
     # modes.quality_factors[0] replaces Q_1 only, the other Q from the base
     assert cfg.modes.quality_factors == (40000.0,) + default.modes.quality_factors[1:]
     assert len({p.key for p in points}) == 4
@@ -70,7 +70,7 @@ def test_a_point_key_is_its_content_not_its_spelling():
 
 def test_the_case4_example_is_the_papers_case4():
     spec = load_spec(str(REPO / 'config' / 'sweep_case4.yaml'))
-    assert spec.base_path == str(REPO / 'config' / 'default.yaml')
+    assert spec.base_path == str(REPO / 'config' / 'paper.yaml')
     assert spec.axes[0].name == 'modes.quality_factors[0]'
     assert spec.axes[0].values == (5000.0, 20000.0, 40000.0, 80000.0, 120000.0, 180000.0)
     assert spec.fixed['shock.peak_g'] == 10000.0 and spec.duration_s == 30.0

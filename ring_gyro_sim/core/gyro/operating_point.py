@@ -244,10 +244,12 @@ def drive_orbit(config: SimConfig):
     With the sine companions, the branch is that of the cos coordinates (the orbit has no sine
     content, :func:`forced_orbit`) and must be stable there. The companions can still be
     unstable: the standing 2theta wave of the upper branch is parametrically unstable to its
-    degenerate sin(2 theta) partner (default device at 15 798.6 Hz: largest multiplier
-    1.0000376, growth 0.59 /s; the whirling of a driven ring). The state is returned with a
-    warning then: in the simulator the companions stay exactly 0 until a sine disturbance (a y
-    shock or base acceleration) lets the instability grow.
+    degenerate sin(2 theta) partner (the paper's device at 15 798.6 Hz: largest multiplier
+    1.0000376, growth 0.59 /s; the whirling of a driven ring). Open loop the state is returned
+    with a warning then: the companions stay exactly 0 until a sine disturbance (a rate, a y
+    shock or base acceleration) lets the instability grow. The closed loop
+    (``control.drive_loop: closed``) holds the drive's phase and amplitude, and the whirl does
+    not develop (doc/control.md): no warning.
 
     Raises
     ------
@@ -267,7 +269,7 @@ def drive_orbit(config: SimConfig):
         raise SimulationError(f'drive.start_on: no stable {d.start_on} orbit found at '
                               f'{d.frequency} Hz (found q2 = {orbit.amplitude_m[1]:.3e} m, '
                               f'unstable)')
-    if not orbit.stable:
+    if not orbit.stable and not config.control.closed:
         mu = float(np.max(np.abs(orbit.companion_multipliers)))
         warnings.warn(f'drive.start_on: the {d.start_on} orbit at {d.frequency} Hz is '
                       f'unstable to the sine companions (largest Floquet multiplier '
@@ -357,7 +359,8 @@ _MEMO_LOCK = threading.Lock()
 
 def _orbit_key(config: SimConfig) -> tuple:
     """Return what the resting sensor's orbit depends on: the device and the drive."""
-    return (config.modes, config.ring, config.legs, config.electrodes, config.drive)
+    return (config.modes, config.ring, config.legs, config.electrodes, config.drive,
+            config.control.closed)
 
 
 def resting_orbit(config: SimConfig,

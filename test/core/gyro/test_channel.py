@@ -26,7 +26,7 @@ import math
 import numpy as np
 import pytest
 from ring_gyro_sim.core.gyro.electronics import DEMOD_CHANNELS
-from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.core.params import paper_config
 from ring_gyro_sim.run import ParameterChange, Run
 
 TEN_DEG_S = math.radians(10.0)
@@ -54,7 +54,7 @@ def drive_pickoff_and_q2(run, seconds, window_s=0.01):
 
 @pytest.mark.parametrize('loop', ['open', 'closed'])
 def test_the_pickoff_follows_a_bias_voltage_changed_at_run_time(loop):
-    config = build_config(dict(GYROSCOPE, **{'control.drive_loop': loop}))
+    config = paper_config(dict(GYROSCOPE, **{'control.drive_loop': loop}))
     run = Run(config)
     volts_0, q2_0 = drive_pickoff_and_q2(run, 0.05)
     run.apply(ParameterChange({'electrodes.outer_voltage': 70.0}))
@@ -80,7 +80,7 @@ def test_the_pickoff_follows_a_bias_voltage_changed_at_run_time(loop):
 def test_a_rebuilt_chain_continues_the_filters_and_the_sample_count():
     # A Q change at 20 ms: the chain is rebuilt, but its filters carry on (no restart
     # transient on the drive pick-off) and the rate samples continue without a gap.
-    config = build_config(GYROSCOPE)
+    config = paper_config(GYROSCOPE)
     run = Run(config)
     first = [run.advance(2000) for _ in range(2)]
     old = run.sim.sense

@@ -33,7 +33,7 @@ from ring_gyro_sim.analysis import hbm
 from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.gyro import control
 from ring_gyro_sim.core.gyro.operating_point import cos_only, start_state
-from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.core.params import paper_config
 from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.paramfile import check_params_file
 from ring_gyro_sim.run import AngularRate, Run
@@ -53,7 +53,7 @@ def values_of(name, **extra):
 
 
 def config_of(name, **extra):
-    return build_config(values_of(name, **extra))
+    return paper_config(values_of(name, **extra))
 
 
 def start_of(config):
@@ -96,7 +96,7 @@ def test_pll_follows_the_softening_onto_the_backbone():
 def test_closed_loop_is_chunk_invariant_and_runs_without_the_gyroscope():
     # The paper's resonator (no companions, no gyroscope) in closed loop: cut in odd
     # pieces it gives the samples and the loop's rows of one piece, bit for bit.
-    config = build_config({'control.drive_loop': 'closed', 'duration': 0.05})
+    config = paper_config({'control.drive_loop': 'closed', 'duration': 0.05})
     state = start_of(config)
     pieces = []
     for cuts in ((2500,), (7, 993, 1, 199, 1300)):
@@ -204,11 +204,11 @@ def test_rebalance_response_is_unity_at_dc_and_rolls_off_at_its_bandwidth():
 ])
 def test_bad_control_parameters_name_the_field(extra, name):
     with pytest.raises(ParameterError, match=f'^{name}'):
-        build_config(values_of('gyro.yaml', **extra))
+        paper_config(values_of('gyro.yaml', **extra))
 
 
 def test_the_closed_loop_refuses_a_drive_command_and_a_loop_change():
-    config = build_config({'control.drive_loop': 'closed'})
+    config = paper_config({'control.drive_loop': 'closed'})
     sim = Simulator(config)
     before = sim._drive
     with pytest.raises(InputError, match='^drive'):

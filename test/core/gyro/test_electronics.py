@@ -31,7 +31,7 @@ from ring_gyro_sim.core.errors import InputError
 from ring_gyro_sim.core.gyro import electronics
 from ring_gyro_sim.core.gyro.electronics import (FlickerNoise, orbit_sense_response,
                                                  SenseElectronics)
-from ring_gyro_sim.core.params import BOLTZMANN, build_config, EPSILON_0
+from ring_gyro_sim.core.params import BOLTZMANN, EPSILON_0, paper_config
 from ring_gyro_sim.core.simulator import Simulator
 from scipy import signal
 
@@ -42,7 +42,7 @@ BLOCK = 2000  # samples per 10 ms block at the default 200 kHz
 
 
 def make(**overrides):
-    config = build_config({**GYRO, **overrides})
+    config = paper_config({**GYRO, **overrides})
     sim = Simulator(config)
     w = 2.0 * math.pi * config.drive.frequency
     amplitude = config.drive.amplitude * config.modes.quality_factors[1] / w ** 2
@@ -381,7 +381,7 @@ def test_bad_inputs_name_the_argument():
         el.process(20, t, cap, phi)
     with pytest.raises(InputError, match='^drive_amplitude_m: '):
         SenseElectronics(config, sim, math.nan, 0.0)
-    plain = build_config({'modes.companions': False})
+    plain = paper_config({'modes.companions': False})
     with pytest.raises(InputError, match='^config: '):
         SenseElectronics(plain, Simulator(plain), amplitude, 0.0)
 

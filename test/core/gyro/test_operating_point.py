@@ -28,7 +28,7 @@ import pytest
 from ring_gyro_sim.core import forces
 from ring_gyro_sim.core.gyro.operating_point import (drive_orbit, forced_orbit, ForcedOrbit,
                                                      start_state)
-from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.core.params import paper_config
 from ring_gyro_sim.core.simulator import Simulator
 from scipy.integrate import solve_ivp
 
@@ -39,7 +39,7 @@ DRIVE_HZ = 15798.3
 @pytest.fixture(scope='module')
 def config():
     """Return the paper's resonator (N_R = 3, N_T = 10, calibrated V_o, drive on)."""
-    return build_config({})
+    return paper_config({})
 
 
 def equations(config, drive_hz=0.0, drive_amplitude=0.0, damped=False):
@@ -113,8 +113,8 @@ def test_stable_flag_discriminates():
 
 
 def test_start_state_rest_or_drive_off_is_none():
-    assert start_state(build_config({'drive.start_on': 'rest'})) is None
-    assert start_state(build_config({'drive.amplitude': 0.0})) is None
+    assert start_state(paper_config({'drive.start_on': 'rest'})) is None
+    assert start_state(paper_config({'drive.amplitude': 0.0})) is None
 
 
 def test_upper_branch_start_is_periodic(config):
@@ -240,8 +240,8 @@ def test_start_state_shoots_once_per_device_and_drive(monkeypatch):
     base = {'modes.companions': True, 'gyro.enabled': True, 'drive.amplitude': 0.0065,
             'drive.frequency': 15800.0, 'modes.quality_factors': [120001.0, 64700.0, 170000.0]}
     logs = []
-    rest = start_state(build_config(base), logs.append)
-    turning = start_state(build_config({**base, 'scenario.rate_times': [0.0],
+    rest = start_state(paper_config(base), logs.append)
+    turning = start_state(paper_config({**base, 'scenario.rate_times': [0.0],
                                         'scenario.rate_values': [0.2],
                                         'gyro.noise_seed': 7, 'duration': 3.0}), logs.append)
     assert len(calls) == 1 and len(logs) == 1 and 'computing the start state' in logs[0]
@@ -250,5 +250,5 @@ def test_start_state_shoots_once_per_device_and_drive(monkeypatch):
     # (q2 and q2s), the other coordinates are the orbit's.
     assert rest[0][0] == turning[0][0] and rest[0][2] == turning[0][2]
     assert np.all(rest[0][n:] == 0.0) and turning[0][n + 1] != 0.0
-    start_state(build_config({**base, 'drive.amplitude': 0.006}))
+    start_state(paper_config({**base, 'drive.amplitude': 0.006}))
     assert len(calls) == 2
