@@ -31,7 +31,7 @@ along x), ``nr3_companions.yaml`` (N_R = 3 with the sine companions, the shock a
    alternation with the current tree's, in the same session, and printed side by side;
 3. the limit: floating-point operations per simulated second (the flops of one force
    evaluation, of a splitting stage and of the output channels, counted from the code of
-   ``core/kernels.py`` for each configuration) against the measured peak of one core for
+   ``core/kernels/`` for each configuration) against the measured peak of one core for
    scalar double adds and multiplies without FMA (a small compiled loop of independent
    chains);
 4. speed-up over scipy ``solve_ivp`` (DOP853, Python right-hand side) on the paper
@@ -280,7 +280,7 @@ def bench_cases(duration_s: float, repeats: int, rounds: int,
 
 def series_flops(slots: int, degree: int) -> int:
     """
-    Operations of one value of the series (``kernels._series_values``), counted from the code.
+    Operations of one value of the series (``kernels.force._series_values``), from the code.
 
     Estrin's scheme with S = 4, 8, 12 or 16 slots: the powers ``u^2, u^4, u^8`` it needs, a
     multiply and an add per coefficient pair and per block, the blocks' combination and the
@@ -297,7 +297,7 @@ def flop_model(sim: Simulator) -> Dict[str, Any]:
     """
     Floating-point operations of the kernels per simulated second, counted from the code.
 
-    ``core/kernels.py``: one force evaluation at m angles (``_force``: m = 2 R without sine
+    ``core/kernels/``: one force evaluation at m angles (``_force``: m = 2 R without sine
     content, ``_force_general``: m = 4 R) is ``m (2 n - 1)`` for the angle values (all
     coordinates non-zero), ``2 n`` for the reach that spares the range check, the series at
     each angle (:func:`series_flops`), and the projection (5 per representative and
@@ -452,7 +452,7 @@ class ScipyProblem:
         self.omega = 2.0 * np.pi * np.asarray(config.modes.coordinate_frequencies())
         self.zeta = 1.0 / (2.0 * np.asarray(config.modes.coordinate_quality_factors()))
         # The Simulator's drive A cos(omega (t - t_ref) + phase) with t_ref = phase = 0 until
-        # a change (kernels._external), on q2; the start state is at drive phase 0.
+        # a change (kernels.forcing._external), on q2; the start state is at drive phase 0.
         self.drive_amp = config.drive.amplitude
         self.drive_omega = 2.0 * math.pi * config.drive.frequency
         self.shock_start = config.run.shock_times[0]

@@ -288,9 +288,9 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               choices=DRIVE_START_CHOICES),
     ParamSpec('integrator.method', 'integrator.method', 'str', 'bm6', '-',
               'splitting method: bm6 (order 6, 11 forces per step), bm4 (order 4, 6) or strang '
-              '(order 2, 1); see core/kernels.py', choices=INTEGRATOR_METHODS),
+              '(order 2, 1); see core/kernels/', choices=INTEGRATOR_METHODS),
     ParamSpec('integrator.max_step', 'integrator.max_step', 'float', 0.0, 's',
-              'largest integration step (0 = automatic, see core/kernels.py)', **_NON_NEGATIVE),
+              'largest integration step (0 = automatic, see core/kernels/)', **_NON_NEGATIVE),
     ParamSpec('real_time_factor', 'run.real_time_factor', 'float', 1.0, '-',
               'simulated seconds per wall second (0 = as fast as possible)', **_NON_NEGATIVE,
               read_only=False),

@@ -25,7 +25,7 @@ computed from integers, so cutting a run into 1 ms or 50 ms calls gives bit-iden
 Inputs and when they act
 ------------------------
 * shock pulses (:meth:`Simulator.shock`): the half-sine starts at its exact time (ns), even
-  between samples; the steps it overlaps are sub-stepped (``core/kernels.py``);
+  between samples; the steps it overlaps are sub-stepped (``core/kernels/step.py``);
 * base-acceleration samples (:meth:`Simulator.add_base_acceleration`): exact times, linear
   interpolation between consecutive samples, zero before the first and after the last;
 * the angular rate of the sensor frame (``gyro.enabled``; :meth:`Simulator.set_rate` and

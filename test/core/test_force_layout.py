@@ -15,7 +15,7 @@
 """
 The force kernel's layout for speed: each value's operations against a plain loop, bit for bit.
 
-``core/kernels.py`` evaluates the series by Estrin's scheme in blocks of four coefficients
+``core/kernels/force.py`` evaluates the series by Estrin's scheme in blocks of four coefficients
 (or Horner's rule beyond 16), sums the angle values several coordinates per pass, forms the
 parity combinations of the general path once per representative and sums the projections per
 coordinate in registers (issue 11). Each value must get the floating-point operations written
@@ -36,7 +36,7 @@ FREQUENCIES = [11200.0, 15800.0, 22000.0, 36300.0, 59200.0]  # Table 1 of the pa
 
 
 def plain_series(u, kernel):
-    """P(u) as kernels._series_values forms it, one value at a time."""
+    """P(u) as kernels.force._series_values forms it, one value at a time."""
     c = [float(value) for value in kernel.series]
     if not c:
         value = 0.0  # Horner from 0: 0 u + top is top

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The numba disk cache of ``core/kernels.py`` when the package is installed read-only.
+The numba disk cache of ``core/kernels/`` when the package is installed read-only.
 
 A colcon install space or a system site-packages is not writable by the user: numba then
 caches under the user's cache directory, and the second start must still load the kernels
@@ -78,7 +78,7 @@ def test_second_start_loads_the_kernels_from_disk_when_installed_read_only(tmp_p
     assert second.returncode == 0, second.stderr
     stats_1, path_1 = first.stdout.strip().splitlines()[-2:]
     stats_2, path_2 = second.stdout.strip().splitlines()[-2:]
-    assert path_1 == path_2 == str(parent / 'ring_gyro_sim' / 'core' / 'kernels.py')
+    assert path_1 == path_2 == str(parent / 'ring_gyro_sim' / 'core' / 'kernels' / '__init__.py')
     stats_1, stats_2 = json.loads(stats_1), json.loads(stats_2)
     print(f'\nfirst start (hits, misses): {stats_1}\nsecond start: {stats_2}')
     assert all(misses >= 1 for _, misses in stats_1.values())  # compiled the first time

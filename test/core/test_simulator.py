@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of core/simulator.py and core/kernels.py: accuracy, conservation, determinism, inputs."""
+"""Tests of core/simulator.py and core/kernels/: accuracy, conservation, determinism, inputs."""
 
 from dataclasses import replace
 import json
@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 from ring_gyro_sim.core import forces, kernels
 from ring_gyro_sim.core.errors import InputError
+from ring_gyro_sim.core.kernels.forcing import _stage_rotations
 from ring_gyro_sim.core.params import paper_config, STANDARD_GRAVITY
 from ring_gyro_sim.core.simulator import _kernel_status, Simulator, Status
 from scipy.integrate import solve_ivp
@@ -343,7 +344,7 @@ def test_drive_phase_is_continuous_across_frequency_change():
     # The stages' drive values, by the angle-sum formula, equal the direct cosine.
     h = sim.h
     rot = np.empty((sim._b.size, 2))
-    kernels._stage_rotations(sim._a, h, drive.omega, rot)
+    _stage_rotations(sim._a, h, drive.omega, rot)
     c, s = after
     offsets = np.concatenate([[0.0], np.cumsum(sim._a)[:-1], [1.0]])
     direct = np.cos(drive.omega * (t + offsets * h - drive.t_ref) + drive.phase)
