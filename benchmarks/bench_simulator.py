@@ -322,9 +322,10 @@ def flop_model(sim: Simulator) -> Dict[str, Any]:
     stages = int(sim._a.size)
     step = stages * stage + 3 * n + 3
     steps_per_s = sim.n_sub / sim.period_s
-    k = sim._centre_shapes.shape[1]
-    g = sim._ring_shapes.shape[1]
-    e = sim._electrode_shapes.shape[1]
+    geometry = sim._output_geometry
+    k = geometry.centre_shapes.shape[1]
+    g = geometry.ring_shapes.shape[1]
+    e = geometry.electrode_shapes.shape[1]
     output = 2 * n * k + g * (2 * n - 1) + e * (2 * n - 1) + 18 * e // 4 + 2 * n + k
     samples_per_s = 1.0 / sim.period_s
     return {'n': n, 'angles': m, 'degree': degree, 'slots': slots, 'force_flops': force,

@@ -368,10 +368,7 @@ class Simulator:
         span = e.span or 2.0 * math.pi / k
         centres = 2.0 * math.pi * np.arange(k) / k
         h, s = self.model.harmonics, self.model.sine
-        self._centre_shapes = np.ascontiguousarray(forces.mode_shapes(h, s, centres).T)
         g = GAP_GRID_POINTS_PER_MODE * config.modes.count
-        self._ring_shapes = np.ascontiguousarray(
-            forces.mode_shapes(h, s, 2.0 * math.pi * np.arange(g) / g).T)
         # Capacitance: composite Gauss-Legendre over each electrode (kernels.output_channels).
         # Panels: each covers at most half a period of the highest harmonic, where the rule's
         # remainder f^(2P) L^(2P+1) (P!)^4 / ((2P+1) ((2P)!)^3) for cos(n theta) is ~1e-15
@@ -396,16 +393,25 @@ class Simulator:
             angles = (centres[:, None] + np.concatenate(local)[None, :]).ravel()
             return (np.ascontiguousarray(forces.mode_shapes(h, s, angles).T),
                     np.concatenate(weights))
-        self._electrode_shapes, weights = composite([panels])
-        self._electrode_weights = np.tile(weights, k)  # one per angle (output_channels)
+        electrode_shapes, weights = composite([panels])
         levels = 2 ** np.arange(1, int(math.log2(ELECTRODE_FINE_PANELS)) + 1)  # 2, 4, .. 16
-        self._fine_shapes, self._fine_weights = composite([panels * r for r in levels])
+        fine_shapes, fine_weights = composite([panels * r for r in levels])
         rho = (0.01 * ELECTRODE_RTOL) ** (-1.0 / (2 * ELECTRODE_GAUSS_POINTS))
         reach = 0.5 * span / panels * 0.5 * (rho - 1.0 / rho)
-        self._refine_coeff = 0.5 * reach * reach
-        self._curvature = np.asarray(h, dtype=np.float64) ** 2
-        self._cap_scale = (e.relative_permittivity * EPSILON_0 * config.ring.length
-                           * config.outer_radius)
+        d = self.model.gap
+        self._output_geometry = kernels.OutputGeometry(
+            gap=d,
+            centre_shapes=np.ascontiguousarray(forces.mode_shapes(h, s, centres).T),
+            ring_shapes=np.ascontiguousarray(
+                forces.mode_shapes(h, s, 2.0 * math.pi * np.arange(g) / g).T),
+            electrode_shapes=electrode_shapes,
+            electrode_weights=np.tile(weights, k),  # one per angle (output_channels)
+            fine_shapes=fine_shapes, fine_weights=fine_weights,
+            curvature=np.asarray(h, dtype=np.float64) ** 2,
+            refine_coeff=0.5 * reach * reach,
+            cap_scale=e.relative_permittivity * EPSILON_0 * config.ring.length
+            * config.outer_radius,
+            gap_floor=GAP_FLOOR_RATIO * d)
         self._n_electrodes = k
 
     @property
@@ -751,8 +757,8 @@ class Simulator:
                             noise_part)
             if channels is not None and stop > 0:
                 part = slice(done, done + stop)
-                self._channels(out_q[part], *(c[part] for c in channels))
-                self.pickoff.clean_volts(channels[2][part], out=volts[part])
+                self._channels(out_q[part], kernels.Channels(*(c[part] for c in channels)))
+                self.pickoff.clean_volts(channels.capacitance[part], out=volts[part])
                 if pickoff_noise is not None:
                     volts[part] += pickoff_noise[part]
                 if loop is not None:
@@ -895,26 +901,22 @@ class Simulator:
                 np.array(self._profile_y[keep:end], dtype=np.float64))
 
     # ------------------------------------------------------------------ outputs
-    def _channel_arrays(self, n_s: int):
+    def _channel_arrays(self, n_s: int) -> kernels.Channels:
         k = self._n_electrodes
-        return np.empty((n_s, k)), np.empty(n_s), np.empty((n_s, k))
+        return kernels.Channels(gap=np.empty((n_s, k)), min_gap=np.empty(n_s),
+                                capacitance=np.empty((n_s, k)))
 
-    def _channels(self, q: np.ndarray, gap: np.ndarray, min_gap: np.ndarray,
-                  cap: np.ndarray) -> None:
-        d = self.model.gap
-        kernels.output_channels(q, d, self._centre_shapes, self._ring_shapes,
-                                self._electrode_shapes, self._electrode_weights,
-                                self._fine_shapes, self._fine_weights, self._curvature,
-                                self._refine_coeff, self._cap_scale, GAP_FLOOR_RATIO * d, gap,
-                                min_gap, cap)
+    def _channels(self, q: np.ndarray, out: kernels.Channels) -> None:
+        kernels.output_channels(q, self._output_geometry, out)
 
     def _samples(self, t: np.ndarray, q: np.ndarray, v: np.ndarray,
                  drive_phase: Optional[np.ndarray] = None,
                  rate: Optional[np.ndarray] = None) -> Samples:
-        gap, min_gap, cap = self._channel_arrays(len(t))
-        self._channels(q, gap, min_gap, cap)
-        return Samples(t=t, q=q, v=v, gap=gap, min_gap=min_gap, capacitance=cap,
-                       drive_phase=drive_phase, applied_rate=rate)
+        out = self._channel_arrays(len(t))
+        self._channels(q, out)
+        return Samples(t=t, q=q, v=v, gap=out.gap, min_gap=out.min_gap,
+                       capacitance=out.capacitance, drive_phase=drive_phase,
+                       applied_rate=rate)
 
     def _rates(self, first: int, count: int, rate_out: np.ndarray) -> None:
         """Set ``rate_out`` to the angular rate (rad/s) at samples ``first ..`` on."""

@@ -67,11 +67,13 @@ half-sine (whose derivative jumps at both ends) is resolved.
 
 Everything is float64 and SI. Kernels take arrays and scalars grouped by what they are, in
 named tuples (:class:`Force`, :class:`Drive`, :class:`Forcing`, :class:`Method`,
-:class:`Scratch`), so that a call reads like its meaning and two arrays cannot be swapped
-silently (a tuple in the wrong place does not compile); ``core/simulator.py`` builds them
-(once per configuration where they do not change), validates inputs, calls the kernels, and
-checks the result. A state that leaves
-the model's range stops the kernel with a status code and the index of the angle (never NaN).
+:class:`Scratch` for :func:`run_samples`; :class:`OutputGeometry` and :class:`Channels` for
+:func:`output_channels`; inside the step, ``step.Span`` and ``forcing.DrivePhasors``), so
+that a call reads like its meaning and two arrays cannot be swapped silently (a tuple in the
+wrong place does not compile); a kernel's other arguments are its state, counts and outputs.
+``core/simulator.py`` builds the tuples (once per configuration where they do not change),
+validates inputs, calls the kernels, and checks the result. A state that leaves the model's
+range stops the kernel with a status code and the index of the angle (never NaN).
 The two entry points (``run_samples``, ``output_channels``) release the GIL, so that a
 recorder thread can serialise and compress while they run.
 
@@ -143,7 +145,7 @@ code is shaped by, each measured:
   they vectorise; a loop that only zeroes a short array compiled to a ``memset`` call.
 """
 
-from ring_gyro_sim.core.kernels.channels import output_channels
+from ring_gyro_sim.core.kernels.channels import Channels, output_channels, OutputGeometry
 from ring_gyro_sim.core.kernels.drift import linear_propagators
 from ring_gyro_sim.core.kernels.force import (estrin_layout, ESTRIN_MAX_SLOTS, Force,
                                               member_basis, NEEDS_GENERAL, nl_accel,
@@ -160,4 +162,5 @@ __all__ = ['STATUS_OK', 'STATUS_OUTER_CONTACT', 'STATUS_INNER_CONTACT', 'STATUS_
            'STATUS_NONFINITE', 'NEEDS_GENERAL', 'Force', 'Drive', 'Forcing', 'Method', 'Scratch',
            'ESTRIN_MAX_SLOTS', 'estrin_layout', 'orbit_angle', 'describe_status',
            'splitting_coefficients', 'linear_propagators', 'member_basis', 'nl_accel',
-           'drive_phasor', 'run_samples', 'output_channels', 'pickoff_volts', 'iq_fit']
+           'drive_phasor', 'run_samples', 'OutputGeometry', 'Channels', 'output_channels',
+           'pickoff_volts', 'iq_fit']

@@ -20,12 +20,86 @@ and quadrature it takes are built once per configuration by
 ``core/simulator.py`` (``Simulator._build_outputs``).
 """
 
+from typing import NamedTuple
+
 from numba import njit
 import numpy as np
 
 from ring_gyro_sim.core.kernels.force import _angle_values
 
-__all__ = ['output_channels']
+__all__ = ['OutputGeometry', 'Channels', 'output_channels']
+
+
+class OutputGeometry(NamedTuple):
+    """
+    A configuration's gap, mode shapes and quadrature, as :func:`output_channels` takes them.
+
+    Built once per configuration by ``Simulator._build_outputs`` (``core/simulator.py``). The
+    shapes are stored coordinate-major, so that every loop runs over the angles innermost and
+    vectorises.
+
+    Attributes
+    ----------
+    gap : float
+        d_g, m.
+    centre_shapes : ndarray, shape (n, K)
+        Mode shapes at the electrode centres.
+    ring_shapes : ndarray, shape (n, G)
+        Mode shapes on G equally spaced angles; the maximum of w is refined by a parabola
+        through the best grid angle and its neighbours.
+    electrode_shapes : ndarray, shape (n, K * P)
+        Mode shapes at the P Gauss-Legendre angles (all panels) of each electrode.
+    electrode_weights : ndarray, shape (K * P,)
+        Their weights (Gauss-Legendre weights times the half panel length), rad, the same P
+        for every electrode (repeated, so that one loop runs over all K * P angles); P a
+        multiple of 4 (the sum takes four nodes per division).
+    fine_shapes : ndarray, shape (n, K * F)
+        Mode shapes at the F = (2 + 4 + ... + R) P angles of each electrode's finer levels:
+        each panel cut into 2, then 4, ... R panels, one level after the other.
+    fine_weights : ndarray, shape (F,)
+        Their weights, rad.
+    curvature : ndarray, shape (n,)
+        n^2 of each coordinate: ``sum n^2 |q_n|`` bounds ``|w''|``.
+    refine_coeff : float
+        An electrode is refined when its smallest node gap < ``refine_coeff * sum n^2 |q_n|``.
+    cap_scale : float
+        eps eps_0 l r_o, F m / rad.
+    gap_floor : float
+        Smallest gap used in 1 / gap (contact keeps the capacitance finite), m.
+
+    """
+
+    gap: float
+    centre_shapes: np.ndarray
+    ring_shapes: np.ndarray
+    electrode_shapes: np.ndarray
+    electrode_weights: np.ndarray
+    fine_shapes: np.ndarray
+    fine_weights: np.ndarray
+    curvature: np.ndarray
+    refine_coeff: float
+    cap_scale: float
+    gap_floor: float
+
+
+class Channels(NamedTuple):
+    """
+    The output channels of S samples, filled by :func:`output_channels`.
+
+    Attributes
+    ----------
+    gap : ndarray, shape (S, K)
+        Gaps at the electrode centres, m.
+    min_gap : ndarray, shape (S,)
+        Smallest gap around the ring, m.
+    capacitance : ndarray, shape (S, K)
+        Electrode capacitances, F.
+
+    """
+
+    gap: np.ndarray
+    min_gap: np.ndarray
+    capacitance: np.ndarray
 
 
 _LANES = 8
@@ -83,14 +157,9 @@ def _first_argmax(w, m, lanes):
 
 
 @njit(cache=True, nogil=True)
-def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electrode_weights,
-                    fine_shapes, fine_weights, curvature, refine_coeff, cap_scale, gap_floor,
-                    out_gap, out_min, out_cap):
+def output_channels(q, geometry, out):
     """
     Outer gaps, smallest gap and electrode capacitances of every sample.
-
-    The shapes are stored coordinate-major so that every loop runs over the angles
-    innermost and vectorises.
 
     Accuracy (``test/core/test_outputs.py``, against dense sampling and ``quad``): the
     centre gaps are exact to round-off and stop at 0 in contact; the smallest gap is within
@@ -107,36 +176,26 @@ def output_channels(q, gap, centre_shapes, ring_shapes, electrode_shapes, electr
     ----------
     q : ndarray, shape (S, n)
         Coordinates of the samples, m.
-    gap : float
-        d_g, m.
-    centre_shapes : ndarray, shape (n, K)
-        Mode shapes at the electrode centres.
-    ring_shapes : ndarray, shape (n, G)
-        Mode shapes on G equally spaced angles; the maximum of w is refined by a parabola
-        through the best grid angle and its neighbours.
-    electrode_shapes : ndarray, shape (n, K * P)
-        Mode shapes at the P Gauss-Legendre angles (all panels) of each electrode.
-    electrode_weights : ndarray, shape (K * P,)
-        Their weights (Gauss-Legendre weights times the half panel length), rad, the same P
-        for every electrode (repeated, so that one loop runs over all K * P angles); P a
-        multiple of 4 (the sum takes four nodes per division).
-    fine_shapes : ndarray, shape (n, K * F)
-        Mode shapes at the F = (2 + 4 + ... + R) P angles of each electrode's finer levels:
-        each panel cut into 2, then 4, ... R panels, one level after the other.
-    fine_weights : ndarray, shape (F,)
-        Their weights, rad.
-    curvature : ndarray, shape (n,)
-        n^2 of each coordinate: ``sum n^2 |q_n|`` bounds ``|w''|``.
-    refine_coeff : float
-        An electrode is refined when its smallest node gap < ``refine_coeff * sum n^2 |q_n|``.
-    cap_scale : float
-        eps eps_0 l r_o, F m / rad.
-    gap_floor : float
-        Smallest gap used in 1 / gap (contact keeps the capacitance finite), m.
-    out_gap, out_min, out_cap : ndarray
-        (S, K) gaps (m), (S,) smallest gap (m), (S, K) capacitances (F).
+    geometry : OutputGeometry
+        The configuration's gap, mode shapes and quadrature.
+    out : Channels
+        The channels of the S samples, written.
 
     """
+    gap = geometry.gap
+    centre_shapes = geometry.centre_shapes
+    ring_shapes = geometry.ring_shapes
+    electrode_shapes = geometry.electrode_shapes
+    electrode_weights = geometry.electrode_weights
+    fine_shapes = geometry.fine_shapes
+    fine_weights = geometry.fine_weights
+    curvature = geometry.curvature
+    refine_coeff = geometry.refine_coeff
+    cap_scale = geometry.cap_scale
+    gap_floor = geometry.gap_floor
+    out_gap = out.gap
+    out_min = out.min_gap
+    out_cap = out.capacitance
     n_s, n = q.shape
     n_k = centre_shapes.shape[1]
     n_g = ring_shapes.shape[1]

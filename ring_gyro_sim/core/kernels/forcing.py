@@ -108,6 +108,30 @@ class Forcing(NamedTuple):
     noise: np.ndarray
 
 
+class DrivePhasors(NamedTuple):
+    """
+    The drive's and the rebalance force's phasors at the start of a step (:func:`_step_phasors`).
+
+    A stage's value is the phasor turned by the stage's offset in the step
+    (:func:`_stage_rotations`), by the angle-sum formula (:func:`_external`): one cos and one
+    sin per step instead of one per stage.
+
+    Attributes
+    ----------
+    drive_c, drive_s : float
+        ``A cos, A sin`` of the drive's phase at the step's start (:func:`drive_phasor`), m/s^2.
+    sense_c, sense_s : float
+        The same of the rebalance force (``Drive.sense_amplitude``, lagging the drive by
+        ``Drive.sense_phase``); 0.0 without one.
+
+    """
+
+    drive_c: float
+    drive_s: float
+    sense_c: float
+    sense_s: float
+
+
 @njit(cache=True, inline='always')
 def drive_phasor(t, amp, omega, t_ref, phase):
     """Return ``(A cos, A sin)`` of the drive's phase ``omega (t - t_ref) + phase`` at ``t``."""
@@ -115,6 +139,18 @@ def drive_phasor(t, amp, omega, t_ref, phase):
         return 0.0, 0.0
     angle = omega * (t - t_ref) + phase
     return amp * math.cos(angle), amp * math.sin(angle)
+
+
+@njit(cache=True, inline='always')
+def _step_phasors(t, drive):
+    """Return the :class:`DrivePhasors` of a :class:`Drive` at ``t``, the start of a step."""
+    drive_c, drive_s = drive_phasor(t, drive.amplitude, drive.omega, drive.t_ref, drive.phase)
+    sense_c = 0.0
+    sense_s = 0.0
+    if drive.sense_index >= 0:
+        sense_c, sense_s = drive_phasor(t, drive.sense_amplitude, drive.omega, drive.t_ref,
+                                        drive.phase - drive.sense_phase)
+    return DrivePhasors(drive_c, drive_s, sense_c, sense_s)
 
 
 @njit(cache=True)
@@ -167,34 +203,32 @@ def _rate_at(t, rate_t, rate_w):
 
 
 @njit(cache=True, inline='always')
-def _external(t, t_mid, forcing, base_x, base_y, drive_index, drive_c, drive_s, rot_c, rot_s,
-              sense_index, sense_c, sense_s, fe):
+def _external(t, t_mid, base, rot, forcing, drive, phasors, fe):
     """
-    External acceleration at time ``t`` (s) into ``fe`` (m/s^2).
+    External acceleration of the stage at time ``t`` (s) into ``fe`` (m/s^2).
 
-    Only ``fe[0]``, ``fe[forcing.y_index]``, ``fe[drive_index]`` and ``fe[sense_index]``
-    (distinct) are written;
-    the other entries stay at the zero :func:`step.run_samples` puts there (zeroing all of ``fe``
-    every stage compiled to a call of memset).
+    Only ``fe[0]``, ``fe[forcing.y_index]``, ``fe[drive.index]`` and ``fe[drive.sense_index]``
+    (distinct) are written; the other entries stay at the zero :func:`step.run_samples` puts
+    there (zeroing all of ``fe`` every stage compiled to a call of memset).
 
     Base acceleration ``a_b`` enters as ``-a_b`` on q_1 (x) and q_1^s (y) (eq. 27). Whether a
     pulse acts is decided at the middle ``t_mid`` of the current (sub)step, which never
     straddles a pulse's start or end; inside it the half-sine formula is used at every stage,
     so stages that some splittings place outside the step (negative drifts) see the smooth
-    continuation, not a kink. ``base_x, base_y`` is the sampled profile at ``t``
+    continuation, not a kink. ``base`` is ``(x, y)`` of the sampled profile at ``t``
     (:func:`_profile_accel`, called by :func:`step._step`: a call in here, even one not taken,
     costs every stage ~30 ns).
 
     The drive ``A cos(omega (t - t_ref) + phase)`` on q_2 is ``drive_c rot_c - drive_s rot_s``:
-    ``drive_c, drive_s = A cos, A sin`` of the phase at the start of the step (one cos and one
-    sin per step, :func:`step._step`) and ``rot_c, rot_s`` the cos and sin of ``omega`` times the
-    stage's offset in the step (:func:`_stage_rotations`), by the angle-sum formula. The
-    rebalance force on ``sense_index`` (the closed loop's, ``Drive.sense_amplitude``) is the
-    same with its own phasor ``sense_c, sense_s``.
+    ``phasors`` holds ``drive_c, drive_s = A cos, A sin`` of the phase at the start of the
+    step (:class:`DrivePhasors`) and ``rot = (rot_c, rot_s)`` the cos and sin of ``omega``
+    times the stage's offset in the step (:func:`_stage_rotations`), by the angle-sum formula.
+    The rebalance force on ``drive.sense_index`` (the closed loop's,
+    ``Drive.sense_amplitude``) is the same with its own phasor ``sense_c, sense_s``.
     """
     pulses = forcing.pulses
-    ax = base_x
-    ay = base_y
+    ax = base[0]
+    ay = base[1]
     for p in range(pulses.shape[0]):
         start = pulses[p, 0]
         dur = pulses[p, 1]
@@ -205,7 +239,7 @@ def _external(t, t_mid, forcing, base_x, base_y, drive_index, drive_c, drive_s, 
     fe[0] = -ax
     if forcing.y_index >= 0:
         fe[forcing.y_index] = -ay
-    if drive_index >= 0:
-        fe[drive_index] = drive_c * rot_c - drive_s * rot_s
-    if sense_index >= 0:
-        fe[sense_index] = sense_c * rot_c - sense_s * rot_s
+    if drive.index >= 0:
+        fe[drive.index] = phasors.drive_c * rot[0] - phasors.drive_s * rot[1]
+    if drive.sense_index >= 0:
+        fe[drive.sense_index] = phasors.sense_c * rot[0] - phasors.sense_s * rot[1]

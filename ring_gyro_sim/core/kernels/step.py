@@ -31,7 +31,7 @@ import numpy as np
 from ring_gyro_sim.core.kernels.drift import _drift, _fill_propagators, _kick_drift
 from ring_gyro_sim.core.kernels.force import _force_any
 from ring_gyro_sim.core.kernels.forcing import (_external, _profile_accel, _rate_at,
-                                                _stage_rotations, drive_phasor)
+                                                _stage_rotations, _step_phasors)
 
 __all__ = ['Scratch', 'run_samples']
 
@@ -78,6 +78,30 @@ class Scratch(NamedTuple):
     turn_key: np.ndarray
 
 
+class Span(NamedTuple):
+    """
+    One step or sub-step as :func:`_step` takes it: start, length, propagators, rotations.
+
+    Attributes
+    ----------
+    t : float
+        Start, s.
+    h : float
+        Length, s.
+    prop : ndarray, shape (s, n, 4)
+        The drifts' exact linear flows for this length (``Method.prop`` for the plain step,
+        ``Scratch.prop_sub`` for a sub-step).
+    rot : ndarray, shape (s + 1, 2)
+        The drive rotations of its stages (``Scratch.rot`` or ``Scratch.rot_sub``).
+
+    """
+
+    t: float
+    h: float
+    prop: np.ndarray
+    rot: np.ndarray
+
+
 @njit(cache=True, inline='always')
 def _kick(v, acc, fe, kick):
     """Kick (B): ``v += kick (a_nl + a_ext)``, ``kick`` = a stage's coefficient times the step."""
@@ -116,10 +140,11 @@ def _turn_coefficients(b, hs, w, kappa, turn):
 
 
 @njit(cache=True, inline='always')
-def _kick_rotating(q, v, acc, fe, kick, w, wdot, forcing, turn, i):
+def _kick_rotating(q, v, acc, fe, kick, rate, forcing, turn):
     """
     Kick (B) in the rotating sensor frame: the exact flow of ``q' = 0``, ``v' = a + G v``.
 
+    ``rate`` is ``(Omega, Omega')``, the frame's rate (rad/s) and its derivative (rad/s^2);
     ``a`` is the force (``acc + fe``) plus the centrifugal and angular-acceleration terms,
     ``Omega^2 q_c + kappa Omega' q_s`` on a cos coordinate and ``Omega^2 q_s - kappa Omega' q_c``
     on its sin partner, and ``G v`` the Coriolis term ``(+2 kappa Omega v_s, -2 kappa Omega
@@ -127,21 +152,24 @@ def _kick_rotating(q, v, acc, fe, kick, w, wdot, forcing, turn, i):
     a kick this is linear with constant coefficients, integrated exactly: with
     ``theta = 2 kappa Omega tau``, ``z = v_c + i v_s`` and ``alpha = a_c + i a_s``,
     ``z(tau) = e^{-i theta} z + tau (sin theta / theta - i (1 - cos theta) / theta) alpha``,
-    the coefficients of kick ``i`` in ``turn[i]`` (:func:`_turn_coefficients`). The
+    the coefficients of this kick in ``turn``, one row per pair (row ``i`` of
+    ``Scratch.turn`` for kick ``i``, :func:`_turn_coefficients`). The
     splitting stays the RKN pair of the package docstring with B now linear in velocity; its
     error is measured against DOP853 with the rotation in ``test/core/test_rotation.py``.
     Every coordinate belongs to a pair (``gyro.enabled`` needs ``modes.companions``).
     """
+    w = rate[0]
+    wdot = rate[1]
     for p in range(forcing.pair_c.size):
         ic = forcing.pair_c[p]
         js = forcing.pair_s[p]
         kap = forcing.kappa[p]
         a_c = acc[ic] + fe[ic] + w * w * q[ic] + kap * wdot * q[js]
         a_s = acc[js] + fe[js] + w * w * q[js] - kap * wdot * q[ic]
-        co = turn[i, p, 0]
-        si = turn[i, p, 1]
-        s1 = turn[i, p, 2]
-        s2 = turn[i, p, 3]
+        co = turn[p, 0]
+        si = turn[p, 1]
+        s1 = turn[p, 2]
+        s2 = turn[p, 3]
         vc = v[ic]
         vs = v[js]
         v[ic] = co * vc + si * vs + kick * (s1 * a_c + s2 * a_s)
@@ -149,31 +177,30 @@ def _kick_rotating(q, v, acc, fe, kick, w, wdot, forcing, turn, i):
 
 
 @njit(cache=True, inline='always')
-def _step(q, v, acc, ts, hs, prop, rot, method, force, drive, forcing, scratch):
+def _step(q, v, acc, span, method, force, drive, forcing, scratch):
     """
-    One BAB splitting step of length ``hs`` from ``ts`` (package docstring), in place.
+    One BAB splitting step over ``span`` (package docstring), in place.
 
-    ``prop`` and ``rot`` are the step's propagators and drive rotations (those of ``h`` or of
-    a sub-step). ``acc`` holds the force at the start (FSAL) and gets the force at the end.
+    ``span`` is the step or sub-step (:class:`Span`): its start, its length and its
+    propagators and drive rotations. ``acc`` holds the force at the start (FSAL) and gets the
+    force at the end.
     Returns False when a stage leaves the model's range: then ``scratch.info`` holds the
     status and the angle, ``scratch.tinfo[0]`` the stage's time, and ``q, v`` that stage's
     (finite) values.
     """
+    ts = span.t
+    hs = span.h
+    prop = span.prop
+    rot = span.rot
     a = method.a
     b = method.b
     n_stages = a.size
     fe = scratch.fe
     info = scratch.info
     t_mid = ts + 0.5 * hs
-    drive_c, drive_s = drive_phasor(ts, drive.amplitude, drive.omega, drive.t_ref, drive.phase)
-    sense_c = 0.0
-    sense_s = 0.0
-    if drive.sense_index >= 0:
-        sense_c, sense_s = drive_phasor(ts, drive.sense_amplitude, drive.omega, drive.t_ref,
-                                        drive.phase - drive.sense_phase)
+    phasors = _step_phasors(ts, drive)
     tt = ts
-    base_x = 0.0
-    base_y = 0.0
+    base = (0.0, 0.0)
     w = 0.0
     wdot = 0.0
     if forcing.rate_t.size > 0:
@@ -186,12 +213,10 @@ def _step(q, v, acc, ts, hs, prop, rot, method, force, drive, forcing, scratch):
         scratch.turn_key[1] = hs
     for i in range(n_stages):
         if forcing.profile_t.size > 0:
-            base_x, base_y = _profile_accel(tt, forcing.profile_t, forcing.profile_x,
-                                            forcing.profile_y)
-        _external(tt, t_mid, forcing, base_x, base_y, drive.index, drive_c, drive_s,
-                  rot[i, 0], rot[i, 1], drive.sense_index, sense_c, sense_s, fe)
+            base = _profile_accel(tt, forcing.profile_t, forcing.profile_x, forcing.profile_y)
+        _external(tt, t_mid, base, (rot[i, 0], rot[i, 1]), forcing, drive, phasors, fe)
         if rotating:
-            _kick_rotating(q, v, acc, fe, b[i] * hs, w, wdot, forcing, turn, i)
+            _kick_rotating(q, v, acc, fe, b[i] * hs, (w, wdot), forcing, turn[i])
             _drift(q, v, prop, i)
         else:
             _kick_drift(q, v, acc, fe, b[i] * hs, prop, i)
@@ -203,12 +228,11 @@ def _step(q, v, acc, ts, hs, prop, rot, method, force, drive, forcing, scratch):
             scratch.tinfo[0] = tt
             return False
     if forcing.profile_t.size > 0:
-        base_x, base_y = _profile_accel(ts + hs, forcing.profile_t, forcing.profile_x,
-                                        forcing.profile_y)
-    _external(ts + hs, t_mid, forcing, base_x, base_y, drive.index, drive_c, drive_s,
-              rot[n_stages, 0], rot[n_stages, 1], drive.sense_index, sense_c, sense_s, fe)
+        base = _profile_accel(ts + hs, forcing.profile_t, forcing.profile_x, forcing.profile_y)
+    _external(ts + hs, t_mid, base, (rot[n_stages, 0], rot[n_stages, 1]), forcing, drive,
+              phasors, fe)
     if rotating:
-        _kick_rotating(q, v, acc, fe, b[n_stages] * hs, w, wdot, forcing, turn, n_stages)
+        _kick_rotating(q, v, acc, fe, b[n_stages] * hs, (w, wdot), forcing, turn[n_stages])
     else:
         _kick(v, acc, fe, b[n_stages] * hs)
     return True
@@ -329,8 +353,8 @@ def run_samples(q, v, acc, k0, n_samples, method, force, drive, forcing, scratch
                     prop = scratch.prop_sub
                     rot = scratch.rot_sub
                 for r in range(m):
-                    if not _step(q, v, acc, cuts[g] + r * hs, hs, prop, rot, method, force,
-                                 drive, forcing, scratch):
+                    span = Span(t=cuts[g] + r * hs, h=hs, prop=prop, rot=rot)
+                    if not _step(q, v, acc, span, method, force, drive, forcing, scratch):
                         return s
         for c in range(q.size):
             out_q[s, c] = q[c]
