@@ -190,9 +190,6 @@ def test_the_self_containment_checks_report_what_they_must(tmp_path):
 _DATE = re.compile(r'\b(?:19|20)\d\d-[01]\d-[0-3]\d\b')
 _COMMIT = re.compile(r'\b(?=[0-9a-f]*[0-9])(?=[0-9a-f]*[a-f])[0-9a-f]{7,40}\b')
 _COPYRIGHT = re.compile(r'#\s*Copyright\b')
-_PENDING = ('ring_gyro_sim/core/kernels.py',)
-"""Files still carrying dates: core/kernels.py is being split on another branch, which takes
-them out. Remove the entry when that branch lands (the test then covers the new modules)."""
 
 
 def comments_and_docstrings(source):
@@ -217,8 +214,7 @@ def history_marks(source):
                   for pattern in (_DATE, _COMMIT) for m in pattern.finditer(text))
 
 
-HISTORY_FREE = [p for p in _files('ring_gyro_sim/**/*.py', 'test/**/*.py')
-                if str(p.relative_to(PACKAGE_ROOT)) not in _PENDING]
+HISTORY_FREE = _files('ring_gyro_sim/**/*.py', 'test/**/*.py')
 
 
 def test_no_date_or_commit_hash_in_comments_or_docstrings():

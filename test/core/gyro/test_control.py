@@ -219,23 +219,3 @@ def test_the_closed_loop_refuses_a_drive_command_and_a_loop_change():
         sim.update_parameters({'control.agc_bandwidth': 2.0})
     assert sim._drive == before
     sim.update_parameters({'modes.quality_factors': [5000.0, 64700.0, 170000.0]})  # fine
-
-
-def test_iq_fit_is_the_least_squares_fit_of_cos_sin_and_offset():
-    # kernels.iq_fit (C2) against numpy's least squares on the same basis, and exact on a
-    # noise-free signal: one 1 ms period at 200 kHz of a 15.8 kHz NCO phase (15.8 cycles,
-    # not a whole number: a boxcar would leak), with the fit's three parameters known.
-    from ring_gyro_sim.core import kernels
-    rng = np.random.default_rng(5)
-    phase = 2.0 * math.pi * 15800.0 * np.arange(200) / 200000.0 + 0.7
-    clean = np.stack([0.3 * np.cos(phase) - 1.2 * np.sin(phase) + 0.05,
-                      -2.0 * np.cos(phase) + 0.4 * np.sin(phase) - 0.1], axis=1)
-    coef = np.empty((3, 2))
-    kernels.iq_fit(phase, np.ascontiguousarray(clean), coef)
-    np.testing.assert_allclose(coef, [[0.3, -2.0], [-1.2, 0.4], [0.05, -0.1]],
-                               rtol=0.0, atol=1e-13)
-    noisy = np.ascontiguousarray(clean + rng.normal(0.0, 0.5, clean.shape))
-    kernels.iq_fit(phase, noisy, coef)
-    basis = np.stack([np.cos(phase), np.sin(phase), np.ones_like(phase)], axis=1)
-    expected, *_ = np.linalg.lstsq(basis, noisy, rcond=None)
-    np.testing.assert_allclose(coef, expected, rtol=0.0, atol=1e-13)

@@ -384,24 +384,3 @@ def test_bad_inputs_name_the_argument():
     plain = paper_config({'modes.companions': False})
     with pytest.raises(InputError, match='^config: '):
         SenseElectronics(plain, Simulator(plain), amplitude, 0.0)
-
-
-def test_pickoff_volts_of_a_sample_do_not_depend_on_the_rows_of_the_call():
-    # kernels.pickoff_volts (E1) sums the electrodes in order, row by row: one row alone and
-    # the same row among 2 000 give the same bits (numpy.matmul's BLAS did not), and the
-    # value is the matrix product to rounding.
-    from ring_gyro_sim.core import kernels
-    config, sim, amplitude = make()
-    el = SenseElectronics(config, sim, amplitude, 0.0)
-    pick = el.pickoff
-    rng = np.random.default_rng(3)
-    shape = (2000, pick.rest_capacitance.size)
-    cap = pick.rest_capacitance * (1.0 + 1e-3 * rng.standard_normal(shape))
-    many = pick.clean_volts(cap)
-    for s in (0, 1, 999, 1999):
-        one = np.empty((1, many.shape[1]))
-        kernels.pickoff_volts(np.ascontiguousarray(cap[s:s + 1]), pick.rest_capacitance,
-                              pick.volts_per_farad, one)
-        assert np.array_equal(one[0], many[s])
-    reference = (cap - pick.rest_capacitance) @ pick.volts_per_farad
-    np.testing.assert_allclose(many, reference, rtol=0.0, atol=1e-12 * np.abs(reference).max())
