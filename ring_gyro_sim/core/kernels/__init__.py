@@ -39,9 +39,10 @@ The equations of motion (eq. 28) are ``x'' = L(x, x') + a_nl(x) + a_ext(t)`` wit
 ``L = -(omega/Q) x' - omega^2 x`` linear and per coordinate. They are split into
 
 * **A**, the damped linear oscillators, propagated *exactly* (closed-form 2x2 flow per
-  coordinate: no phase error, no numerical damping whatever the step);
+  coordinate: no phase error, no numerical damping whatever the step; ``drift.py``);
 * **B**, the kick ``v += tau * (a_nl(x) + a_ext(t))`` by the electrostatic force (which
-  depends on positions only) and the external forcing (shock, base acceleration, drive).
+  depends on positions only; ``force.py``) and the external forcing (shock, base
+  acceleration, drive; ``forcing.py``).
 
 Because the B-flow depends on positions only and A is at most linear in velocities,
 ``[B, [B, [B, A]]] = 0``: the splitting has the Runge-Kutta-Nystrom structure, so the
@@ -52,11 +53,11 @@ optimised symmetric RKN splittings of Blanes & Moan (2002, J. Comput. Appl. Math
 symplectic: the energy error stays bounded (no drift), which the tests check.
 
 In a rotating sensor frame (``gyro.enabled`` with a rate) B also holds the Coriolis term,
-linear in the velocities, and is integrated exactly as well (:func:`_kick_rotating`); the
+linear in the velocities, and is integrated exactly as well (``step._kick_rotating``); the
 commutator identity above then no longer holds exactly, so the RKN order is not guaranteed
 for the rotation's part. It is small (``2 kappa Omega / omega`` ~ 1e-5 of the oscillators'
 rates at 300 deg/s) and measured: ``test/core/test_rotation.py`` holds the 1e-4 budget
-against DOP853 with 2.2e-6 while the frame spins up to 50 rad/s.
+against DOP853 while the frame spins up to 50 rad/s.
 
 Error budget (measured in ``test/core/test_simulator.py`` and ``benchmarks/``): the error is
 proportional to the nonlinear force (the linear part is exact) times ``(omega h)^p``. At the
@@ -93,56 +94,47 @@ cache before running or measuring anything::
 (or point ``NUMBA_CACHE_DIR`` at an empty directory); otherwise a process may run the old code
 of a callee inside a cached caller.
 
-Cost
-----
-Measured on the paper configuration (N_R = 3, N_T = 10, bm6, one 5 us step per 200 kHz
-sample; ``benchmarks/bench_simulator.py``, ``doc/performance.md``; 2026-12-03, an Intel host):
-~0.55 us per step in this kernel, of which 11 stages at ~46 ns (force evaluation at 18
-angles, the degree-9 series by Estrin's scheme, kick, drift and external force; strict IEEE
-arithmetic: no fast-math, so results do not depend on the vector width) and ~37 ns per step
-(drive phasor, loop, the last kick); :func:`output_channels` adds ~135 ns per sample. The
-stages form one chain of dependent operations (each force needs the previous drift, each
-drift the previous kick), so the latency of that chain, not the number of operations, sets
-the cost: what shortens the chain pays (the series 18 -> 8 dependent operations, the angle
-values in one pass, kick and drift fused: 62 -> 46 ns per stage in one session). What the
-code is shaped by, each measured:
+Design
+------
+Strict IEEE arithmetic throughout (no fast-math: no FMA contraction, no reassociated sums), so
+that results do not depend on the vector width or the CPU, and every sum runs in a fixed order.
+The stages of a step form one chain of dependent operations (each force needs the previous
+drift, each drift the previous kick), so the latency of that chain, not the number of
+operations, sets the cost: the code is shaped to shorten it and to let the loops over the
+angles vectorise. The measured costs, and what was tried and not kept, are in
+``doc/performance.md`` ("The kernels' costs, measured").
 
 * numba's reference counting: a function that takes arrays and has branches increments and
   decrements every array argument atomically on every call unless its pruning pass can prove
   the pairs redundant. ``run_samples`` is compiled with ``_nrt=False`` (it allocates
-  nothing), which removed 29 % of the run time; :func:`output_channels` copies each sample's
-  coordinates instead of taking a (reference-counted) view per sample;
-* the force's common case (:func:`_force`) has no branch that stores, returns early or calls
-  out (such a branch doubled its cost, ~65 -> ~130 ns); :func:`_force_any` decides between
-  it and the out-of-line :func:`_force_general` before either runs, so that a state with
-  excited companions (sine content) does not evaluate the common case first for nothing
-  (N_R = 3 with companions: 4.4 -> 2.4 us per sample);
+  nothing); :func:`output_channels` copies each sample's coordinates instead of taking a
+  (reference-counted) view per sample;
+* the force's common case (``force._force``) has no branch that stores, returns early or
+  calls out (such a branch makes the inlined path much slower); ``force._force_any`` decides
+  between it and the out-of-line ``force._force_general`` before either runs, so that a state
+  with excited companions (sine content) does not evaluate the common case first for nothing;
 * floating-point min, max and sum reductions do not vectorise without fast-math (each is a
   chain of dependent operations): the range check counts the angles outside (-1, 1) as
-  integers (:func:`_all_inside`), the smallest gap's grid maximum is found in independent
-  lanes (:func:`_first_argmax`; the maximum is exact in any order), and the projections sum
-  each coordinate in a register, the coordinates as independent chains;
+  integers (``force._all_inside``), the smallest gap's grid maximum is found in independent
+  lanes (``channels._first_argmax``; the maximum is exact in any order), and the projections
+  sum each coordinate in a register, the coordinates as independent chains;
 * the series is evaluated by Estrin's scheme written out for 4, 8, 12 or 16 coefficients
-  (:func:`_series_values`), one loop over the angles with the coefficients in registers: a
-  loop over the coefficient blocks inside it, or the blocks in passes over the angles, cost
-  more than Horner's rule (measured 75 and 90-160 ns against 58 ns per stage); longer series
-  take Horner's rule three degrees per pass (:func:`_horner`);
-* the angle values take six or three coordinates per pass (:func:`_angle_values`): one
-  pass per coordinate stored and reloaded them on the chain; the range check over the angles
-  runs only when ``sum |q_n|`` reaches the gap (:data:`_REACH_INSIDE`);
-* tried and not kept (no gain or a loss, measured in one session): two partial sums in the
-  projection (566 -> 688 ns per sample), a tree of 8 lanes, the representatives padded to a
-  multiple of 4 (48 angles instead of 36), the rotating kick fused with the drift;
-* the pieces of a step (:func:`_cut_step`, :func:`_step`, :func:`_kick_drift`,
-  :func:`_external`, :func:`_force`) are ``inline='always'``: inlined, they cost the same as
-  the loop written out (measured, best of N in one session); called, a step passed ~20 array
-  structures every step (~25 % of a Strang run). :func:`_force_general` inlined as well was
-  no faster;
-* named tuples cost nothing inside the kernel, but numba's dispatcher types each one on
-  every call from Python (~1 us each, ~4 us per :func:`run_samples` call: 0.2 % of a 10 ms
-  chunk of the paper configuration, more for very short calls);
+  (``force._series_values``), one loop over the angles with the coefficients in registers
+  (Horner's rule is one multiply and add per degree on the chain); longer series take
+  Horner's rule three degrees per pass (``force._horner``);
+* the angle values take six or three coordinates per pass (``force._angle_values``), so that
+  they are not stored and reloaded on the chain once per coordinate; the range check over the
+  angles runs only when ``sum |q_n|`` reaches the gap (``force._REACH_INSIDE``);
+* the pieces of a step (``step._cut_step``, ``step._step``, ``drift._kick_drift``,
+  ``forcing._external``, ``force._force``) are ``inline='always'``: inlined, they cost what
+  the loop written out would; called, a step would pass ~20 array structures every step.
+  ``force._force_general`` stays out of line (the rare path; inlining it does not pay);
+* named tuples cost nothing inside a kernel, but numba's dispatcher types each one on every
+  call from Python (about a microsecond each): negligible on a 10 ms block, noticeable only
+  for very short calls;
 * loops over the angles run innermost on coordinate-major arrays (``(n, angles)``) so that
-  they vectorise; a loop that only zeroes a short array compiled to a ``memset`` call.
+  they vectorise; ``fe`` is zeroed once per call, since a loop that only zeroes a short array
+  compiles to a ``memset`` call.
 """
 
 from ring_gyro_sim.core.kernels.channels import Channels, output_channels, OutputGeometry

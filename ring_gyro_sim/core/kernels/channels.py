@@ -122,8 +122,8 @@ def _first_argmax(w, m, lanes):
     The maximum is exact whatever the order of comparisons, so it is found in
     :data:`_LANES` independent lanes (a loop that vectorises; a scan is one chain of
     dependent compares), then its first index, looked for a block of :data:`_LANES` at a
-    time (a count of equal values per block vectorises; a scan of single values for it cost
-    ~25 ns per sample on the paper configuration).
+    time (a count of equal values per block vectorises; a scan of single values is again
+    one chain of dependent compares).
     """
     if m < _LANES:
         best = 0
@@ -246,7 +246,7 @@ def output_channels(q, geometry, out):
             w_top[k] = top
         # sum_j weight_j / gap_j four nodes at a time, as one fraction:
         # (a/x + b/y) + (c/z + d/t) = ((a y + b x) z t + (c t + d z) x y) / (x y z t), one
-        # division for four (64 per sample on the paper configuration cost ~30 ns); the gaps
+        # division for four (divisions are the slowest operation of the sum); the gaps
         # are >= gap_floor, so the products neither underflow nor lose accuracy (a few ulps
         # of the sum of positive terms). One loop over every group: it vectorises.
         for g in range(n_e // 4):

@@ -232,11 +232,12 @@ def _series_values(series, u2f, poly, u, p, m):
     ``p[:m] = P(u[:m])``: Estrin's scheme in blocks of four coefficients, or Horner's rule.
 
     The dependency chain of Horner's rule is one multiply and one add per degree (degree 9:
-    18 operations, ~72 cycles, the longest part of a stage); Estrin's scheme pairs the
+    18 dependent operations, the longest part of a stage); Estrin's scheme pairs the
     coefficients, ``(c0 + c1 u) + u^2 (c2 + c3 u)``, and combines the blocks with ``u^4`` and
     ``u^8``: 4 levels for 16 coefficients. Written out per slot count, with the coefficients
     in registers and one loop over the angles, so that it vectorises over them (a loop over
-    the blocks inside the loop over the angles cost 30 % more than Horner, measured). The
+    the blocks inside the loop over the angles does not keep them in registers and is slower
+    than Horner's rule). The
     operations and their order are fixed (strict IEEE, no fast-math): the values do not
     depend on the vector width. ``series`` and ``u2f`` from :func:`estrin_layout`; an empty
     ``series``: Horner on ``poly`` (:func:`_horner`).
@@ -300,7 +301,7 @@ def _all_inside(u, m):
 
     ``|u| < 1`` is false for NaN and infinities too. Counted as integers, so that the loop
     vectorises (a floating-point min, max or sum is a chain of dependent operations without
-    fast-math: ~15 ns of a 66 ns force evaluation on the paper configuration).
+    fast-math).
     """
     outside = 0
     for k in range(m):
@@ -333,8 +334,8 @@ def _angle_values(x, kbasis, m, u):
     In units of d_g with :func:`member_basis`, in m with plain mode shapes. The sum over
     the coordinates runs in their order, ``((x0 b0 + x1 b1) + x2 b2) + ...``: the first six
     (N_R = 3 with companions) or three (without) in one pass over the angles, the rest
-    three per pass (one pass per coordinate stored and reloaded u on the stage's critical
-    path: the paper configuration's stage 54 -> 46 ns, the gyroscope's 117 -> 104 ns). A
+    three per pass (one pass per coordinate would store and reload u on the stage's critical
+    path). A
     later group of three coordinates at exactly 0 (companions never excited) is skipped, as
     is a single one at the end: it would add exact zeros.
     """
@@ -436,9 +437,8 @@ _REACH_INSIDE = 1.0 - 1e-9
 """
 ``sum |x_i| < _REACH_INSIDE d_g`` puts every angle inside the series' range: ``|w| <= sum
 |q_n|`` (``|cos|, |sin| <= 1``), and the factor covers the rounding of the angle values
-(n ulps of ``|w|``), so that the range check over the angles (:func:`_all_inside`, ~4 ns of
-a ~54 ns stage on the paper configuration) runs only when the ring is within that of the
-gap.
+(n ulps of ``|w|``), so that the range check over the angles (:func:`_all_inside`, a pass over
+them on the stage's critical path) runs only when the ring is within that of the gap.
 """
 
 
@@ -458,9 +458,10 @@ def _force(x, force, work, out, info):
     range) leaves ``out`` unchanged and sets ``info[0] = NEEDS_GENERAL``; otherwise
     ``info[0] = 0``.
 
-    Written without branches around the work: measured in the step loop, a conditional store
-    or call in here (the fallback, an early return) doubles its cost (~65 -> ~130 ns on the
-    paper configuration), so the fallback is the caller's (:func:`nl_accel`, :func:`step._step`).
+    Written without branches around the work: inlined in the step loop, a conditional store
+    or call in here (the fallback, an early return) makes this path much slower
+    (``doc/performance.md``), so the fallback is the caller's (:func:`nl_accel`,
+    :func:`step._step`).
     """
     kbasis = force.kbasis
     projection = force.projection

@@ -217,7 +217,7 @@ def _external(t, t_mid, base, rot, forcing, drive, phasors, fe):
     so stages that some splittings place outside the step (negative drifts) see the smooth
     continuation, not a kink. ``base`` is ``(x, y)`` of the sampled profile at ``t``
     (:func:`_profile_accel`, called by :func:`step._step`: a call in here, even one not taken,
-    costs every stage ~30 ns).
+    would cost every stage).
 
     The drive ``A cos(omega (t - t_ref) + phase)`` on q_2 is ``drive_c rot_c - drive_s rot_s``:
     ``phasors`` holds ``drive_c, drive_s = A cos, A sin`` of the phase at the start of the

@@ -312,10 +312,10 @@ def run_samples(q, v, acc, k0, n_samples, method, force, drive, forcing, scratch
     Notes
     -----
     The pieces (:func:`_cut_step`, :func:`_step`, :func:`force._force`, ...) are inlined
-    (``inline='always'``): called, a step passed ~20 array structures every step (~25 % of a
-    Strang run). The kernel is compiled without numba's reference counting (``_nrt=False``;
-    it allocates nothing): with it, every step paid an atomic increment and decrement of each
-    array argument (measured 29 % of the run time).
+    (``inline='always'``): called, a step would pass ~20 array structures every step. The
+    kernel is compiled without numba's reference counting (``_nrt=False``; it allocates
+    nothing): with it, every step would pay an atomic increment and decrement of each array
+    argument.
 
     """
     fe = scratch.fe
