@@ -306,7 +306,7 @@ def cmd_rate(args) -> int:
 
 def cmd_report(args) -> int:
     """``ring_gyro report``."""
-    from ring_gyro_sim.analysis.report import build_report
+    from ring_gyro_sim.report import build_report
     plots = _plots_available('report')
     summary = build_report(args.out, quick=args.quick, workers=args.workers)
     if not plots:

@@ -13,11 +13,13 @@
 # limitations under the License.
 
 """
-The import boundary of ``ring_gyro_sim.core`` (doc/architecture.md, "Layers").
+The import map of the package (style.md, convention 1; doc/architecture.md).
 
 ``core`` imports only the standard library, numpy, scipy and numba: never rclpy, a message
 package, mcap or matplotlib, nor the layers above it (``ros``, ``recording``, ``analysis``).
-Checked twice: at run time in a fresh interpreter, and statically on the source.
+Checked twice: at run time in a fresh interpreter, and statically on the source. Above the
+core, every import between two parts of the package must be on :data:`LAYERS`, the whole map,
+which has no cycle.
 """
 
 import ast
@@ -167,3 +169,105 @@ def test_only_the_plotting_module_imports_matplotlib(path):
 def test_the_node_never_loads_matplotlib_or_the_analysis_plots():
     loaded = loaded_after_import(['ring_gyro_sim.ros.node'])
     assert not [m for m in loaded if m.split('.')[0] == 'matplotlib']
+
+
+# -- the whole map ----------------------------------------------------------------------------
+
+LAYERS = {
+    'version': set(),
+    'core': set(),
+    'progress': set(),
+    'run': {'core'},
+    'paramfile': {'core'},
+    'recording': {'core', 'version'},
+    'analysis': {'core', 'run', 'progress'},
+    'ros': {'core', 'run', 'paramfile', 'recording', 'version'},
+    'offline': {'core', 'run', 'paramfile', 'progress', 'recording', 'ros'},
+    'replay': {'core', 'recording', 'ros'},
+    'sweep': {'core', 'analysis', 'paramfile', 'version'},
+    'rate_record': {'core', 'run', 'analysis', 'offline', 'recording'},
+    'characterize': {'core', 'run', 'analysis', 'paramfile', 'progress'},
+    'report': {'core', 'run', 'analysis', 'sweep'},
+    'cli': {'core', 'run', 'analysis', 'paramfile', 'recording', 'ros', 'offline', 'replay',
+            'sweep', 'rate_record', 'characterize', 'report', 'progress', 'version'},
+}
+"""
+Which parts of the package each part may import (doc/architecture.md), lower layers first:
+a part is a sub-package (``core`` with ``core.gyro`` and ``core.kernels``, ``analysis``,
+``recording``, ``ros``, ``sweep``) or a top-level module; ``version`` is the package's
+``__version__``. Imports inside functions count. A part not listed here fails the test, so a
+new module is placed in the map when it is added.
+"""
+
+
+def part_of(module):
+    """
+    Return the part of the package ``module`` belongs to (None: not a part).
+
+    The package itself (``ring_gyro_sim``, its ``__init__``) is the ``version`` part; a bare
+    ``ring_gyro_sim`` of ``from ring_gyro_sim import x`` names no part (``x`` does).
+    """
+    parts = module.split('.')
+    if parts[0] != 'ring_gyro_sim' or len(parts) == 1:
+        return None
+    return 'version' if parts[1] in ('__version__', '__init__') else parts[1]
+
+
+def import_edges(package_dir=PACKAGE_DIR):
+    """Return ``{(importing part, imported part): [file, ...]}`` over the package's sources."""
+    edges = {}
+    for path in sorted(package_dir.rglob('*.py')):
+        relative = path.relative_to(package_dir.parent).with_suffix('')
+        module_name = '.'.join(relative.parts)
+        if path.name == '__init__.py':
+            module_name += '.__init__'
+        own = part_of(module_name if path.parent == package_dir
+                      else module_name.replace('.__init__', ''))
+        for imported in imported_modules(path.read_text(encoding='utf-8'), module_name):
+            other = part_of(imported)
+            if other is None or other == own:
+                continue
+            edges.setdefault((own, other), []).append(str(path.relative_to(package_dir)))
+    return edges
+
+
+def forbidden_edges(edges, layers=LAYERS):
+    """Return the edges ``layers`` does not allow, with the files that make them."""
+    return {edge: files for edge, files in edges.items()
+            if edge[0] not in layers or edge[1] not in layers[edge[0]]}
+
+
+def test_every_import_between_parts_is_on_the_map():
+    edges = import_edges()
+    assert ('run', 'core') in edges and ('cli', 'run') in edges  # the scan sees imports
+    assert forbidden_edges(edges) == {}
+    assert {part for part, _ in edges} | set().union(*LAYERS.values()) <= set(LAYERS)
+
+
+def test_the_map_has_no_cycle():
+    seen, stack = set(), []
+
+    def visit(part):
+        assert part not in stack, f'cycle: {" -> ".join(stack + [part])}'
+        if part in seen:
+            return
+        stack.append(part)
+        for other in LAYERS[part]:
+            visit(other)
+        stack.pop()
+        seen.add(part)
+    for part in LAYERS:
+        visit(part)
+
+
+def test_the_map_check_sees_a_forbidden_import(tmp_path):
+    """Control: run.py importing the analysis layer, even inside a function, is reported."""
+    package = tmp_path / 'ring_gyro_sim'
+    package.mkdir()
+    (package / 'run.py').write_text('def f():\n    from ring_gyro_sim.analysis import nnm\n',
+                                    encoding='utf-8')
+    (package / 'core').mkdir()
+    (package / 'core' / '__init__.py').write_text('from ring_gyro_sim import ros\n',
+                                                  encoding='utf-8')
+    bad = forbidden_edges(import_edges(package))
+    assert set(bad) == {('run', 'analysis'), ('core', 'ros')}

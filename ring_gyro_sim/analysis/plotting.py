@@ -202,7 +202,7 @@ def plot_backbones(backbones, path, title='Fig. 4: nonlinear mode q1 for several
 
 
 # ---------------------------------------------------------------- time-domain cases
-# Figs. 5, 7, 10-15 (``analysis/cases.py``, ``analysis/report.py``).
+# Figs. 5, 7, 10-15 (``analysis/cases.py``, ``report.py``).
 
 def _branch_lines(ax, branches) -> None:
     if branches is None:

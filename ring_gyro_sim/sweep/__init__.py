@@ -24,7 +24,7 @@ stores each as it finishes (:mod:`.store`) and writes the results as an ``xarray
 Why a package of its own, above ``analysis``: it needs ``dask.distributed``, ``xarray`` and
 ``netCDF4`` (the ``sweep`` extra of setup.py), which the node never imports; ``analysis``
 stays free of them. One exception: ``ring_gyro report`` runs its Case 4 through this package
-(:func:`ring_gyro_sim.analysis.report.run_case4`, which imports it inside the function, when
+(:func:`ring_gyro_sim.report.run_case4`, which imports it inside the function, when
 the plan has Case 4). Importing this package imports none of them either: they load when a
 sweep runs or its results are built.
 """

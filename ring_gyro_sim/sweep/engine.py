@@ -50,7 +50,7 @@ Output
     ``DIR/map_<metric>.png`` and, with kept envelopes, ``DIR/envelope_<channel>.png``
     (:func:`ring_gyro_sim.analysis.plotting.plot_sweep`), ``DIR/sweep.json`` (the resolved
     spec), ``DIR/failures.json``. ``ring_gyro report`` runs its Case 4 through this function
-    (:func:`ring_gyro_sim.analysis.report.run_case4`).
+    (:func:`ring_gyro_sim.report.run_case4`).
 """
 
 from contextlib import contextmanager

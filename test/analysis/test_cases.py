@@ -133,7 +133,7 @@ def test_case_result_csv_json_and_plot(tmp_path):
 
 
 def test_importing_cases_does_not_load_matplotlib():
-    code = ('import sys, ring_gyro_sim.analysis.cases, ring_gyro_sim.analysis.report, '
+    code = ('import sys, ring_gyro_sim.analysis.cases, ring_gyro_sim.report, '
             'ring_gyro_sim.analysis.plotting; print("matplotlib" in sys.modules)')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                          timeout=120, check=True)
@@ -219,7 +219,7 @@ def test_symmetric_electrodes_q2_zero_over_two_seconds():
 
 
 def test_report_plan_covers_the_paper_figures():
-    from ring_gyro_sim.analysis import report
+    from ring_gyro_sim import report
     plan = report.make_plan(quick=True)
     names = {s.name for s in plan.drive_cases + plan.sweep + plan.inner + plan.ritz}
     assert {'case1', 'case2', 'case3', 'symmetric_rest', 'symmetric_drive',
@@ -232,7 +232,7 @@ def test_report_plan_covers_the_paper_figures():
 
 
 def test_bursts_finds_the_rises_of_an_envelope():
-    from ring_gyro_sim.analysis.report import bursts
+    from ring_gyro_sim.report import bursts
     t = np.arange(0.0, 2.0, 1e-3)
     x = np.exp(-t) * (1.0 + 3.0 * np.exp(-((t - 0.4) / 0.03) ** 2)
                       + 5.0 * np.exp(-((t - 0.9) / 0.03) ** 2))

@@ -44,7 +44,8 @@ sys.meta_path.insert(0, NoMatplotlib())
 from ring_gyro_sim import cli
 if sys.argv[1] == 'report':  # a plan of one short case and one backbone (seconds, not minutes)
     from dataclasses import replace
-    from ring_gyro_sim.analysis import cases, report
+    from ring_gyro_sim import report
+    from ring_gyro_sim.analysis import cases
     case1 = replace(cases.paper_cases()['case1'], duration_s=0.05)
     report.make_plan = lambda quick, base: report.ReportPlan(
         drive_cases=(case1,), sweep=(), ritz=(), inner=(), backbone_orders=(4,), frf=False,

@@ -26,7 +26,8 @@ import math
 
 import numpy as np
 import pytest
-from ring_gyro_sim.analysis import cases, report
+from ring_gyro_sim import report
+from ring_gyro_sim.analysis import cases
 from ring_gyro_sim.sweep import parse_spec, run_sweep
 from ring_gyro_sim.sweep import results as sweep_results
 from ring_gyro_sim.sweep.point import METRICS
