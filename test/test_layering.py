@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The import map of the package (style.md, convention 1; doc/architecture.md).
+The import map of the package (doc/architecture.md, "Layers").
 
 ``core`` imports only the standard library, numpy, scipy and numba: never rclpy, a message
 package, mcap or matplotlib, nor the layers above it (``ros``, ``recording``, ``analysis``).

@@ -57,10 +57,17 @@ MATCH_TIMEOUT_S = 20.0
 
 
 def node_command(params_file, *ros_args):
-    """Return the command line of the node: the installed executable or ``-m``."""
+    """
+    Return the command line of the node: the installed executable or ``-m``.
+
+    ``params_file`` None: no file (the embedded defaults), and no ``--ros-args`` unless
+    ``ros_args`` are given.
+    """
     exe = shutil.which('ring_gyro_node')
     head = [exe] if exe else [sys.executable, '-m', 'ring_gyro_sim.ros.node']
-    return head + ['--ros-args', '--params-file', str(params_file), *ros_args]
+    args = (['--params-file', str(params_file)] if params_file is not None else []) + [
+        *ros_args]
+    return head + (['--ros-args', *args] if args else [])
 
 
 def node_env():

@@ -16,12 +16,10 @@
 Node tests of the gyroscope's ROS plumbing.
 
 ``~/angular_rate`` in, ``~/rate`` (sensor_msgs/Imu) and ``~/demodulator`` out, all recorded.
-Real rclpy across processes (``node_harness``).
-
-Until the physics and the sense electronics are merged the blocks carry no rate samples, so
-the tests here check what holds either way (topics, types, QoS, the input accepted or refused
-and counted, the recording's channels); :func:`test_rate_output_end_to_end` checks the
-contents of ``~/rate`` and skips, saying why, while the blocks carry no rate.
+Real rclpy across processes (``node_harness``): topics, types, QoS, the input accepted or
+refused and counted, the recording's channels, the contents of ``~/rate``; and the node as a
+user meets it first, with no parameter file (the gyroscope) or config/default.yaml under
+another name.
 """
 
 # Google import order, as ament_flake8 checks it; ruff's default isort order differs.
@@ -31,7 +29,7 @@ import signal
 
 from geometry_msgs.msg import Vector3Stamped
 from mcap.reader import make_reader
-from node_harness import connected, Probe, start_node
+from node_harness import connected, NodeProcess, Probe, REPO_ROOT, start_node
 import numpy as np
 import pytest
 from rclpy.qos import ReliabilityPolicy
@@ -188,3 +186,43 @@ def test_rate_output_end_to_end(ros, tmp_path):
                 'predicted_arw_deg_per_sqrt_h', 'scale_factor_valid'):
         assert key in diag, sorted(diag)
     assert float(diag['rate_scale_factor_v_per_rad_s']) > 0.0
+
+
+class NamedRateProbe(Probe):
+    """The harness probe for a node of another name: its ``~/rate`` and ``~/angular_rate``."""
+
+    def __init__(self, target):
+        super().__init__(target)
+        self.rate = []
+        self.create_subscription(Imu, f'{target}/rate', self.rate.append, 1000)
+        self.angular_rate_pub = self.create_publisher(Vector3Stamped, f'{target}/angular_rate',
+                                                      10)
+
+
+def test_the_default_node_is_the_gyroscope_under_any_name(ros, tmp_path):
+    # What a user meets first: with no parameter file the node is the gyroscope (~/rate out).
+    bare = NodeProcess(None, tmp_path)
+    with connected(bare, lambda: NamedRateProbe('/ring_gyro')) as probe:
+        probe.spin_until(lambda: len(probe.rate) >= 100, 60.0, '~/rate of the default node')
+    assert bare.wait(10.0) == 0
+    # config/default.yaml (`/**:`) configures a node of any name, as the README runs it.
+    (tmp_path / 'left').mkdir()
+    left = NodeProcess(REPO_ROOT / 'config' / 'default.yaml', tmp_path / 'left',
+                       '-r', '__node:=gyro_left')
+    with connected(left, lambda: NamedRateProbe('/gyro_left')) as probe:
+        probe.spin_until(lambda: probe.angular_rate_pub.get_subscription_count() > 0, 20.0,
+                         '/gyro_left/angular_rate')
+        probe.spin_until(lambda: probe.rate, 20.0, '/gyro_left/rate')
+        msg = Vector3Stamped()
+        msg.vector.z = TEN_DEG_S  # stamp 0: now
+        probe.angular_rate_pub.publish(msg)
+        # force-to-rebalance reads within ~20 ms (20 Hz); 0.5 s after the step, 0.5 s kept
+        probe.spin_until(lambda: len([m for m in probe.rate if m.angular_velocity.z > 0.5
+                                      * TEN_DEG_S]) >= 1000, 60.0, '1 s of the 10 deg/s')
+    assert left.wait(10.0) == 0
+    turning = [m.angular_velocity.z for m in probe.rate if m.angular_velocity.z > 0.5
+               * TEN_DEG_S]
+    settled = np.mean(turning[500:1000])
+    print(f'/gyro_left/rate at 10 deg/s: {math.degrees(settled):.4f} deg/s')
+    assert settled == pytest.approx(TEN_DEG_S, rel=0.01)
+    assert 'gyro_left' in left.output()
