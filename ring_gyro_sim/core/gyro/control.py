@@ -26,8 +26,9 @@ Timing (C1)
     (a loop period ``T = N P``, 1 ms by default), at the fixed global sample indices
     ``k = m N - 1`` (``m = 1, 2, ...``): the simulator cuts its stretches there, so the result
     does not depend on how a run is cut into blocks. What a loop measures over period ``m``
-    sets the commands of period ``m + 1`` (a delay of 1.5 periods, centre of the window to
-    the centre of the next).
+    sets the commands of period ``m + 1``: a delay of one period, from the centre of the
+    window the measurement averages to the centre of the period the command is held over
+    (the averaging and the hold add no delay of their own about those centres).
 
 Sensing (C2)
     The loops read the pick-off amplifiers (``electronics.PickOff``: the electrodes'
@@ -47,7 +48,7 @@ PLL (C3)
     omega_n)``, ``tau = 2 Q / omega``; the PI loop filter
     ``omega = omega_c + K_p e + K_i int e dt`` with ``K_p = 2 pi B_pll``,
     ``K_i = K_p^2 / 4`` (the zero a quarter of the crossover below it: 76 degrees of phase
-    margin less the delay's ``2 pi B_pll 1.5 T``, 11 degrees at 20 Hz and 1 ms) closes a
+    margin less the delay's ``2 pi B_pll T``, 7 degrees at 20 Hz and 1 ms) closes a
     loop of crossover ``B_pll`` (``control.pll_bandwidth``). The NCO (``omega``) is limited
     to ``omega_c +- 2 pi control.pll_range``, ``omega_c`` = ``drive.frequency``; its phase is
     continuous (the simulator re-phases the drive at each update).
@@ -181,7 +182,7 @@ def rebalance_response(config: SimConfig, f_hz: np.ndarray, pole_hz: float) -> n
 
     In the demodulated frame the sense plant is ``P(s) = (1 / (2 omega)) / (s + p)``
     (``p = 2 pi pole_hz``, the sense mode's half-power half-width), the controller
-    ``C(s) = K_p + K_i / s`` with the loop's delay of 1.5 periods; ``T = C P e^{-s D} /
+    ``C(s) = K_p + K_i / s`` with the loop's delay of one period (C1); ``T = C P e^{-s D} /
     (1 + C P e^{-s D})`` at ``s = 2 pi i f``. Continuous-time: the loop's sampling is
     left out (its bandwidth is at most a twentieth of its rate).
     """
@@ -190,7 +191,7 @@ def rebalance_response(config: SimConfig, f_hz: np.ndarray, pole_hz: float) -> n
     kp, ki = amplitude_gains(omega, c.rebalance_bandwidth)
     s = 2j * math.pi * np.asarray(f_hz, dtype=np.float64)
     s = np.where(s == 0.0, 1e-30j, s)
-    delay = 1.5 / c.rate
+    delay = 1.0 / c.rate
     loop = (kp + ki / s) * (0.5 / omega) / (s + 2.0 * math.pi * pole_hz) * np.exp(-s * delay)
     return loop / (1.0 + loop)
 
