@@ -274,6 +274,23 @@ def test_applied_rate_rebuilt_from_inputs_matches_the_simulator():
     assert applied[np.searchsorted(t, 0.0251)] == 0.5 and applied[0] == pytest.approx(0.05)
 
 
+def test_a_constant_rate_from_the_start_keeps_a_valid_scale_factor():
+    # 100 deg/s from t = 0, open loop: the start state already holds the drive's drop under
+    # the rate (the pair splits), so the drive pick-off's expected ratio is 1 at that rate.
+    # Counting the drop twice gave (1 + x^2) / (1 + 2 x^2) = 0.566 and a false "scale factor
+    # collapsed" while the reading was within 0.2 %.
+    rate = math.radians(100.0)
+    config = paper_config(gyro_values(**{'scenario.rate_values': [rate],
+                                         'gyro.temperature': 0.0,
+                                         'gyro.input_noise_density': 0.0}))
+    t, out, applied, run = run_blocks(config, 0.3)
+    diag = run.diagnostics().values
+    assert diag['drive_amplitude_ratio_expected'] == pytest.approx(1.0, abs=1e-3)
+    assert diag['drive_amplitude_ratio'] == pytest.approx(1.0, abs=0.01)
+    assert diag['scale_factor_valid'] is True and diag['rate_valid'] is True
+    assert np.mean(out[t > 0.1]) == pytest.approx(rate, rel=0.005)
+
+
 def test_the_rebalance_variance_is_the_loops_noise():
     # The published variance of ~/rate with force-to-rebalance integrates the noise through
     # the loop's closed-loop response (E14, control.rebalance_response). At a 50 Hz loop the

@@ -640,6 +640,7 @@ class SenseElectronics:
             [float(start_rate), 0.0])[None, None, :]
         self.bandwidth_hz = self._bandwidth()
 
+        self.start_rate = float(start_rate)
     def _bandwidth(self) -> float:
         """(E9): -3 dB frequency of the sense envelope's pole times the Butterworth, Hz."""
         f_m = self.sense_omega / (2.0 * self.sense_quality_factor) / (2.0 * math.pi)
@@ -860,8 +861,11 @@ class SenseElectronics:
         """
         Return the drive amplitude over its operating point's at ``rate`` (rad/s), linear.
 
-        The pair's linear response: ``|D / (D - g^2 / D_s)|`` (E8); 0 without a drive. With
-        the closed-loop drive 1 (the AGC holds the amplitude).
+        The pair's linear response (E8) relative to the operating point, which already holds
+        the response to the rate at t = 0 (``Omega_0``): with ``d = F / (A e^{ip})`` the
+        operating point's ``D - g_0^2 / D_s``, the ratio is ``|d / (d + (g_0^2 - g^2) / D_s)|``
+        (``g = 2 kappa Omega w``); 0 without a drive. With the closed-loop drive 1 (the AGC
+        holds the amplitude).
         """
         if self.config.control.closed:
             return 1.0
@@ -875,7 +879,8 @@ class SenseElectronics:
         ws = self.sense_omega
         d_s = complex(ws * ws - w * w, w * ws / self.sense_quality_factor)
         g = 2.0 * KAPPA_2 * rate * w
-        return abs(d / (d - g * g / d_s))
+        g_0 = 2.0 * KAPPA_2 * self.start_rate * w
+        return abs(d / (d + (g_0 * g_0 - g * g) / d_s))
 
     def diagnostics_values(self) -> Dict[str, Union[float, bool, int]]:
         """Return the rate channel's state for ``/diagnostics`` (latest processed sample)."""
