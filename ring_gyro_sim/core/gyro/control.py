@@ -54,8 +54,13 @@ PLL (C3)
     continuous (the simulator re-phases the drive at each update).
 
 Lock detector (C4)
-    Locked while ``|e| < control.lock_threshold`` and the NCO is inside its range. A loss of
-    lock is reported with its time (``lost_lock_at_s``, the first), and so is the return.
+    With hysteresis, as lock detectors are built: locked, it stays locked while
+    ``|e| < control.lock_threshold`` and the NCO is inside its range; unlocked, it locks again
+    once ``|e|`` has stayed below half the threshold, the NCO inside its range, for
+    :data:`LOCK_PERIODS` consecutive periods. While a PLL slips cycles after a shock its
+    phase error sweeps through zero: without the hysteresis the detector (and the loops it
+    qualifies) switched on and off every few periods. A loss of lock is reported with its time
+    (``lost_lock_at_s``, the first), and so is the return.
 
 AGC (C5)
     Amplitude ``X = hypot(x_c, x_s)``. At resonance the envelope obeys
@@ -86,9 +91,14 @@ Force-to-rebalance (C6-C8)
     quadrature force. The integrators start at the values that hold the start state
     (``S_c = 2 kappa Omega_0 omega X``, ``Omega_0`` the rate at t = 0). (C8) The rate's
     bandwidth is that of the loop, ``B_rb``, against ``omega / (2 Q)`` open loop (0.12 Hz).
-    (C8b) While the PLL is out of lock, or the drive amplitude below
-    :data:`REBALANCE_QUALIFY` of its set-point, the rebalance force is off (0) and its
-    integrators hold: referenced to an NCO that no longer follows the drive, the loop pumped
+    (C8b) The rebalance loop runs only on a qualified drive: it is switched on once the PLL
+    has been locked and the drive amplitude at least :data:`REBALANCE_QUALIFY` of its
+    set-point for :data:`REBALANCE_QUALIFY_PERIODS` consecutive periods, and off as soon as
+    lock is lost or the amplitude falls below :data:`REBALANCE_DISQUALIFY` (hysteresis: it
+    switched on and off with +-5 300 deg/s spikes 2-4 s after a 10 000 g shock without).
+    While it is off the rebalance force is 0 and its integrators hold (``rebalance_on`` of
+    :data:`CONTROL_CHANNELS` is 0 and ``~/rate`` says it is not a measurement,
+    ``core.gyro.validity``): referenced to an NCO that no longer follows the drive, the loop pumped
     up to ``control.drive_limit`` into the sense mode (a 10 000 g shock at
     ``config/gyro.yaml`` kept the PLL out of lock for 9.6 s with it against 3.8 s without),
     and (C7) divides by the amplitude, which a shock collapses. The rebalance rate reads 0
@@ -116,14 +126,23 @@ __all__ = ['CONTROL_CHANNELS', 'ControlSamples', 'DriveLoop', 'amplitude_gains',
 
 CONTROL_CHANNELS = ('frequency_hz', 'phase_error_rad', 'amplitude_m', 'drive_force',
                     'rebalance_c', 'rebalance_s', 'rebalance_rate_rad_s',
-                    'rebalance_quadrature_rad_s', 'locked')
+                    'rebalance_quadrature_rad_s', 'locked', 'rebalance_on')
 """Columns of ``Samples.control`` (C9): NCO frequency (Hz), phase error (rad), measured drive
 amplitude (m), drive force amplitude (m/s^2), rebalance forces (m/s^2), the rebalance rate
-and quadrature (rad/s, C7; 0 without it) and 1.0 while locked."""
+and quadrature (rad/s, C7; 0 without it), 1.0 while locked (C4) and 1.0 while the
+rebalance loop runs (C8b)."""
 
 KAPPA_2 = structure.gyroscopic_coefficient(2)
 REBALANCE_QUALIFY = 0.5
-"""The rebalance loop runs while the drive amplitude is at least this part of its set-point."""
+"""The rebalance loop is switched on once the drive amplitude is at least this part of its
+set-point (C8b)."""
+REBALANCE_DISQUALIFY = 0.4
+"""The rebalance loop is switched off when the drive amplitude falls below this part (C8b)."""
+REBALANCE_QUALIFY_PERIODS = 20
+"""Loop periods the drive must stay qualified before rebalance runs: 20 ms at 1 kHz, 2.5 time
+constants of the 20 Hz PLL (C8b)."""
+LOCK_PERIODS = 10
+"""Loop periods the phase error must stay within half the threshold to lock again (C4)."""
 
 
 @dataclass(frozen=True)
@@ -241,6 +260,9 @@ class DriveLoop:
         self.rebalance_rate = 0.0
         self.rebalance_quadrature = 0.0
         self.locked = True
+        self.rebalance_on = self.rebalance
+        self._locking = 0        # periods in a row within half the threshold (C4)
+        self._qualifying = 0     # periods in a row with a qualified drive (C8b)
         self.lost_lock_at_s: Optional[float] = None
         self.relocked_at_s: Optional[float] = None
         self.unlocked_since_s: Optional[float] = None
@@ -293,7 +315,7 @@ class DriveLoop:
         return np.array([self.omega / (2.0 * math.pi), self.phase_error, self.amplitude,
                          self.force, self.rebalance_force[0], self.rebalance_force[1],
                          self.rebalance_rate, self.rebalance_quadrature,
-                         1.0 if self.locked else 0.0])
+                         1.0 if self.locked else 0.0, 1.0 if self.rebalance_on else 0.0])
 
     def update(self, volts: np.ndarray, phase: np.ndarray, t_end_s: float) -> None:
         """
@@ -329,8 +351,14 @@ class DriveLoop:
         clamped = abs(offset) >= self.omega_range
         self.omega = self.omega_c + min(max(offset, -self.omega_range), self.omega_range)
         self.phase_error = e
-        # (C4) lock detector
-        locked = abs(e) < self.lock_threshold and not clamped
+        # (C4) lock detector, with hysteresis
+        if self.locked:
+            locked = abs(e) < self.lock_threshold and not clamped
+            self._locking = 0
+        else:
+            self._locking = self._locking + 1 if (abs(e) < 0.5 * self.lock_threshold
+                                                  and not clamped) else 0
+            locked = self._locking >= LOCK_PERIODS
         if not locked:
             self.unlocked_periods += 1
             if self.locked:
@@ -350,8 +378,15 @@ class DriveLoop:
         if not ((raw > self.drive_limit and err > 0.0) or (raw < 0.0 and err < 0.0)):
             self.agc_integral += ki * err * dt
         self.force = min(max(kp * err + self.agc_integral, 0.0), self.drive_limit)
-        # (C6, C7) force-to-rebalance; (C8b) off until the drive is locked and qualified
-        if self.rebalance and not (locked and amp >= REBALANCE_QUALIFY * self.setpoint_m):
+        # (C6, C7) force-to-rebalance; (C8b) on a qualified drive only, with hysteresis
+        if self.rebalance_on:
+            self.rebalance_on = locked and amp >= REBALANCE_DISQUALIFY * self.setpoint_m
+            self._qualifying = 0
+        elif self.rebalance:
+            qualified = locked and amp >= REBALANCE_QUALIFY * self.setpoint_m
+            self._qualifying = self._qualifying + 1 if qualified else 0
+            self.rebalance_on = self._qualifying >= REBALANCE_QUALIFY_PERIODS
+        if self.rebalance and not self.rebalance_on:
             self.rebalance_force[:] = 0.0
             self.rebalance_rate = self.rebalance_quadrature = 0.0
         elif self.rebalance:
@@ -382,4 +417,5 @@ class DriveLoop:
             'drive_amplitude_m': float(self.amplitude),
             'drive_setpoint_m': float(self.setpoint_m),
             'rebalance_force_m_s2': float(math.hypot(*self.rebalance_force)),
+            'rebalance_on': bool(self.rebalance_on),
         }
