@@ -420,6 +420,11 @@ class Simulator:
         return self._config
 
     @property
+    def drive_phase_at_start(self) -> float:
+        """Return the drive's phase at t = 0, rad (0 open loop; closed loop the NCO's, C3)."""
+        return self._drive_phase if self.sample_index == 0 else math.nan
+
+    @property
     def time_ns(self) -> int:
         """Return the current simulation time, ns."""
         return self.sample_index * self.period_ns

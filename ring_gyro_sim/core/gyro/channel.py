@@ -93,10 +93,13 @@ class SenseChain:
         # linear operating point the drive will build up to.
         q, v = start_state
         if w > 0.0 and (float(q[1]) != 0.0 or float(v[1]) != 0.0):
-            # The demodulator's outputs of the start state (q = Re(c e^{i psi}), psi = p at
-            # t = 0: I = G Re(c), Q = -G Im(c)), so that the filters start settled.
+            # The demodulator's outputs of the start state (q = Re(c e^{i psi}), psi the
+            # reference's phase at t = 0: the drive's phase then, 0 open loop and the NCO's
+            # closed loop, plus p; I = G Re(c e^{-i psi}), Q = -G Im(c e^{-i psi})), so that
+            # the filters start settled.
             el = self.electronics
-            turn = complex(math.cos(phase), -math.sin(phase))
+            psi = phase + sim.drive_phase_at_start
+            turn = complex(math.cos(psi), -math.sin(psi))
             out = []
             for index, gain in ((el.sense_index, el.electronic_gain),
                                 (el.drive_index, el.drive_gain)):
