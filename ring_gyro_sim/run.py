@@ -783,10 +783,14 @@ class Run:
         if self.sim.sense is not None:
             gyro = self.sim.sense.diagnostics_values()
             values.update(gyro)
-            if not gyro.get('scale_factor_valid', True) and not gyro_warning:
-                gyro_warning = (f'scale factor collapsed: drive pick-off at '
+            if not gyro['rate_valid'] and not gyro_warning:
+                # The rate channel's own verdict (core.gyro.validity), from what the sensor
+                # measures: not a measurement, or its variance inflated by a transient.
+                reason = gyro['rate_invalid_reason'] or (
+                    f'a transient: sigma {gyro["rate_sigma_rad_s"]:.3g} rad/s')
+                gyro_warning = (f'~/rate is not a measurement: {reason} (drive pick-off at '
                                 f'{gyro.get("drive_amplitude_ratio", math.nan):.3g} of its '
-                                f'value at the operating point (~/rate is not a measurement)')
+                                f'operating point)')
         if not self.running:
             level, message = 'ERROR', f'{sim.status}: {sim.message} (~/reset recovers)'
         elif gyro_warning:

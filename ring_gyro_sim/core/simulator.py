@@ -175,9 +175,11 @@ def _joined(t: np.ndarray, parts) -> Tuple[electronics.DemodSamples, electronics
 
     def column(name):
         return np.concatenate([getattr(r, name) for r in rates]) if rates else np.empty(0)
+    judged = [r.variance for r in rates if len(r)]
+    variance = np.concatenate(judged) if judged else None
     return (electronics.DemodSamples(t=t, values=np.concatenate(demod)),
             electronics.RateSamples(t=column('t'), rate=column('rate'),
-                                    quadrature=column('quadrature')))
+                                    quadrature=column('quadrature'), variance=variance))
 
 
 def _kernel_status(status: int) -> Status:

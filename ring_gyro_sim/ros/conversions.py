@@ -28,11 +28,14 @@ The gyroscope's rate output ``~/rate`` is one ``sensor_msgs/msg/Imu`` per rate s
 * ``header.stamp``: the sample time (simulation time), ``header.frame_id``: ``gyro.frame_id``;
 * ``angular_velocity.z``: the measured rate about the ring axis, rad/s (REP-103 sign);
   ``angular_velocity.x`` and ``.y``: 0.0, not measured (a z-axis gyroscope);
-* ``angular_velocity_covariance``: with the rate variance unknown (0, the default) all nine
-  elements are 0, REP-145's "covariance unknown"; with a known variance ``v`` (rad/s)^2 the
-  diagonal is ``(inf, inf, v)``: no information about x and y (a filter that fuses them by
-  mistake gives them no weight), ``v`` about z. Element 0 cannot be -1 ("no estimate") here:
-  that would tell readers to disregard z as well;
+* ``angular_velocity_covariance``: with the rate variance unknown (0) all nine elements are
+  0, REP-145's "covariance unknown"; with a known variance ``v`` (rad/s)^2 the diagonal is
+  ``(N, N, v)`` with ``N`` = ``core.gyro.validity.NOT_MEASURED_VARIANCE`` = 1e6 (rad/s)^2:
+  x and y are not measured (a z-axis gyroscope), which a huge but finite variance says
+  (infinity made robot_localization's ``R C R^T`` NaN: 0 * inf), and ``v`` is the sample's
+  own variance (``RateSamples.variance``: what the sample is worth, the same ``N`` when it
+  is not a measurement, ``core.gyro.validity``). Element 0 cannot be -1 ("no estimate")
+  here: that would tell readers to disregard z as well;
 * ``orientation`` (identity quaternion) and ``linear_acceleration`` (zero) are not
   estimated: element 0 of their covariances is -1, the rest 0.
 """
@@ -48,6 +51,7 @@ from geometry_msgs.msg import AccelStamped, Vector3Stamped
 import numpy as np
 from ring_gyro_sim.core.gyro.control import CONTROL_CHANNELS
 from ring_gyro_sim.core.gyro.electronics import DEMOD_CHANNELS
+from ring_gyro_sim.core.gyro.validity import NOT_MEASURED_VARIANCE
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
@@ -156,7 +160,7 @@ def rate_covariance(rate_variance: float) -> np.ndarray:
         raise ValueError(f'rate_variance: must be finite and >= 0 (rad/s)^2, got {v!r}')
     if v == 0.0:
         return np.zeros(9)
-    return np.diag([math.inf, math.inf, v]).ravel()
+    return np.diag([NOT_MEASURED_VARIANCE, NOT_MEASURED_VARIANCE, v]).ravel()
 
 
 def imu_message(t_ns: int, rate_z: float, frame_id: str,
@@ -185,9 +189,19 @@ def sample_times_ns(t_s: np.ndarray) -> List[int]:
 
 def rate_messages(rate, frame_id: str,
                   covariance: Optional[np.ndarray] = None) -> List[Tuple[int, Imu]]:
-    """Return ``[(t_ns, Imu)]`` of a ``core.gyro.electronics.RateSamples`` (``~/rate``)."""
-    return [(t_ns, imu_message(t_ns, z, frame_id, covariance))
-            for t_ns, z in zip(sample_times_ns(rate.t), np.asarray(rate.rate).tolist())]
+    """
+    Return ``[(t_ns, Imu)]`` of a ``core.gyro.electronics.RateSamples`` (``~/rate``).
+
+    Each message's covariance is that of its sample's own variance when the samples carry
+    one (``RateSamples.variance``), else ``covariance`` (a constant one, or none).
+    """
+    times = sample_times_ns(rate.t)
+    values = np.asarray(rate.rate).tolist()
+    if getattr(rate, 'variance', None) is None:
+        return [(t_ns, imu_message(t_ns, z, frame_id, covariance))
+                for t_ns, z in zip(times, values)]
+    return [(t_ns, imu_message(t_ns, z, frame_id, rate_covariance(v)))
+            for t_ns, z, v in zip(times, values, np.asarray(rate.variance).tolist())]
 
 
 @dataclass(frozen=True)

@@ -177,7 +177,7 @@ def test_rate_output_end_to_end(ros, tmp_path):
     assert stamps[-1] == series.t_ns[-1]
     assert np.array_equal(live, series.rate[-len(live):])
     cov = probe.rate[-1].angular_velocity_covariance
-    assert cov[8] > 0.0 and math.isinf(cov[0]) and math.isinf(cov[4])
+    assert cov[8] > 0.0 and cov[0] == cov[4] == 1e6  # x, y not measured, finite
     # /diagnostics carries the rate channel's state (issue 12, item 6)
     diag = probe.latest_diagnostics()
     assert diag is not None

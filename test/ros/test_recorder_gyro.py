@@ -36,6 +36,7 @@ import numpy as np
 import pytest
 from ring_gyro_sim import run as run_mod
 from ring_gyro_sim.core.gyro.electronics import DEMOD_CHANNELS, DemodSamples, RateSamples
+from ring_gyro_sim.core.gyro.validity import NOT_MEASURED_VARIANCE
 from ring_gyro_sim.core.params import paper_config
 from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.recording.reader import (
@@ -136,14 +137,22 @@ def test_rate_is_one_imu_per_sample_stamped_and_logged_at_its_time(tmp_path, sam
     assert series.frame_id == 'gyro_link' and series.covariance.shape == (40, 9)
 
 
+ROTATION = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+"""A base-link-to-sensor rotation, as robot_localization applies one to a covariance."""
+
+
 def test_a_known_rate_variance_fills_z_and_marks_x_y_as_unmeasured(tmp_path, samples):
     variance = 4e-6  # (rad/s)^2: any positive value
     path = record(tmp_path / 'var.mcap', samples, rate_variance=variance)
     for _, m in mcap_decoded(path, f'{NS}/rate'):
         cov = np.asarray(m.angular_velocity_covariance).reshape(3, 3)
         assert cov[2, 2] == variance
-        assert cov[0, 0] == cov[1, 1] == math.inf
+        # x and y not measured: huge but finite, so that a filter's R C R^T stays finite
+        # (infinity made robot_localization's rotated covariance NaN: 0 * inf)
+        assert cov[0, 0] == cov[1, 1] == NOT_MEASURED_VARIANCE == 1e6
         assert np.count_nonzero(cov) == 3
+        rotated = ROTATION @ cov @ ROTATION.T
+        assert np.all(np.isfinite(rotated)) and np.all(np.isfinite(np.eye(3) @ cov))
     sink = RosSink({}, NS)
     for bad in (-1.0, math.nan, math.inf):
         with pytest.raises(ValueError, match='rate_variance'):
@@ -272,3 +281,17 @@ def test_a_killed_gyro_recording_recovers_its_rate(tmp_path, samples, monkeypatc
     assert 0 < len(survived) <= len(whole)
     assert [(t, m.angular_velocity.z) for t, m in survived] == [
         (t, m.angular_velocity.z) for t, m in whole[:len(survived)]]
+
+
+def test_each_rate_sample_carries_its_own_variance(tmp_path, samples):
+    # RateSamples.variance (core.gyro.validity): what each sample is worth, published per
+    # message; a sample that is not a measurement says so with the same finite variance as
+    # the unmeasured axes.
+    rate = gyro_block(samples, 0).rate
+    variance = np.full(len(rate), 2e-6)
+    variance[3:] = NOT_MEASURED_VARIANCE
+    msgs = RosSink({}, NS, frame_id='f', rate_variance=1e-6).rate_messages(
+        RateSamples(t=rate.t, rate=rate.rate, quadrature=rate.quadrature, variance=variance))
+    zz = [m.angular_velocity_covariance[8] for _, m in msgs]
+    assert zz == variance.tolist()
+    assert all(m.angular_velocity_covariance[0] == NOT_MEASURED_VARIANCE for _, m in msgs)

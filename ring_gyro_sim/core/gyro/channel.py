@@ -36,8 +36,10 @@ import math
 from typing import Any, Dict, Optional, Tuple
 
 import numpy as np
+from ring_gyro_sim.core.gyro import validity
 from ring_gyro_sim.core.gyro.control import CONTROL_CHANNELS
-from ring_gyro_sim.core.gyro.electronics import DemodSamples, RateSamples, SenseElectronics
+from ring_gyro_sim.core.gyro.electronics import (deg_per_h_to_rad_per_s, DemodSamples,
+                                                 RateSamples, SenseElectronics)
 from ring_gyro_sim.core.gyro.operating_point import drive_operating_point, lock_frequency
 from ring_gyro_sim.core.params import SimConfig
 
@@ -85,8 +87,30 @@ class SenseChain:
                                             start_rate=start_rate, pickoff=pickoff)
         self._rebalance_columns = [CONTROL_CHANNELS.index('rebalance_rate_rad_s'),
                                    CONTROL_CHANNELS.index('rebalance_quadrature_rad_s')]
+        self._loop_columns = [CONTROL_CHANNELS.index(name) for name in
+                              ('locked', 'rebalance_on', 'amplitude_m', 'frequency_hz')]
+        self._setpoint_m = sim.loop.setpoint_m if sim.loop is not None else 0.0
+        self._dc_partial = 0.0    # the shock detector's state (_shock_detector)
+        self._dc_last: Optional[float] = None
+        el = self.electronics
+        # The open-loop sense readout's scale factor holds at the drive frequency it was
+        # set at: the sense mode's half-power half-width (Hz) scales the NCO's departure
+        # from its steady frequency (tracked while quiet).
+        self._half_width_hz = el.sense_omega / (2.0 * el.sense_quality_factor) / (2.0 * math.pi)
+        self._nco_reference: Optional[float] = None
+        self._nco_mean: Optional[float] = None
+        self._nco_smoothing = 2.0 * math.pi * self._half_width_hz / config.gyro.output_rate
+        self.validity = validity.RateValidity(
+            el.rate_variance(), deg_per_h_to_rad_per_s(config.gyro.bias_instability),
+            el.bandwidth_hz, config.gyro.output_rate,
+            0.0 if el.rebalance else el.rate_quadrature_per_rate)
         if previous is not None:
             self.electronics.continue_from(previous.electronics)
+            self.validity.continue_from(previous.validity)
+            self._dc_partial = previous._dc_partial
+            self._dc_last = previous._dc_last
+            self._nco_reference = previous._nco_reference
+            self._nco_mean = previous._nco_mean
             return
         w = 2.0 * math.pi * config.drive.frequency
         # A start state without drive motion (rest) keeps the default: the filters at the
@@ -120,8 +144,128 @@ class SenseChain:
         rebalance = None
         if self.electronics.rebalance:
             rebalance = control[:, self._rebalance_columns]
-        return self.electronics.process_volts(first_index, t, volts, drive_phase, rebalance)
+        demod, rate = self.electronics.process_volts(first_index, t, volts, drive_phase,
+                                                     rebalance)
+        at = np.searchsorted(t, rate.t)
+        shock = self._shock_detector(volts[:, 1], at)
+        if len(rate) == 0:
+            return demod, rate
+        codes = self._reasons(rate.rate, demod.values[at],
+                              None if control is None else control[at])
+        codes[(codes == 0) & shock] = validity.REASONS.index('shock on the pick-offs')
+        variance = self.validity.samples(rate.t, rate.rate, rate.quadrature, codes)
+        return demod, replace(rate, variance=variance)
+
+    def _shock_detector(self, drive_volts: np.ndarray, picks: np.ndarray) -> np.ndarray:
+        """
+        Tell per rate sample whether the drive pick-off shows a shock's onset (V1).
+
+        The drive amplifier reads the cos 2theta electrodes: a displacement of the ring (the
+        1theta mode, which a shock rings) changes their gaps in opposite senses, and the
+        capacitance's curvature turns its square into a DC level (``2 q_1^2 / d_g^3`` per
+        electrode pair) that the drive's own oscillation does not have. The mean of the
+        amplifier's output over each rate period (the samples since the previous rate
+        sample, carried across calls) keeps ``~1 / (2 pi f_drive T)`` (1 %) of the drive's
+        oscillation; a change of it from one period to the next beyond
+        :data:`validity.SHOCK_DC_TOLERANCE` of the drive pick-off's amplitude flags the
+        sample at once, before the loops or the filtered signals react. The 1theta mode's
+        ringing then decays over seconds (``2 Q_1 / omega_1``): the level changes slowly and
+        the loops' own signals judge the rest.
+        """
+        sums = np.concatenate([[0.0], np.cumsum(drive_volts)])
+        flags = np.zeros(picks.size, dtype=bool)
+        limit = validity.SHOCK_DC_TOLERANCE * self.electronics.drive_pickoff_nominal_v
+        d = self.electronics.decimation
+        previous = 0
+        for k, p in enumerate(picks.tolist()):
+            dc = (sums[p + 1] - sums[previous] + (self._dc_partial if k == 0 else 0.0)) / d
+            previous = p + 1
+            flags[k] = self._dc_last is not None and abs(dc - self._dc_last) > limit
+            self._dc_last = dc
+        self._dc_partial = (sums[-1] - sums[previous]
+                            + (self._dc_partial if picks.size == 0 else 0.0))
+        return flags
+
+    def _reasons(self, rate: np.ndarray, demod: np.ndarray,
+                 control: Optional[np.ndarray]) -> np.ndarray:
+        """
+        Return per rate sample why it is not a measurement (``validity.REASONS``; 0: it is).
+
+        Closed loop: the PLL's lock (C4), the rebalance loop's qualification (C8b), the AGC's
+        amplitude against its set-point, and without rebalance the NCO's detuning from the
+        frequency the open-loop sense readout's scale factor holds at (the NCO's steady
+        frequency, frozen through a disturbance, against its mean over the sense mode's time
+        constant: :meth:`_detuning`); open loop: the drive pick-off against the pair's linear
+        response at the measured rate (E8).
+        """
+        codes = np.zeros(rate.size, dtype=np.int64)
+        tol = validity.DRIVE_TOLERANCE
+        if control is not None:
+            locked, rebalance_on, amplitude, nco = (control[:, k] for k in self._loop_columns)
+            off_point = (np.abs(amplitude / self._setpoint_m - 1.0) > tol
+                         if self._setpoint_m > 0.0 else np.ones(rate.size, bool))
+            codes[off_point] = 3
+            if self.electronics.rebalance:
+                codes[rebalance_on == 0.0] = 2
+            codes[locked == 0.0] = 1
+            if not self.electronics.rebalance:
+                self._detuning(nco, codes)
+            return codes
+        el = self.electronics
+        nominal = el.drive_pickoff_nominal_v
+        if nominal <= 0.0:
+            codes[:] = 3
+            return codes
+        ratio = np.hypot(demod[:, 2], demod[:, 3]) / nominal
+        for k, r in enumerate(rate.tolist()):
+            expected = el.expected_drive_ratio(r)
+            if expected <= 0.0 or abs(ratio[k] / expected - 1.0) > tol:
+                codes[k] = 3
+        return codes
+
+    def _detuning(self, nco: np.ndarray, codes: np.ndarray) -> None:
+        """
+        Flag the open-loop sense readout's samples whose drive is detuned (V1), in place.
+
+        The sense mode follows the drive's frequency through its own low-pass (time constant
+        ``1 / (2 pi half-width)``), so the NCO's jitter inside the PLL's bandwidth does not
+        reach it: the NCO is averaged over that time. Until the first disturbance the
+        readout is settled wherever the loops hold the drive; at a disturbance the NCO's
+        mean frequency then is kept as the reference, and afterwards a sample is detuned
+        while the mean is more than :data:`validity.DETUNING_TOLERANCE` half-widths away
+        from it (the reference follows the mean, slowly, once the output is quiet again).
+        """
+        if self._nco_mean is None:
+            self._nco_mean = float(nco[0])
+        mean = np.empty(nco.size)
+        for k, f in enumerate(nco.tolist()):
+            self._nco_mean += self._nco_smoothing * (f - self._nco_mean)
+            mean[k] = self._nco_mean
+        reason = validity.REASONS.index('drive detuned from the sense mode')
+        disturbed = bool(codes.any()) or self.validity.state.reason not in (
+            '', validity.REASONS[reason])
+        if self._nco_reference is None:
+            if disturbed:
+                self._nco_reference = float(mean[0])
+            return
+        detuned = (np.abs(mean - self._nco_reference)
+                   > validity.DETUNING_TOLERANCE * self._half_width_hz)
+        codes[detuned & (codes == 0)] = reason
+        if not disturbed and not detuned.any():
+            self._nco_reference += self.validity.tracking * nco.size * (
+                self._nco_mean - self._nco_reference)
 
     def diagnostics_values(self) -> Dict[str, Any]:
-        """Return the rate channel's state for ``/diagnostics``."""
-        return self.electronics.diagnostics_values()
+        """
+        Return the rate channel's state for ``/diagnostics``.
+
+        The electronics' values and the latest rate sample's standing
+        (``core.gyro.validity``): ``rate_valid``, ``rate_sigma_rad_s``, ``rate_band_rad_s``
+        (the stated band of its error) and ``rate_invalid_reason``.
+        """
+        out = self.electronics.diagnostics_values()
+        state = self.validity.state
+        out.update({'rate_valid': bool(state.valid), 'rate_sigma_rad_s': float(state.sigma),
+                    'rate_band_rad_s': float(state.band),
+                    'rate_invalid_reason': state.reason})
+        return out

@@ -269,12 +269,16 @@ class RateSamples:
         Measured angular rate about z, rad/s (in-phase channel / scale factor).
     quadrature : ndarray, shape (M,)
         The quadrature channel in the same units, rad/s.
+    variance : ndarray, shape (M,), optional
+        The variance of each rate sample, (rad/s)^2 (``core.gyro.validity``: what the
+        sample is worth, large when it is not a measurement); None: not judged.
 
     """
 
     t: np.ndarray
     rate: np.ndarray
     quadrature: np.ndarray
+    variance: Optional[np.ndarray] = None
 
     def __len__(self) -> int:
         return int(self.t.size)
@@ -636,11 +640,11 @@ class SenseElectronics:
         self.flicker = FlickerNoise(deg_per_h_to_rad_per_s(g.bias_instability),
                                     g.output_rate, self.noise_seed)
         self.rebalance = bool(config.control.rebalance)
+        self.start_rate = float(start_rate)
         self._zi_rb = signal.sosfilt_zi(self._sos)[:, :, None] * np.array(
             [float(start_rate), 0.0])[None, None, :]
         self.bandwidth_hz = self._bandwidth()
 
-        self.start_rate = float(start_rate)
     def _bandwidth(self) -> float:
         """(E9): -3 dB frequency of the sense envelope's pole times the Butterworth, Hz."""
         f_m = self.sense_omega / (2.0 * self.sense_quality_factor) / (2.0 * math.pi)
