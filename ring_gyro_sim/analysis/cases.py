@@ -280,9 +280,9 @@ def drive_branches(config: SimConfig) -> Optional[Branches]:
     d = config.drive
     if d.amplitude == 0.0 or d.frequency == 0.0 or config.modes.count < 2:
         return None
-    w2 = 2.0 * math.pi * config.modes.frequencies[1]
+    w2 = 2.0 * math.pi * config.modes.coordinate_frequencies()[1]
     w = 2.0 * math.pi * d.frequency
-    peak = abs(d.amplitude) * config.modes.quality_factors[1] / (w * w2)
+    peak = abs(d.amplitude) * config.modes.coordinate_quality_factors()[1] / (w * w2)
     found = []
     for guess in (peak, 0.1 * peak):
         try:

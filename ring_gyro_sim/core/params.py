@@ -67,6 +67,7 @@ from dataclasses import dataclass, field, fields
 import math
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
+import numpy as np
 from ring_gyro_sim.core import structure
 from ring_gyro_sim.core.errors import ParameterError
 import scipy.constants
@@ -225,6 +226,13 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               'Q of the companions (empty = same as modes.quality_factors)',
               minimum=0.5, open_minimum=True, range_note='underdamped modes only',
               read_only=False),
+    ParamSpec('modes.frequency_axes', 'modes.frequency_axes', 'float_list', [], 'deg',
+              'per mode: ring angle of the principal axis whose frequency is '
+              'modes.frequencies[n]; the companion frequency lies 90/n deg further on '
+              '(empty = all 0: the axes on the electrodes)'),
+    ParamSpec('modes.damping_axes', 'modes.damping_axes', 'float_list', [], 'deg',
+              'per mode: ring angle of the principal axis whose Q is modes.quality_factors[n]; '
+              'the companion Q lies 90/n deg further on (empty = all 0)'),
     ParamSpec('ring.radius', 'ring.radius', 'float', 1.5e-3, 'm', 'mean ring radius r',
               **_POSITIVE),
     ParamSpec('ring.thickness', 'ring.thickness', 'float', 18e-6, 'm', 'radial thickness h',
@@ -589,6 +597,8 @@ class ModeParams:
     companions: bool
     companion_frequencies: Tuple[float, ...]
     companion_quality_factors: Tuple[float, ...]
+    frequency_axes: Tuple[float, ...]
+    damping_axes: Tuple[float, ...]
 
     def _check(self) -> None:
         n = len(self.frequencies)
@@ -599,7 +609,9 @@ class ModeParams:
         for name, values in (('modes.quality_factors', self.quality_factors),
                              ('modes.companion_frequencies', self.companion_frequencies),
                              ('modes.companion_quality_factors',
-                              self.companion_quality_factors)):
+                              self.companion_quality_factors),
+                             ('modes.frequency_axes', self.frequency_axes),
+                             ('modes.damping_axes', self.damping_axes)):
             if (values or name == 'modes.quality_factors') and len(values) != n:
                 raise _fail(name, f'has {len(values)} values but modes.frequencies has {n}')
 
@@ -608,19 +620,80 @@ class ModeParams:
         """Ritz order N_R."""
         return len(self.frequencies)
 
-    def coordinate_frequencies(self) -> List[float]:
-        """Frequency (Hz) of every simulated coordinate, cos modes then companions."""
+    def principal_frequencies(self) -> List[float]:
+        """Principal frequency (Hz) of every coordinate as given, cos modes then companions."""
         f = list(self.frequencies)
         if self.companions:
             f += list(self.companion_frequencies or self.frequencies)
         return f
 
-    def coordinate_quality_factors(self) -> List[float]:
-        """Q of every simulated coordinate, cos modes then companions."""
+    def principal_quality_factors(self) -> List[float]:
+        """Principal Q of every coordinate as given, cos modes then companions."""
         q = list(self.quality_factors)
         if self.companions:
             q += list(self.companion_quality_factors or self.quality_factors)
         return q
+
+    def coordinate_frequencies(self) -> List[float]:
+        """
+        Frequency (Hz) of every simulated coordinate, cos modes then companions.
+
+        Each coordinate's own stiffness: the principal values, except in a pair whose axes
+        are off the electrodes (``coupled_pairs``), where it is the diagonal of the pair's
+        stiffness (P2), ``sqrt(K_ii) / 2 pi``.
+        """
+        f = self.principal_frequencies()
+        for n in self.coupled_pairs():
+            stiffness, _ = self.pair_matrices(n)
+            f[n - 1] = math.sqrt(stiffness[0, 0]) / (2.0 * math.pi)
+            f[self.count + n - 1] = math.sqrt(stiffness[1, 1]) / (2.0 * math.pi)
+        return f
+
+    def coordinate_quality_factors(self) -> List[float]:
+        """
+        Q of every simulated coordinate, cos modes then companions.
+
+        The principal values, except in a coupled pair (``coupled_pairs``), where it is
+        ``sqrt(K_ii) / C_ii`` of the pair's diagonal (P2, P3).
+        """
+        q = self.principal_quality_factors()
+        for n in self.coupled_pairs():
+            stiffness, damping = self.pair_matrices(n)
+            q[n - 1] = math.sqrt(stiffness[0, 0]) / damping[0, 0]
+            q[self.count + n - 1] = math.sqrt(stiffness[1, 1]) / damping[1, 1]
+        return q
+
+    def pair_matrices(self, n: int) -> Tuple[np.ndarray, np.ndarray]:
+        """
+        ``(K, C)`` of the n-theta pair per unit modal mass, (rad/s)^2 and 1/s, 2x2.
+
+        ``structure.pair_matrices`` with the principal values and axes of mode ``n``
+        (1-based); needs the companions.
+        """
+        i = n - 1
+        f = self.principal_frequencies()
+        q = self.principal_quality_factors()
+        m = self.count
+        return structure.pair_matrices(
+            n, 2.0 * math.pi * f[i], 2.0 * math.pi * f[m + i], q[i], q[m + i],
+            self.frequency_axes[i] if self.frequency_axes else 0.0,
+            self.damping_axes[i] if self.damping_axes else 0.0)
+
+    def coupled_pairs(self) -> List[int]:
+        """
+        Return the n of every pair whose stiffness or damping couples its coordinates.
+
+        Those whose principal axes are off the electrodes (``modes.frequency_axes``,
+        ``modes.damping_axes``) with unequal principal values; none without companions.
+        """
+        if not self.companions:
+            return []
+        out = []
+        for n in range(1, self.count + 1):
+            k, c = self.pair_matrices(n)
+            if k[0, 1] != 0.0 or c[0, 1] != 0.0:
+                out.append(n)
+        return out
 
 
 @_parameter_group('electrodes')

@@ -319,16 +319,32 @@ class Simulator:
         self.n_sub = max(1, int(math.ceil(self.period_s / h_max - 1e-9)))
         self.h = self.period_s / self.n_sub
         self._a, self._b = kernels.splitting_coefficients(config.integrator.method)
+        n = self.model.n_coordinates
+        # Imperfect pairs (principal axes off the electrodes, core.structure.pair_matrices)
+        # couple their two coordinates linearly: their exact flow is the pair's 4x4
+        # (core.kernels.drift), the per-coordinate flows of those coordinates the identity.
+        m = config.modes.count
+        self.coupled_pairs = config.modes.coupled_pairs()
+        pairs = np.array([(k - 1, m + k - 1) for k in self.coupled_pairs],
+                         dtype=np.int64).reshape(-1, 2)
+        coupled = np.zeros(n, dtype=np.bool_)
+        coupled[pairs.ravel()] = True
+        self._pair_matrices = [config.modes.pair_matrices(k) for k in self.coupled_pairs]
+        systems = np.array([kernels.pair_system(k, c) for k, c in self._pair_matrices],
+                           dtype=np.float64).reshape(-1, 16)
         prop = kernels.linear_propagators(self.omega, self.zeta, self._a * self.h)
+        prop[:, coupled] = (1.0, 0.0, 0.0, 1.0)
+        pair_prop = kernels.pair_propagators(systems, self._a * self.h)
         self._method = kernels.Method(period_s=self.period_s, n_sub=self.n_sub, h=self.h,
                                       a=self._a, b=self._b, prop=prop, omega=self.omega,
-                                      zeta=self.zeta)
-        n = self.model.n_coordinates
+                                      zeta=self.zeta, coupled=coupled, pairs=pairs,
+                                      pair_prop=pair_prop, pair_system=systems)
         self._scratch = kernels.Scratch(
             work=np.empty(forces.scratch_size(self.model)), fe=np.empty(n),
             info=np.zeros(2, dtype=np.int64), tinfo=np.zeros(1),
             cuts=np.empty(2 * _CUTS_PULSES + 2), rot=np.empty((self._b.size, 2)),
             rot_sub=np.empty((self._b.size, 2)), prop_sub=np.empty_like(prop),
+            pair_prop_sub=np.empty_like(pair_prop), pair_work=np.empty(32),
             # one row of the rotating kick's coefficients per gyroscopic pair (at most one
             # per mode, _build_rotation: kernels index it unchecked)
             turn=np.empty((self._b.size, config.modes.count, 4)), turn_key=np.full(2, np.nan))
@@ -363,6 +379,15 @@ class Simulator:
                                     / (masses * np.asarray(
                                         config.modes.coordinate_quality_factors())))
         self._noise_seed = int(config.gyro.noise_seed)
+        # A coupled pair's damping C is a full 2x2 (structure.pair_matrices, P3): its force
+        # noise has the covariance 2 k_B T h C / m per step (fluctuation-dissipation), the
+        # pair's unit normals mixed by a Cholesky factor of it.
+        self._noise_mix = []
+        for (c, s_), (_, damping) in zip(self._method.pairs, self._pair_matrices):
+            if temp > 0.0:
+                scale = 2.0 * BOLTZMANN * temp * self.h / masses[c]
+                self._noise_mix.append((c, s_, np.linalg.cholesky(scale * damping)))
+                self._noise_sigma[[c, s_]] = math.sqrt(scale * np.trace(damping))
 
     def _build_outputs(self, config: SimConfig) -> None:
         e = config.electrodes
@@ -757,9 +782,8 @@ class Simulator:
             first = self.sample_index
             noise_part = None
             if force_noise is not None:
-                noise_part = np.ascontiguousarray(
-                    force_noise[done * self.n_sub:(done + stop) * self.n_sub]
-                    * self._noise_sigma[None, :])
+                noise_part = self._scaled_noise(
+                    force_noise[done * self.n_sub:(done + stop) * self.n_sub])
             self._integrate(stop, out_q[done:done + stop], out_v[done:done + stop],
                             noise_part)
             if channels is not None and stop > 0:
@@ -867,7 +891,21 @@ class Simulator:
         z = self._unit_force_noise(count)
         if z is None:
             return _NO_NOISE
-        return np.ascontiguousarray(z * self._noise_sigma[None, :])
+        return self._scaled_noise(z)
+
+    def _scaled_noise(self, z: np.ndarray) -> np.ndarray:
+        """
+        Return the velocity impulses (m/s) of unit normals ``z`` (rows: steps).
+
+        Each coordinate's normal times its level; a coupled pair's two normals mixed by the
+        Cholesky factor of its noise covariance (``_build_rotation``).
+        """
+        out = np.ascontiguousarray(z * self._noise_sigma[None, :])
+        for c, s_, factor in self._noise_mix:
+            pair = z[:, [c, s_]] @ factor.T
+            out[:, c] = pair[:, 0]
+            out[:, s_] = pair[:, 1]
+        return out
 
     def _unit_force_noise(self, count: int) -> Optional[np.ndarray]:
         """Return the force noise's standard normals, shape (count n_sub, n); None: no noise."""

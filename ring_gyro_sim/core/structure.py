@@ -57,7 +57,7 @@ __all__ = ['ring_mass', 'second_moment_of_area', 'modal_mass_factor', 'gyroscopi
            'bryan_factor', 'mode_indices',
            'ring_mass_matrix', 'ring_stiffness_matrix', 'leg_stiffness_matrix',
            'leg_stiffness_matrix_closed_form', 'leg_mass_matrix', 'couples_different_modes',
-           'coupling_pattern', 'natural_frequencies_hz']
+           'coupling_pattern', 'natural_frequencies_hz', 'pair_matrices']
 
 # Entries smaller than this fraction of the largest |entry| count as zero (round-off of sums).
 _RELATIVE_ZERO = 1e-12
@@ -717,3 +717,69 @@ def natural_frequencies_hz(
     # K is positive semi-definite by construction: clip round-off below zero (free n = 1 mode).
     omega_sq = np.clip(omega_sq, 0.0, None)
     return np.sqrt(omega_sq) / (2.0 * math.pi)
+
+
+def pair_matrices(n, omega_x, omega_y, q_x, q_y, frequency_axis_deg=0.0, damping_axis_deg=0.0):
+    r"""
+    Stiffness and damping of an imperfect mode pair, per unit modal mass (P1-P4).
+
+    A ring whose mass or stiffness is not uniform (etching, anchors) has, for each n-theta
+    pair, two orthogonal principal axes of stiffness and two of damping, which need not
+    coincide with the electrodes (theta = 0) nor with each other.
+
+    (P1) A principal axis at ring angle ``theta_0``: the radial pattern
+    ``w = a cos(n (theta - theta_0))`` is, in the pair's coordinates of eq. (2),
+    ``q_n = a cos(n theta_0)``, ``q_n^s = a sin(n theta_0)``: the modal direction
+    ``e(theta_0) = (cos n theta_0, sin n theta_0)``. The axis 90/n deg further on the ring is
+    ``(-sin n theta_0, cos n theta_0)``, orthogonal in modal space.
+
+    (P2) With ``omega_x`` along ``e(theta_w)`` and ``omega_y`` 90/n deg further on, the
+    stiffness per unit modal mass (both coordinates of a pair have the same modal mass,
+    eq. 7) is ``K = R(n theta_w) diag(omega_x^2, omega_y^2) R(n theta_w)^T``,
+    ``R(phi) = [[cos phi, -sin phi], [sin phi, cos phi]]``::
+
+        K_cc = (w_x^2 + w_y^2)/2 + (w_x^2 - w_y^2)/2 cos(2 n theta_w)
+        K_ss = (w_x^2 + w_y^2)/2 - (w_x^2 - w_y^2)/2 cos(2 n theta_w)
+        K_cs = K_sc = (w_x^2 - w_y^2)/2 sin(2 n theta_w)                              (P2)
+
+    (P3) Likewise the damping, ``C = R(n theta_t) diag(c_x, c_y) R(n theta_t)^T`` with
+    ``c = omega / Q`` (the ``2 zeta omega`` of eq. 28): ``c_x = omega_x / Q_x``,
+    ``c_y = omega_y / Q_y``, ``C_cs = (c_x - c_y)/2 sin(2 n theta_t)``.
+
+    (P4) Axes at 0 (or 90/n deg with the values swapped) give diagonal matrices: the
+    coordinates of eq. (2) with their own frequencies and Q, as without imperfection; an
+    isotropic pair (equal values) has no principal axis at all. The open-loop consequences
+    (doc/imperfections.md): with the drive ``q_n = X sin(omega t)`` at match, the sense
+    coordinate is forced by ``-(2 kappa Omega + C_sc) q_n' - K_sc q_n``: the damping term
+    acts as a rate ``C_sc / (2 kappa)`` (a zero-rate output, in phase with the Coriolis
+    force) and the stiffness term, 90 deg from it, as a quadrature ``K_sc / (2 kappa omega)``
+    in rate units.
+
+    Parameters
+    ----------
+    n : int
+        n of the n-theta pair.
+    omega_x, omega_y : float
+        Principal angular frequencies, rad/s (``modes.frequencies``,
+        ``modes.companion_frequencies``).
+    q_x, q_y : float
+        Principal quality factors (``modes.quality_factors``,
+        ``modes.companion_quality_factors``).
+    frequency_axis_deg, damping_axis_deg : float
+        Ring angles ``theta_w``, ``theta_t`` of the axes of ``omega_x`` and ``q_x``, deg.
+
+    Returns
+    -------
+    (ndarray, ndarray)
+        ``K`` ((rad/s)^2) and ``C`` (1/s), each 2x2 over ``(q_n, q_n^s)``.
+
+    """
+    def rotated(x, y, axis_deg):
+        phi = n * math.radians(axis_deg)
+        c, s = math.cos(phi), math.sin(phi)
+        rot = np.array([[c, -s], [s, c]])
+        return rot @ np.diag([x, y]) @ rot.T
+
+    stiffness = rotated(omega_x * omega_x, omega_y * omega_y, frequency_axis_deg)
+    damping = rotated(omega_x / q_x, omega_y / q_y, damping_axis_deg)
+    return stiffness, damping

@@ -407,3 +407,25 @@ def test_numpy_integers_are_accepted():
         structure.leg_mass_matrix(np.int64(3), np.int32(8), 0.1, 1e-9),
         structure.leg_mass_matrix(3, 8, 0.1, 1e-9),
     )
+
+
+# ----------------------------------------------------------------------------- imperfect pairs
+def test_pair_matrices_follow_their_principal_axes():
+    n, wx, wy, qx, qy = 2, 2 * math.pi * 15800.0, 2 * math.pi * 15801.0, 6e4, 5e4
+    k, c = structure.pair_matrices(n, wx, wy, qx, qy, 10.0, 22.5)
+    # (P2) eigenvectors along (cos n theta, sin n theta), eigenvalues the principal values
+    for matrix, values, axis in ((k, (wx * wx, wy * wy), 10.0), (c, (wx / qx, wy / qy), 22.5)):
+        phi = n * math.radians(axis)
+        ex = np.array([math.cos(phi), math.sin(phi)])
+        ey = np.array([-math.sin(phi), math.cos(phi)])
+        np.testing.assert_allclose(matrix @ ex, values[0] * ex, rtol=1e-13)
+        np.testing.assert_allclose(matrix @ ey, values[1] * ey, rtol=1e-13)
+    assert k[0, 1] == pytest.approx((wx * wx - wy * wy) / 2 * math.sin(4 * math.radians(10.0)))
+    assert c[0, 1] == pytest.approx((wx / qx - wy / qy) / 2 * math.sin(4 * math.radians(22.5)))
+    # (P4) axes turned by 90/n deg with the principal values swapped: the same pair
+    k2, c2 = structure.pair_matrices(n, wy, wx, qy, qx, 10.0 + 45.0, 22.5 + 45.0)
+    np.testing.assert_allclose(k2, k, rtol=1e-12)
+    np.testing.assert_allclose(c2, c, rtol=1e-12)
+    # axes at 0: diagonal, exactly the coordinates' own values
+    k0, c0 = structure.pair_matrices(n, wx, wy, qx, qy)
+    assert k0[0, 1] == c0[0, 1] == 0.0 and k0[0, 0] == wx * wx and c0[1, 1] == wy / qy

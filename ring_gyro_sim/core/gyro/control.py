@@ -271,8 +271,8 @@ class DriveLoop:
 
     def linear_amplitude(self) -> float:
         """Return the drive mode's linear response to ``drive.amplitude`` at resonance, m."""
-        f2 = 2.0 * math.pi * self.config.modes.frequencies[1]
-        q2 = self.config.modes.quality_factors[1]
+        f2 = 2.0 * math.pi * self.config.modes.coordinate_frequencies()[1]
+        q2 = self.config.modes.coordinate_quality_factors()[1]
         return abs(self.config.drive.amplitude) * q2 / (f2 * f2)
 
     def start(self, q: np.ndarray, v: np.ndarray, rate: float) -> float:
@@ -301,8 +301,19 @@ class DriveLoop:
         self.amplitude = self.setpoint_m
         if self.rebalance:
             self.rb_integral[:] = (2.0 * KAPPA_2 * rate * w * self.setpoint_m, 0.0)
+            if 2 in self.config.modes.coupled_pairs():
+                # An imperfect pair forces the sense mode with -K_sc q2 - C_sc q2' too
+                # (structure.pair_matrices): q2 = X sin(phi) needs S_s = K_sc X, and
+                # C_sc w X more of S_c.
+                stiffness, damping = self.config.modes.pair_matrices(2)
+                self.rb_integral[0] += damping[1, 0] * w * self.setpoint_m
+                self.rb_integral[1] += stiffness[1, 0] * self.setpoint_m
             self.rebalance_force[:] = self.rb_integral
             self.rebalance_rate = float(rate)
+            scale = 2.0 * KAPPA_2 * w * self.setpoint_m
+            if 2 in self.config.modes.coupled_pairs() and scale > 0.0:
+                self.rebalance_rate = float(self.rb_integral[0] / scale)
+                self.rebalance_quadrature = float(self.rb_integral[1] / scale)
         return phase
 
     def commands(self) -> Tuple[float, float, float, float]:

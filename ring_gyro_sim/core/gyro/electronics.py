@@ -403,6 +403,26 @@ class FlickerNoise:
         return out
 
 
+def sense_mode(config: SimConfig, linear_stiffness: float) -> Tuple[float, float]:
+    """
+    Return the sense coordinate's ``(omega_s rad/s, Q_s)`` (E5), less ``linear_stiffness``.
+
+    ``omega_s^2 = K_ss - J_ss``: the coordinate's own stiffness per unit modal mass less the
+    linear electrostatic stiffness at rest (``linear_stiffness``, (rad/s)^2; 0 with the
+    default fold). ``K_ss`` is ``(2 pi f_2^s)^2`` of ``modes.companion_frequencies``, and
+    with an imperfect 2theta pair (principal axes off the electrodes) the pair's diagonal
+    (``structure.pair_matrices``, P2); ``Q_s`` likewise ``omega_s / C_ss``.
+    """
+    m = config.modes.count
+    if 2 in config.modes.coupled_pairs():
+        stiffness, damping = config.modes.pair_matrices(2)
+        ws = math.sqrt(stiffness[1, 1] - linear_stiffness)
+        return ws, ws / damping[1, 1]
+    ws = math.sqrt((2.0 * math.pi * config.modes.coordinate_frequencies()[m + 1]) ** 2
+                   - linear_stiffness)
+    return ws, float(config.modes.coordinate_quality_factors()[m + 1])
+
+
 def orbit_sense_response(config: SimConfig, model, drive_amplitude_m: float) -> complex:
     """
     Return c of (E6b): the sense coordinate's steady response per unit rate, m per rad/s.
@@ -425,8 +445,7 @@ def orbit_sense_response(config: SimConfig, model, drive_amplitude_m: float) -> 
     drive, sense = 1, m + 1
     zero = np.zeros(n)
     j_rest = forces.jacobian(zero, model)[sense, sense]
-    ws = math.sqrt((2.0 * math.pi * config.modes.coordinate_frequencies()[sense]) ** 2 - j_rest)
-    qs = float(config.modes.coordinate_quality_factors()[sense])
+    ws, qs = sense_mode(config, j_rest)
     w = 2.0 * math.pi * float(config.drive.frequency)
     amp, kap = float(drive_amplitude_m), KAPPA_2
     psi = 2.0 * math.pi * np.arange(ORBIT_PHASES) / ORBIT_PHASES
@@ -608,12 +627,9 @@ class SenseElectronics:
         n_coord = sim.model.n_coordinates
         zero = np.zeros(n_coord)
         # (E5, E6) the sense mode's response
-        f_s = config.modes.coordinate_frequencies()[self.sense_index]
-        self.sense_quality_factor = float(
-            config.modes.coordinate_quality_factors()[self.sense_index])
         jac = forces.jacobian(zero, sim.model)
-        self.sense_omega = math.sqrt((2.0 * math.pi * f_s) ** 2
-                                     - jac[self.sense_index, self.sense_index])
+        self.sense_omega, self.sense_quality_factor = sense_mode(
+            config, jac[self.sense_index, self.sense_index])
         self.drive_omega = 2.0 * math.pi * float(config.drive.frequency)
         self.sense_mass = float(config.modal_masses()[self.sense_index])
         w, ws, qs = self.drive_omega, self.sense_omega, self.sense_quality_factor

@@ -209,8 +209,19 @@ def forced_orbit(config: SimConfig, frequency_hz: float, amplitude_guess_m: floa
 
 
 def cos_only(config: SimConfig) -> SimConfig:
-    """Return the resonator of the cos coordinates: no companions, rotation, loops or shocks."""
-    return replace(config, modes=replace(config.modes, companions=False),
+    """
+    Return the resonator of the cos coordinates: no companions, rotation, loops or shocks.
+
+    Each cos coordinate keeps its own frequency and Q (``coordinate_frequencies``: in an
+    imperfect pair the diagonal of its matrices, P2, P3), its coupling to the companion is
+    dropped with the companion.
+    """
+    m = config.modes.count
+    modes = replace(config.modes, companions=False,
+                    frequencies=tuple(config.modes.coordinate_frequencies()[:m]),
+                    quality_factors=tuple(config.modes.coordinate_quality_factors()[:m]),
+                    frequency_axes=(), damping_axes=())
+    return replace(config, modes=modes,
                    gyro=replace(config.gyro, enabled=False),
                    control=replace(config.control, drive_loop='open', rebalance=False),
                    run=replace(config.run, shock_times=(), shock_peaks=(), shock_angles=(),
@@ -260,9 +271,9 @@ def drive_orbit(config: SimConfig):
     d = config.drive
     if d.start_on == 'rest' or d.amplitude == 0.0 or d.frequency == 0.0:
         return None
-    w2 = 2.0 * math.pi * config.modes.frequencies[1]
+    w2 = 2.0 * math.pi * config.modes.coordinate_frequencies()[1]
     w = 2.0 * math.pi * d.frequency
-    peak = abs(d.amplitude) * config.modes.quality_factors[1] / (w * w2)
+    peak = abs(d.amplitude) * config.modes.coordinate_quality_factors()[1] / (w * w2)
     guess = peak if d.start_on == 'upper_branch' else 0.1 * peak
     orbit = forced_orbit(config, d.frequency, guess, d.amplitude)
     if not orbit.branch_stable:
@@ -315,6 +326,9 @@ def _add_sense_response(config: SimConfig, x: np.ndarray, v: np.ndarray) -> None
 
     (matched modes at resonance: ``S / C = -2 kappa Omega_0 Q / w`` and the drive amplitude
     falls by ``1 / (1 + (2 kappa Omega_0 Q / w)^2)``: 3.2 % at 10 deg/s for the default Q).
+    An imperfect pair (``structure.pair_matrices``) adds its linear coupling
+    ``a_sc = K_sc + i w C_sc`` (and ``a_cs``): ``D C + (a_cs - i g) S = F``,
+    ``(a_sc + i g) C + D_s S = 0`` with ``D_s`` of the pair's diagonal, also at zero rate.
     S itself is taken about the drive orbit (``electronics.orbit_sense_response``: the
     linear S above with the sense mode softened and pumped by the drive's amplitude).
     The other coordinates keep the orbit's values; what remains is a transient of the order
@@ -324,7 +338,8 @@ def _add_sense_response(config: SimConfig, x: np.ndarray, v: np.ndarray) -> None
     # The rate at t = 0 (after a step at 0): the last knot at 0, else 0 before a later knot.
     at_zero = [w for t, w in zip(times, rates) if t == 0.0]
     rate0 = at_zero[-1] if at_zero else 0.0
-    if rate0 == 0.0 or config.modes.count < 2 or config.drive.amplitude == 0.0:
+    coupled = 2 in config.modes.coupled_pairs()
+    if (rate0 == 0.0 and not coupled) or config.modes.count < 2 or config.drive.amplitude == 0.0:
         return
     m = config.modes.count
     w = 2.0 * math.pi * config.drive.frequency
@@ -335,18 +350,31 @@ def _add_sense_response(config: SimConfig, x: np.ndarray, v: np.ndarray) -> None
         config = replace(config, drive=replace(config.drive, frequency=lock_frequency(
             config, abs(c0))))
         w = 2.0 * math.pi * config.drive.frequency
-    f = config.modes.coordinate_frequencies()
-    qf = config.modes.coordinate_quality_factors()
-    ws, qs = 2.0 * math.pi * f[m + 1], qf[m + 1]
     d = config.drive.amplitude / c0
-    d_s = ws * ws - w * w + 1j * w * ws / qs
     g = 2.0 * structure.gyroscopic_coefficient(2) * rate0 * w
-    c = c0 if config.control.closed else config.drive.amplitude / (d - g * g / d_s)
+    if coupled:
+        # An imperfect pair (structure.pair_matrices) couples its coordinates linearly too:
+        # rows c and s of [K - w^2 + i w (C + G)] X = F e_c, G the Coriolis terms.
+        stiffness, damping = config.modes.pair_matrices(2)
+        d_s = stiffness[1, 1] - w * w + 1j * w * damping[1, 1]
+        a_sc = stiffness[1, 0] + 1j * w * damping[1, 0]
+        a_cs = stiffness[0, 1] + 1j * w * damping[0, 1]
+    else:
+        f = config.modes.coordinate_frequencies()
+        qf = config.modes.coordinate_quality_factors()
+        ws, qs = 2.0 * math.pi * f[m + 1], qf[m + 1]
+        d_s = ws * ws - w * w + 1j * w * ws / qs
+        a_sc = a_cs = 0.0
+    c = c0 if config.control.closed else config.drive.amplitude / (
+        d - (a_cs - 1j * g) * (a_sc + 1j * g) / d_s)
     # The sense response about the drive orbit (electronics.orbit_sense_response: the sense
-    # mode softened and pumped by the drive's amplitude), per unit rate and drive phase.
-    per_rate = electronics.orbit_sense_response(config, forces.build_force_model(config),
-                                                abs(c))
-    s = rate0 * per_rate * c / abs(c)
+    # mode softened and pumped by the drive's amplitude), per unit rate and drive phase, and
+    # the pair's linear response to its own coupling.
+    s = -a_sc * c / d_s
+    if rate0 != 0.0:
+        per_rate = electronics.orbit_sense_response(config, forces.build_force_model(config),
+                                                    abs(c))
+        s += rate0 * per_rate * c / abs(c)
     x[1] += (c - c0).real
     v[1] += (1j * w * (c - c0)).real
     x[m + 1] += s.real
@@ -436,7 +464,7 @@ def drive_operating_point(config: SimConfig, state: Optional[State]) -> Tuple[fl
         c = complex(float(q[1]), -float(v[1]) / w)
         if abs(c) > 0.0:
             return abs(c), math.atan2(c.imag, c.real)
-    f2 = 2.0 * math.pi * config.modes.frequencies[1]
-    q2 = config.modes.quality_factors[1]
+    f2 = 2.0 * math.pi * config.modes.coordinate_frequencies()[1]
+    q2 = config.modes.coordinate_quality_factors()[1]
     c = config.drive.amplitude / complex(f2 * f2 - w * w, w * f2 / q2)
     return abs(c), math.atan2(c.imag, c.real)

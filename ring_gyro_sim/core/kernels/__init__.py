@@ -138,7 +138,8 @@ angles vectorise. The measured costs, and what was tried and not kept, are in
 """
 
 from ring_gyro_sim.core.kernels.channels import Channels, output_channels, OutputGeometry
-from ring_gyro_sim.core.kernels.drift import linear_propagators
+from ring_gyro_sim.core.kernels.drift import (linear_propagators, pair_propagators,
+                                              pair_system)
 from ring_gyro_sim.core.kernels.force import (estrin_layout, ESTRIN_MAX_SLOTS, Force,
                                               member_basis, NEEDS_GENERAL, nl_accel,
                                               orbit_angle)
@@ -153,6 +154,7 @@ from ring_gyro_sim.core.kernels.step import run_samples, Scratch
 __all__ = ['STATUS_OK', 'STATUS_OUTER_CONTACT', 'STATUS_INNER_CONTACT', 'STATUS_SERIES_RANGE',
            'STATUS_NONFINITE', 'NEEDS_GENERAL', 'Force', 'Drive', 'Forcing', 'Method', 'Scratch',
            'ESTRIN_MAX_SLOTS', 'estrin_layout', 'orbit_angle', 'describe_status',
-           'splitting_coefficients', 'linear_propagators', 'member_basis', 'nl_accel',
+           'splitting_coefficients', 'linear_propagators', 'pair_propagators', 'pair_system',
+           'member_basis', 'nl_accel',
            'drive_phasor', 'run_samples', 'OutputGeometry', 'Channels', 'output_channels',
            'pickoff_volts', 'iq_fit']

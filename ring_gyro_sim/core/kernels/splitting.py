@@ -47,6 +47,14 @@ class Method(NamedTuple):
         Exact linear flows of the drifts ``a h`` (:func:`drift.linear_propagators`).
     omega, zeta : ndarray, shape (n,)
         Natural angular frequencies (rad/s) and damping ratios, for the sub-steps' flows.
+    coupled : ndarray of bool, shape (n,)
+        The coordinates of coupled pairs (their flow is the pair's).
+    pairs : ndarray of int64, shape (p, 2)
+        The coupled pairs' coordinates ``(c, s)`` (``drift`` module docstring); (0, 2): none.
+    pair_prop : ndarray, shape (s, p, 16)
+        Their exact 4x4 flows over the drifts ``a h`` (:func:`drift.pair_propagators`).
+    pair_system : ndarray, shape (p, 16)
+        Their ``A`` (:func:`drift.pair_system`), for the sub-steps' flows.
 
     """
 
@@ -58,6 +66,10 @@ class Method(NamedTuple):
     prop: np.ndarray
     omega: np.ndarray
     zeta: np.ndarray
+    coupled: np.ndarray
+    pairs: np.ndarray
+    pair_prop: np.ndarray
+    pair_system: np.ndarray
 
 
 def splitting_coefficients(method: str):

@@ -28,7 +28,8 @@ from typing import NamedTuple
 from numba import njit
 import numpy as np
 
-from ring_gyro_sim.core.kernels.drift import _drift, _fill_propagators, _kick_drift
+from ring_gyro_sim.core.kernels.drift import (_drift, _fill_pair_propagators, _fill_propagators,
+                                              _kick_drift, _pair_drift)
 from ring_gyro_sim.core.kernels.force import _force_any
 from ring_gyro_sim.core.kernels.forcing import (_external, _profile_accel, _rate_at,
                                                 _stage_rotations, _step_phasors)
@@ -57,6 +58,10 @@ class Scratch(NamedTuple):
         (:func:`forcing._stage_rotations`).
     prop_sub : ndarray, shape (s, n, 4)
         Propagators of a sub-step.
+    pair_prop_sub : ndarray, shape (s, p, 16)
+        The coupled pairs' propagators of a sub-step.
+    pair_work : ndarray, shape (32,)
+        Scratch of the pairs' in-kernel exponentials.
     turn : ndarray, shape (s + 1, >= P, 4)
         The rotating kick's coefficients (dimensionless) per kick and gyroscopic pair (P
         pairs, ``Forcing.kappa``; :func:`_turn_coefficients`), for ``turn_key``.
@@ -74,6 +79,8 @@ class Scratch(NamedTuple):
     rot: np.ndarray
     rot_sub: np.ndarray
     prop_sub: np.ndarray
+    pair_prop_sub: np.ndarray
+    pair_work: np.ndarray
     turn: np.ndarray
     turn_key: np.ndarray
 
@@ -93,6 +100,9 @@ class Span(NamedTuple):
         ``Scratch.prop_sub`` for a sub-step).
     rot : ndarray, shape (s + 1, 2)
         The drive rotations of its stages (``Scratch.rot`` or ``Scratch.rot_sub``).
+    pair_prop : ndarray, shape (s, p, 16)
+        The coupled pairs' flows for this length (``Method.pair_prop``, or
+        ``Scratch.pair_prop_sub``).
 
     """
 
@@ -100,6 +110,7 @@ class Span(NamedTuple):
     h: float
     prop: np.ndarray
     rot: np.ndarray
+    pair_prop: np.ndarray
 
 
 @njit(cache=True, inline='always')
@@ -220,6 +231,7 @@ def _step(q, v, acc, span, method, force, drive, forcing, scratch):
             _drift(q, v, prop, i)
         else:
             _kick_drift(q, v, acc, fe, b[i] * hs, prop, i)
+        _pair_drift(q, v, span.pair_prop, method.pairs, i)
         tt += hs * a[i]
         # nl_accel written out: its fallback is called from here, not from an inlined
         # function (see _force).
@@ -340,6 +352,7 @@ def run_samples(q, v, acc, k0, n_samples, method, force, drive, forcing, scratch
                 m = 1
                 hs = h
                 prop = method.prop
+                pair_prop = method.pair_prop
                 rot = scratch.rot
                 if active:
                     length = cuts[g + 1] - cuts[g]
@@ -348,12 +361,16 @@ def run_samples(q, v, acc, k0, n_samples, method, force, drive, forcing, scratch
                     m = max(1, int(math.ceil(length / forcing.pulse_max_sub - 1e-9)))
                     hs = length / m
                     _fill_propagators(method.omega, method.zeta, method.a, hs,
-                                      scratch.prop_sub)
+                                      scratch.prop_sub, method.coupled)
+                    _fill_pair_propagators(method.pair_system, method.a, hs,
+                                           scratch.pair_prop_sub, scratch.pair_work)
                     _stage_rotations(method.a, hs, drive.omega, scratch.rot_sub)
                     prop = scratch.prop_sub
+                    pair_prop = scratch.pair_prop_sub
                     rot = scratch.rot_sub
                 for r in range(m):
-                    span = Span(t=cuts[g] + r * hs, h=hs, prop=prop, rot=rot)
+                    span = Span(t=cuts[g] + r * hs, h=hs, prop=prop, rot=rot,
+                                pair_prop=pair_prop)
                     if not _step(q, v, acc, span, method, force, drive, forcing, scratch):
                         return s
         for c in range(q.size):

@@ -53,7 +53,7 @@ def test_the_in_kernel_propagators_are_those_of_the_set_up():
     a = np.array([0.3, -0.1, 0.8])
     tau = 4e-6
     prop = np.empty((a.size, OMEGA.size, 4))
-    _fill_propagators(OMEGA, ZETA, a, tau, prop)
+    _fill_propagators(OMEGA, ZETA, a, tau, prop, np.zeros(OMEGA.size, dtype=np.bool_))
     expected = linear_propagators(OMEGA, ZETA, a * tau)
     for i in range(a.size):
         for c, w in enumerate(OMEGA):
@@ -80,3 +80,34 @@ def test_drift_and_fused_kick_drift_apply_the_flow(i):
     kicked = v0 + kick * (acc + fe)
     np.testing.assert_allclose(q, xx * q0 + xv * kicked, rtol=1e-13, atol=0.0)
     np.testing.assert_allclose(v, vx * q0 + vv * kicked, rtol=1e-13, atol=0.0)
+
+
+def test_a_coupled_pairs_flow_is_the_exponential_of_its_system():
+    from scipy.linalg import expm
+    from ring_gyro_sim.core.kernels.drift import (_expm4, _fill_pair_propagators,
+                                                  _pair_drift, pair_propagators, pair_system)
+    w = 2 * np.pi * 15800.0
+    stiffness = np.array([[w * w, 3e5], [3e5, w * w * 1.0001]])
+    damping = np.array([[w / 6e4, 0.02], [0.02, w / 5e4]])
+    system = pair_system(stiffness, damping)
+    taus = np.array([4e-6, -1.3e-6, 7.7e-6])
+    flows = pair_propagators(system[None, :], taus)
+    for k, tau in enumerate(taus):
+        exact = expm(system.reshape(4, 4) * tau)
+        out, work = np.empty(16), np.empty(32)
+        _expm4(system, tau, out, work)  # the kernel's own, for sub-steps
+        np.testing.assert_allclose(out.reshape(4, 4), exact, rtol=1e-12, atol=1e-12 * abs(tau))
+        np.testing.assert_allclose(flows[k, 0].reshape(4, 4), exact, rtol=1e-14)
+    inside = np.empty((taus.size, 1, 16))
+    _fill_pair_propagators(system[None, :], np.array([1.0, -0.325, 1.925]), 4e-6, inside,
+                           np.empty(32))
+    np.testing.assert_allclose(inside, flows, rtol=1e-12, atol=1e-18)
+    # applied to (q_c, q_s, v_c, v_s) of coordinates 1 and 4 of five, the others untouched
+    q = np.arange(5.0) * 1e-7
+    v = np.arange(5.0) * 1e-3
+    before_q, before_v = q.copy(), v.copy()
+    _pair_drift(q, v, flows, np.array([[1, 4]]), 0)
+    state = flows[0, 0].reshape(4, 4) @ np.array([before_q[1], before_q[4], before_v[1],
+                                                  before_v[4]])
+    np.testing.assert_allclose([q[1], q[4], v[1], v[4]], state, rtol=1e-15)
+    assert np.array_equal(q[[0, 2, 3]], before_q[[0, 2, 3]])

@@ -1,0 +1,103 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The imperfect gyroscope against the closed forms of its imperfections (doc/imperfections.md).
+
+Open loop, matched drive, linear regime (config/gyro.yaml's operating point: q2 = 0.04 um at
+15 800 Hz), noise off: the zero-rate output of a damping mismatch, the quadrature of a
+frequency split, and the same device described from the other principal axis. The runs
+start in the pair's steady response (``operating_point.with_rate_response``), so 0.3 s of
+rate samples are read, the last 0.1 s kept.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from ring_gyro_sim.core.params import paper_config
+from ring_gyro_sim.run import Run
+
+TEN_DEG_S = math.radians(10.0)
+KAPPA = 0.8  # 2 n / (n^2 + 1) of the 2theta pair
+W2 = 2.0 * math.pi * 15800.0
+Q2 = 64700.0
+OPEN_LOOP = {'modes.companions': True, 'gyro.enabled': True, 'drive.amplitude': 0.0065,
+             'drive.frequency': 15800.0, 'control.drive_loop': 'open',
+             'control.rebalance': False, 'gyro.temperature': 0.0,
+             'gyro.input_noise_density': 0.0}
+
+
+def readout(values, rate, seconds=0.3):
+    """Return (rate, quadrature) of ~/rate over the last 0.1 s of a run at ``rate`` rad/s."""
+    config = paper_config({**OPEN_LOOP, **values, 'scenario.rate_times': [0.0],
+                           'scenario.rate_values': [rate]})
+    run = Run(config)
+    blocks = [run.advance(config.run.block_samples) for _ in range(int(round(seconds / 0.01)))]
+    r = np.concatenate([b.rate.rate for b in blocks])[-100:]
+    q = np.concatenate([b.rate.quadrature for b in blocks])[-100:]
+    return float(np.mean(r)), float(np.mean(q))
+
+
+def zero_rate_output(values):
+    """Return the zero-rate reading over the response to 10 deg/s, times 10 deg/s: rad/s."""
+    at_zero, _ = readout(values, 0.0)
+    turning, _ = readout(values, TEN_DEG_S)
+    return at_zero / (turning - at_zero) * TEN_DEG_S
+
+
+def test_a_damping_mismatch_off_the_axes_gives_a_zero_rate_output():
+    # Q_y = 0.9 Q_x with its axis at 22.5 deg: |c_x - c_y| sin(4 theta_t) / (4 kappa)
+    values = {'modes.companion_quality_factors': [120000.0, 0.9 * Q2, 170000.0],
+              'modes.damping_axes': [0.0, 22.5, 0.0]}
+    zro = zero_rate_output(values)
+    c_x, c_y = W2 / Q2, W2 / (0.9 * Q2)
+    expected = abs(c_x - c_y) * math.sin(4.0 * math.radians(22.5)) / (4.0 * KAPPA)
+    print(f'zero-rate output {zro:.6e} rad/s, closed form {expected:.6e} '
+          f'({math.degrees(expected):.3f} deg/s)')
+    assert abs(zro) == pytest.approx(expected, rel=0.02)
+    # on the axes it is gone
+    assert abs(zero_rate_output({**values, 'modes.damping_axes': [0.0, 0.0, 0.0]})) \
+        < 1e-3 * expected
+
+
+def test_a_frequency_split_off_the_axes_gives_a_quadrature():
+    # a 5 mHz split (well inside the 0.12 Hz half-width: matched) with its axis at 10 deg:
+    # (w_x^2 - w_y^2) sin(4 theta_w) / (4 kappa w) in rate units
+    f_y = 15800.005
+    _, quadrature = readout({'modes.companion_frequencies': [11200.0, f_y, 22000.0],
+                             'modes.frequency_axes': [0.0, 10.0, 0.0]}, 0.0)
+    w_y = 2.0 * math.pi * f_y
+    expected = (W2 * W2 - w_y * w_y) * math.sin(4.0 * math.radians(10.0)) / (4.0 * KAPPA * W2)
+    print(f'quadrature {quadrature:.6e} rad/s, closed form {expected:.6e}')
+    assert abs(quadrature) == pytest.approx(abs(expected), rel=0.02)
+
+
+def test_the_other_principal_axis_describes_the_same_device():
+    # axes turned by 90/n = 45 deg with the principal values swapped: the same ring
+    one = {'modes.companion_frequencies': [11200.0, 15800.005, 22000.0],
+           'modes.companion_quality_factors': [120000.0, 0.9 * Q2, 170000.0],
+           'modes.frequency_axes': [0.0, 10.0, 0.0], 'modes.damping_axes': [0.0, 22.5, 0.0]}
+    other = {'modes.frequencies': [11200.0, 15800.005, 22000.0],
+             'modes.companion_frequencies': [11200.0, 15800.0, 22000.0],
+             'modes.quality_factors': [120000.0, 0.9 * Q2, 170000.0],
+             'modes.companion_quality_factors': [120000.0, Q2, 170000.0],
+             'modes.frequency_axes': [0.0, 55.0, 0.0], 'modes.damping_axes': [0.0, 67.5, 0.0]}
+    a = paper_config({**OPEN_LOOP, **one}).modes.pair_matrices(2)
+    b = paper_config({**OPEN_LOOP, **other}).modes.pair_matrices(2)
+    for x, y in zip(a, b):  # to round-off of the diagonal
+        np.testing.assert_allclose(x, y, rtol=0, atol=1e-13 * x[0, 0])
+    ra, qa = readout(one, TEN_DEG_S, seconds=0.1)
+    rb, qb = readout(other, TEN_DEG_S, seconds=0.1)
+    assert rb == pytest.approx(ra, rel=1e-6) and qb == pytest.approx(qa, rel=1e-6)
