@@ -380,6 +380,18 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
     ParamSpec('gyro.noise_seed', 'gyro.noise_seed', 'int', 0, '-',
               'seed of every random stream (recorded with the run; same seed, same noise)',
               0, 2 ** 63 - 1, range_note='a 64-bit key of the counter-based generator'),
+    ParamSpec('gyro.phase_error', 'gyro.phase_error', 'float', 0.0, 'rad',
+              "error of the sense channel's demodulation reference phase (E3; the rebalance "
+              "loop's sense demodulation and modulation share it, C2, C6)",
+              -math.pi / 2.0, math.pi / 2.0,
+              range_note='beyond +-90 deg the channel reads the rate with the wrong sign'),
+    ParamSpec('gyro.sense_misalignment', 'gyro.sense_misalignment', 'float', 0.0, 'deg',
+              "angle error of the sense electrodes' axis: the sense amplifier reads "
+              'sin(2 (theta_e - delta)) (E1)', -22.5, 22.5,
+              range_note='half the angle between a sense and a drive electrode'),
+    ParamSpec('gyro.pickoff_gain_mismatch', 'gyro.pickoff_gain_mismatch', 'float', 0.0, '-',
+              'relative gain error of the sense amplifier against the drive amplifier (E1)',
+              -0.5, 0.5, range_note='a gain error of the order of the gain is a broken part'),
     ParamSpec('control.drive_loop', 'control.drive_loop', 'str', 'closed', '-',
               'the 2theta drive: open (the paper: drive.amplitude at drive.frequency) or '
               'closed (a PLL on the drive pick-off sets the frequency, an AGC the amplitude; '
@@ -751,6 +763,9 @@ class GyroParams:
     temperature: float
     bias_instability: float
     noise_seed: int
+    phase_error: float
+    sense_misalignment: float
+    pickoff_gain_mismatch: float
 
     def _check(self) -> None:
         if self.filter_bandwidth >= 0.5 * self.output_rate:

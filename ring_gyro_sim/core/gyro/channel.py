@@ -124,12 +124,16 @@ class SenseChain:
             el = self.electronics
             psi = phase + sim.drive_phase_at_start
             turn = complex(math.cos(psi), -math.sin(psi))
-            out = []
-            for index, gain in ((el.sense_index, el.electronic_gain),
-                                (el.drive_index, el.drive_gain)):
-                c = complex(float(q[index]), -float(v[index]) / w) * turn
-                out += [gain * c.real, -gain * c.imag]
-            el.start_outputs(np.array(out))
+
+            def phasor(index):
+                return complex(float(q[index]), -float(v[index]) / w) * turn
+            # the sense amplifier reads the sense coordinate and, misaligned, the drive's
+            # (E1b); its reference is off by the phase error (E3b)
+            sense = (el.electronic_gain * phasor(el.sense_index)
+                     + el.pickoff.sense_cross_gain * phasor(el.drive_index))
+            sense *= complex(math.cos(el.phase_error), -math.sin(el.phase_error))
+            drive = el.drive_gain * phasor(el.drive_index)
+            el.start_outputs(np.array([sense.real, -sense.imag, drive.real, -drive.imag]))
 
     def process(self, first_index: int, t: np.ndarray, volts: np.ndarray,
                 drive_phase: np.ndarray, control: Optional[np.ndarray]

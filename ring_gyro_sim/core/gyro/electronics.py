@@ -34,6 +34,25 @@ Pick-off and charge amplifier (E1)
     the default 8 electrodes the sense amplifier sees e1, e3, e5, e7 with weights +1, -1, +1,
     -1 and the drive one e0, e2, e4, e6.
 
+Pick-off imperfections (E1b, E1c)
+    Sense electrodes whose axis is turned by ``delta`` (``gyro.sense_misalignment``) read
+    ``w_e = sin(2 (theta_e - delta))``: for a pattern ``q2 cos 2theta + q2s sin 2theta`` the
+    sum is ``cos(2 delta) q2s - sin(2 delta) q2`` per unit of the aligned gain. The drive's
+    displacement leaks into the sense amplifier as ``-tan(2 delta)`` of the sense reading of
+    an equal ``q2s`` (``PickOff.sense_cross_gain``). With the drive ``q2 = X sin(w t)`` and the
+    reference on it, this is a signal in phase with the Coriolis response of a matched pair,
+    whose sense coordinate answers a rate with ``q2s = -2 kappa Omega Q X / w sin(w t)``
+    (E6 at match): a bias of magnitude ::
+
+        Omega_b = tan(2 delta) w / (2 kappa Q_s)                                    (E1b)
+
+    (0.1 deg at the default device: 3.4e-3 rad/s, 0.19 deg/s). A relative gain error ``g``
+    of the sense amplifier against the drive one (``gyro.pickoff_gain_mismatch``) multiplies
+    the sense column of (E1) by ``1 + g`` (E1c): the rate reads ``(1 + g)`` times the true
+    one through a scale factor set without it (a calibration given from the design), while a
+    calibration on a rate table absorbs it, unlike the bias of (E1b). The model's own
+    readout includes it (``sense_gain`` is measured through the amplifier).
+
 Electronic noise (E2)
     Input-referred white voltage density ``e_n`` (``gyro.input_noise_density``, V/sqrt(Hz),
     one-sided), output-referred through the noise gain of a charge amplifier::
@@ -56,6 +75,14 @@ Demodulation and low-pass (E3)
     operating point: ``sense_i = sense_q = drive_q = 0``, ``drive_i = G_d A`` (no start
     transient on the drive pick-off). The 2 omega products are attenuated by
     ``(f_bw / 2 f_drive)^order`` (1e-10 for 100 Hz, order 4, 15.8 kHz).
+
+Demodulation phase error (E3b)
+    The sense channel's reference off by ``eps`` (``gyro.phase_error``):
+    ``I = LP[2 V cos(phi_ref + eps)]``. With ``V = a cos(phi_ref) + b sin(phi_ref)`` this reads
+    ``I = a cos(eps) - b sin(eps)``, ``Q = a sin(eps) + b cos(eps)``: the rate channel reads
+    ``Omega cos(eps) - Q_r sin(eps)`` in rate units, ``Q_r`` the quadrature (a frequency
+    split's, P2). A quadrature of 1 deg/s with a 10 mrad error is a 0.01 deg/s bias, and its
+    temperature drift is the quadrature's. The drive channel keeps the true reference.
 
 Rate output (E4)
     ``D = output.rate / gyro.output_rate``; the rate samples are the internal samples of
@@ -517,12 +544,17 @@ class PickOff:
         k = config.electrodes.count
         self.n_electrodes = k
         theta = 2.0 * math.pi * np.arange(k) / k
-        weights = np.stack([np.sin(2.0 * theta), np.cos(2.0 * theta)], axis=1)
+        # (E1b) the sense electrodes' axis turned by delta (gyro.sense_misalignment)
+        delta = math.radians(g.sense_misalignment)
+        weights = np.stack([np.sin(2.0 * (theta - delta)) if delta else np.sin(2.0 * theta),
+                            np.cos(2.0 * theta)], axis=1)
         weights[np.abs(weights) < _ZERO_WEIGHT] = 0.0
         self.weights = weights
         self.bias_voltage = float(g.bias_voltage or config.electrodes.outer_voltage)
         self.feedback_capacitance = float(g.feedback_capacitance)
         self.volts_per_farad = -(self.bias_voltage / self.feedback_capacitance) * weights  # E1
+        if g.pickoff_gain_mismatch:  # (E1c) the sense amplifier's gain against the drive's
+            self.volts_per_farad[:, 0] *= 1.0 + g.pickoff_gain_mismatch
         self.rest_capacitance = sim.outputs_for(np.zeros(n_coord)).capacitance[0].copy()
         # (E2) noise gain of each amplifier
         c_in = np.array([self.rest_capacitance[weights[:, j] != 0.0].sum()
@@ -535,6 +567,9 @@ class PickOff:
         step = GAIN_STEP_RATIO * config.electrodes.gap
         self.sense_gain = (self._gain(sim, n_coord, self.sense_index, 0, step)
                            if self.sense_index >= 0 else 0.0)
+        # what the sense amplifier reads of the drive coordinate: 0 unless misaligned (E1b)
+        self.sense_cross_gain = (self._gain(sim, n_coord, self.drive_index, 0, step)
+                                 if g.sense_misalignment else 0.0)
         self.drive_gain = self._gain(sim, n_coord, self.drive_index, 1, step)
 
     def _gain(self, sim, n_coord: int, index: int, amp: int, step: float) -> float:
@@ -657,6 +692,7 @@ class SenseElectronics:
                                     g.output_rate, self.noise_seed)
         self.rebalance = bool(config.control.rebalance)
         self.start_rate = float(start_rate)
+        self.phase_error = float(g.phase_error)
         self._zi_rb = signal.sosfilt_zi(self._sos)[:, :, None] * np.array(
             [float(start_rate), 0.0])[None, None, :]
         self.bandwidth_hz = self._bandwidth()
@@ -831,8 +867,12 @@ class SenseElectronics:
         two_cos = 2.0 * np.cos(phi)
         two_sin = 2.0 * np.sin(phi)
         mixed = np.empty((count, 4))
-        np.multiply(volts[:, 0], two_cos, out=mixed[:, 0])
-        np.multiply(volts[:, 0], two_sin, out=mixed[:, 1])
+        if self.phase_error:  # (E3b) the sense channel's reference off by gyro.phase_error
+            np.multiply(volts[:, 0], 2.0 * np.cos(phi + self.phase_error), out=mixed[:, 0])
+            np.multiply(volts[:, 0], 2.0 * np.sin(phi + self.phase_error), out=mixed[:, 1])
+        else:
+            np.multiply(volts[:, 0], two_cos, out=mixed[:, 0])
+            np.multiply(volts[:, 0], two_sin, out=mixed[:, 1])
         np.multiply(volts[:, 1], two_cos, out=mixed[:, 2])
         np.multiply(volts[:, 1], two_sin, out=mixed[:, 3])
         if count:

@@ -17,7 +17,8 @@ The imperfect gyroscope against the closed forms of its imperfections (doc/imper
 
 Open loop, matched drive, linear regime (config/gyro.yaml's operating point: q2 = 0.04 um at
 15 800 Hz), noise off: the zero-rate output of a damping mismatch, the quadrature of a
-frequency split, and the same device described from the other principal axis. The runs
+frequency split, the same device described from the other principal axis, and the
+electronics' errors (the demodulation phase, the sense electrodes' misalignment). The runs
 start in the pair's steady response (``operating_point.with_rate_response``), so 0.3 s of
 rate samples are read, the last 0.1 s kept.
 """
@@ -101,3 +102,35 @@ def test_the_other_principal_axis_describes_the_same_device():
     ra, qa = readout(one, TEN_DEG_S, seconds=0.1)
     rb, qb = readout(other, TEN_DEG_S, seconds=0.1)
     assert rb == pytest.approx(ra, rel=1e-6) and qb == pytest.approx(qa, rel=1e-6)
+
+
+def test_a_demodulation_phase_error_turns_quadrature_into_bias():
+    # (E3b) the reading is Omega cos(eps) - Q sin(eps): with a split's quadrature Q, a
+    # phase error eps adds -Q sin(eps) to the zero-rate output
+    split = {'modes.companion_frequencies': [11200.0, 15800.005, 22000.0],
+             'modes.frequency_axes': [0.0, 10.0, 0.0]}
+    r0, q0 = readout(split, 0.0)
+    eps = 0.02
+    r1, q1 = readout({**split, 'gyro.phase_error': eps}, 0.0)
+    print(f'bias {r0:.3e} -> {r1:.3e} rad/s with a {eps} rad phase error; quadrature {q0:.3e}')
+    assert r1 - r0 == pytest.approx(-q0 * math.sin(eps), rel=0.02)
+
+
+def test_misaligned_sense_electrodes_read_the_drive_as_a_bias():
+    # (E1b) the sense amplifier reads -tan(2 delta) of the drive's displacement, in phase
+    # with the Coriolis response at match: a bias of tan(2 delta) w / (2 kappa Q) in rate
+    # units (the sense mode's response per rate is 2 kappa Q A / w)
+    delta = 0.1
+    at_zero, _ = readout({'gyro.sense_misalignment': delta}, 0.0)
+    expected = math.tan(2.0 * math.radians(delta)) * W2 / (2.0 * KAPPA * Q2)
+    print(f'bias {at_zero:.4e} rad/s, closed form {expected:.4e}')
+    assert abs(at_zero) == pytest.approx(expected, rel=0.02)
+
+
+def test_a_pickoff_gain_mismatch_scales_the_sense_amplifier_only():
+    # (E1c) the sense column of (E1) times 1 + g: its gain, and only its, moves by 1 + g
+    g = 0.01
+    perfect = Run(paper_config(OPEN_LOOP)).sim.pickoff
+    mismatched = Run(paper_config({**OPEN_LOOP, 'gyro.pickoff_gain_mismatch': g})).sim.pickoff
+    assert mismatched.sense_gain == pytest.approx((1.0 + g) * perfect.sense_gain, rel=1e-12)
+    assert mismatched.drive_gain == perfect.drive_gain
