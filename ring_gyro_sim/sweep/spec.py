@@ -66,6 +66,9 @@ Errors
     :class:`SweepSpecError` (a ``ParameterError``) names the spec file, the key and the
     reason; every axis value is checked against the parameter table on the base when the
     spec is read (a combination of values may still fail: the point is then reported).
+    A spec of more than :data:`MAX_POINTS` points is refused before any value is made,
+    with its count and estimated cost; ``duration`` and ``output_rate`` must lie in the
+    ranges of the ROS parameters ``duration`` and ``output.rate``.
 """
 
 from dataclasses import dataclass, field
@@ -82,8 +85,8 @@ from ring_gyro_sim import __version__
 from ring_gyro_sim.analysis import cases
 from ring_gyro_sim.analysis import envelope as env
 from ring_gyro_sim.core.errors import ParameterError
-from ring_gyro_sim.core.params import (coerce, defaults, LIST_KINDS, paper_config,
-                                       PAPER_RESONATOR, SPECS)
+from ring_gyro_sim.core.params import (coerce, defaults, LIST_KINDS, MAX_OUTPUT_RATE_HZ,
+                                       MAX_TIME_S, paper_config, PAPER_RESONATOR, SPECS)
 from ring_gyro_sim.paramfile import check_params_file, DEFAULT_NODE_NAME, RosYamlLoader
 import yaml
 
@@ -104,6 +107,13 @@ RUN_KEYS = {'duration': 'duration', 'output.rate': 'output_rate'}
 """ROS parameters that a spec sets with its own keys instead."""
 _INDEXED = re.compile(r'^(?P<name>[A-Za-z_][A-Za-z0-9_.]*)\[(?P<index>[0-9]+)\]$')
 KEY_DIGITS = 16
+MAX_POINTS = 100_000
+"""The most points a spec may have. Reading a spec builds a configuration per axis value
+(~0.25 ms each) and a point object per point (~40 us); at this size that is seconds, and
+the points cost ~170 CPU-hours at 25 s each: a larger map is several sweeps."""
+CPU_S_PER_SIMULATED_S = 0.25
+"""CPU time of a point per simulated second, s: the cost estimate of a spec (a 25 s point
+of the jump map takes ~6 s, doc/sweeps.md)."""
 
 
 class SweepSpecError(ParameterError):
@@ -387,29 +397,62 @@ def _coerce_value(name: str, value: Any, where: str) -> Any:
         raise SweepSpecError(f'{where}: {exc}') from None
 
 
-def _axis_values(name: str, raw: Any, where: str) -> Tuple[Tuple[Any, ...], str]:
+def _axis_count(raw: Any, where: str) -> int:
+    """Return the number of values of an axis as written, without making them."""
     if isinstance(raw, list):
         if not raw:
             raise SweepSpecError(f'{where}: no values')
-        values = [_coerce_value(name, v, where) for v in raw]
-        spacing = 'list'
-    elif isinstance(raw, dict) and len(raw) == 1 and next(iter(raw)) in ('linear', 'log'):
+        return len(raw)
+    if isinstance(raw, dict) and len(raw) == 1 and next(iter(raw)) in ('linear', 'log'):
         spacing, args = next(iter(raw.items()))
         if not (isinstance(args, list) and len(args) == 3 and all(
                 isinstance(a, (int, float)) and not isinstance(a, bool) for a in args)):
             raise SweepSpecError(f'{where}: {spacing}: expected [start, stop, count], got '
                                  f'{args!r}')
-        start, stop, count = args
-        if not (float(count).is_integer() and count >= 1):
+        count = args[2]
+        if not (math.isfinite(count) and float(count).is_integer() and count >= 1):
             raise SweepSpecError(f'{where}: {spacing}: count must be an integer >= 1, got '
                                  f'{count!r}')
+        return int(count)
+    raise SweepSpecError(f'{where}: expected a list of values, {{linear: [start, stop, '
+                         f'count]}} or {{log: [start, stop, count]}}, got {raw!r}')
+
+
+def _cost(cpu_s: float) -> str:
+    """Return a CPU time, s, in the unit that reads best."""
+    for unit, size in (('CPU-years', 365.25 * 86400.0), ('CPU-days', 86400.0),
+                       ('CPU-hours', 3600.0), ('CPU-minutes', 60.0)):
+        if cpu_s >= size:
+            return f'{cpu_s / size:.3g} {unit}'
+    return f'{cpu_s:.3g} CPU-seconds'
+
+
+def _check_size(counts: Sequence[Tuple[str, int]], duration_s: float, source: str) -> None:
+    """Refuse more than :data:`MAX_POINTS` points, with the count and the estimated cost."""
+    size = math.prod(n for _, n in counts)
+    if size <= MAX_POINTS:
+        return
+    shape = ' x '.join(f'{n} ({name})' for name, n in counts)
+    cpu_s = size * duration_s * CPU_S_PER_SIMULATED_S
+    raise SweepSpecError(f'{_where(source, "axes")}: {size} points ({shape}): more than the '
+                         f'{MAX_POINTS} a sweep takes; at {duration_s:g} s per point that '
+                         f'is about {_cost(cpu_s)} ({CPU_S_PER_SIMULATED_S:g} CPU s per '
+                         f'simulated s): split it into smaller sweeps (one --out with '
+                         f'--resume shares their points)')
+
+
+def _axis_values(name: str, raw: Any, where: str) -> Tuple[Tuple[Any, ...], str]:
+    """Make and check the values of an axis that :func:`_axis_count` has accepted."""
+    if isinstance(raw, list):
+        values = [_coerce_value(name, v, where) for v in raw]
+        spacing = 'list'
+    else:
+        spacing, (start, stop, count) = next(iter(raw.items()))
         if spacing == 'log' and not (start > 0 and stop > 0):
-            raise SweepSpecError(f'{where}: log: start and stop must be > 0, got {args!r}')
+            raise SweepSpecError(f'{where}: log: start and stop must be > 0, got '
+                                 f'{[start, stop, count]!r}')
         fn = np.linspace if spacing == 'linear' else np.geomspace
         values = [_coerce_value(name, float(v), where) for v in fn(start, stop, int(count))]
-    else:
-        raise SweepSpecError(f'{where}: expected a list of values, {{linear: [start, stop, '
-                             f'count]}} or {{log: [start, stop, count]}}, got {raw!r}')
     if len(set(map(repr, values))) != len(values):
         raise SweepSpecError(f'{where}: a value is given twice: {values!r}')
     return tuple(values), spacing
@@ -421,13 +464,17 @@ def _unit(name: str) -> str:
     return SPECS[_split(name)[0]].unit
 
 
-def _positive(data: Mapping[str, Any], key: str, default: Optional[float], source: str):
+def _positive(data: Mapping[str, Any], key: str, default: Optional[float], source: str,
+              maximum: float = math.inf, why: str = ''):
     value = data.get(key, default)
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, (int, float)) or \
             not (math.isfinite(value) and value > 0):
         raise SweepSpecError(f'{_where(source, key)}: must be a number > 0, got {value!r}')
+    if value > maximum:
+        raise SweepSpecError(f'{_where(source, key)}: must be at most {maximum:g} ({why}), '
+                             f'got {value!r}')
     return float(value)
 
 
@@ -496,21 +543,28 @@ def parse_spec(data: Any, source: str = '<text>', directory: str = '.',
     if not isinstance(axes_raw, dict) or not axes_raw:
         raise SweepSpecError(f'{_where(source, "axes")}: expected a mapping of names to '
                              f'values (at least one axis), got {axes_raw!r}')
+    duration = _positive(data, 'duration', base_config.run.duration or None, source,
+                         MAX_TIME_S, SPECS['duration'].range_note)
+    if duration is None:
+        raise SweepSpecError(f'{_where(source, "duration")}: give the simulated time per '
+                             f'point, s (the base has duration 0: run forever)')
+    rate = _positive(data, 'output_rate', cases.DEFAULT_OUTPUT_RATE_HZ, source,
+                     MAX_OUTPUT_RATE_HZ, SPECS['output.rate'].range_note)
+    window = _positive(data, 'envelope_window', env.DEFAULT_WINDOW_S, source, duration,
+                       'the simulated time per point')
     context = dict(base)  # the lists an axis indexes: the base's, or a list under set
     context.update({k: v for k, v in fixed.items() if k in SPECS})
-    axes = []
+    counts = []
     for name, raw in axes_raw.items():
         name = _check_name(name, context, source, 'axes')
         if name in fixed:
             raise SweepSpecError(f'{_where(source, "axes")}: {name!r} is also under set')
+        counts.append((name, _axis_count(raw, _where(source, f'axes: {name}'))))
+    _check_size(counts, duration, source)  # before any value is made
+    axes = []
+    for (name, _), raw in zip(counts, axes_raw.values()):
         values, spacing = _axis_values(name, raw, _where(source, f'axes: {name}'))
         axes.append(Axis(name=name, values=values, spacing=spacing, unit=_unit(name)))
-    duration = _positive(data, 'duration', base_config.run.duration or None, source)
-    if duration is None:
-        raise SweepSpecError(f'{_where(source, "duration")}: give the simulated time per '
-                             f'point, s (the base has duration 0: run forever)')
-    rate = _positive(data, 'output_rate', cases.DEFAULT_OUTPUT_RATE_HZ, source)
-    window = _positive(data, 'envelope_window', env.DEFAULT_WINDOW_S, source)
     metrics = data.get('metrics', list(METRICS))
     if not isinstance(metrics, list) or not metrics or not all(
             isinstance(m, str) for m in metrics):

@@ -15,11 +15,13 @@
 """Tests of sweep/spec.py: the spec format, names with [i], ranges, keys, refusals."""
 
 from pathlib import Path
+import time
 
 import numpy as np
 import pytest
 from ring_gyro_sim.core.params import paper_config
 from ring_gyro_sim.sweep import load_spec, parse_spec, SweepSpecError
+from ring_gyro_sim.sweep.spec import MAX_POINTS
 from sweep_harness import REPO, TINY, write_spec
 import yaml
 
@@ -166,3 +168,35 @@ def test_the_sweep_verb_refuses_a_bad_spec_naming_the_key(tmp_path, capsys):
     with pytest.raises(SystemExit):
         cli.main(['--help'])
     assert 'sweep' in capsys.readouterr().out
+
+
+@pytest.mark.parametrize('axes, count', [
+    ({'shock.peak_g': {'linear': [1000.0, 12000.0, 1_000_000_000]}}, 1_000_000_000),
+    ({'shock.peak_g': {'linear': [1000.0, 12000.0, 1000]},
+      'modes.quality_factors[0]': {'log': [5000.0, 180000.0, 1000]}}, 1_000_000),
+])
+def test_a_spec_beyond_the_size_a_sweep_takes_is_refused_at_once(axes, count):
+    # issue 22 item 13: 1e9 points reached 3 GB in 8 s without a word (numpy made every
+    # value before anything was counted); now the count is read from the spec as written.
+    started = time.process_time()
+    with pytest.raises(SweepSpecError) as info:
+        parse_spec({'duration': 25.0, 'axes': axes})
+    assert time.process_time() - started < 1.0
+    text = str(info.value)
+    assert f'{count} points' in text and f'the {MAX_POINTS} a sweep takes' in text, text
+    assert 'CPU-' in text and 'about' in text
+    at_limit = {'shock.peak_g': {'linear': [1000.0, 12000.0, 1000]},
+                'shock.phase': {'linear': [0.0, 0.99, MAX_POINTS // 1000]}}
+    assert len(parse_spec({'duration': 1.0, 'axes': at_limit}).axes[1]) == MAX_POINTS // 1000
+
+
+@pytest.mark.parametrize('key, value, message', [
+    ('duration', 1.0e308, 'duration: must be at most 2.14748e+09'),
+    ('envelope_window', 2.0, 'envelope_window: must be at most 1'),
+])
+def test_run_settings_beyond_the_parameter_ranges_are_refused(key, value, message):
+    # issue 22 item 13: duration 1.0e+308 passed the check and failed later (OverflowError)
+    data = {'duration': 1.0, 'axes': {'shock.peak_g': [1000.0]}, key: value}
+    with pytest.raises(SweepSpecError, match=None) as info:
+        parse_spec(data)
+    assert message in str(info.value), str(info.value)
