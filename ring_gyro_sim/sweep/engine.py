@@ -41,6 +41,8 @@ What is computed
     point's time only: Dask runs it again elsewhere.
 
 Resume
+    One sweep at a time writes into ``DIR`` (a lock, :meth:`.store.PointStore.lock`): a
+    second one started there is refused at once, naming the holder.
     A new sweep refuses a ``DIR`` that already holds computed points; ``resume=True``
     keeps every stored point (never recomputed: its key is its content) and computes the
     rest, failures included. Ctrl-C stops the client: what was stored stays.
@@ -252,13 +254,13 @@ def run_sweep(spec: SweepSpec, out_dir, scheduler: Optional[str] = None,
     Raises
     ------
     SweepError
-        ``out_dir`` holds points and ``resume`` is False, ``workers`` with ``scheduler``,
-        or the scheduler cannot be reached.
+        ``out_dir`` holds points and ``resume`` is False, another sweep is writing into it
+        (its lock, :meth:`PointStore.lock`), ``workers`` with ``scheduler``, or the
+        scheduler cannot be reached.
     KeyboardInterrupt
         Ctrl-C: the points stored so far stay (``--resume`` continues).
 
     """
-    from ring_gyro_sim.sweep import results
     if scheduler and workers:
         raise SweepError('--workers: applies to the local cluster only, not with --scheduler '
                          '(start as many dask workers as you want)')
@@ -267,6 +269,22 @@ def run_sweep(spec: SweepSpec, out_dir, scheduler: Optional[str] = None,
     wall0 = time.perf_counter()
     out = os.path.abspath(os.fspath(out_dir))
     store = PointStore(out)
+    holder = store.lock()
+    if holder is not None:
+        raise SweepError(f'--out {out}: another sweep is writing into it ({holder}): wait '
+                         f'for it to end (then --resume), or choose another directory')
+    try:
+        return _sweep(spec, store, out, wall0, scheduler, workers, resume, progress,
+                      dashboard_address, plots, log)
+    finally:
+        store.unlock()
+
+
+def _sweep(spec: SweepSpec, store: PointStore, out: str, wall0: float,
+           scheduler: Optional[str], workers: Optional[int], resume: bool, progress: bool,
+           dashboard_address, plots: bool, log: TextIO) -> SweepOutcome:
+    """Run the sweep into ``store``, whose lock the caller holds (:func:`run_sweep`)."""
+    from ring_gyro_sim.sweep import results
     points = spec.points()
     stored = set(store.keys())
     if stored and not resume:

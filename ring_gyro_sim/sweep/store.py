@@ -24,16 +24,31 @@ that computed a point (when it sees the directory) and the client (on receipt) s
 the two records are the same point, so whichever lands last is as good.
 
 Non-finite floats are written as ``null`` (strict JSON) and read back as nan.
+
+One sweep at a time writes into a directory: :meth:`PointStore.lock` takes an exclusive
+``flock`` on ``DIR/.sweep.lock`` (which names the holder), held until :meth:`PointStore.unlock`
+or the process ends (the kernel drops it then: a killed sweep leaves no stale lock). Two sweeps
+started together into one directory would otherwise both decide what to compute from the same
+empty store and replace each other's results. On a file system without locks the sweep goes
+on unprotected.
 """
 
+import errno
+import fcntl
 import json
 import math
 import os
 from pathlib import Path
+import socket
 import tempfile
 from typing import Any, Dict, Iterator, Optional
 
-__all__ = ['PointStore']
+__all__ = ['LOCK_NAME', 'PointStore']
+
+LOCK_NAME = '.sweep.lock'
+"""The lock file of a sweep's directory."""
+_NO_LOCKS = (errno.ENOLCK, errno.EOPNOTSUPP, errno.EINVAL)
+"""What flock reports on a file system that has no locks."""
 
 
 def _strict(value: Any) -> Any:
@@ -63,9 +78,46 @@ class PointStore:
         self.root = Path(root)
         self.points = self.root / 'points'
         self.failed = self.root / 'failed'
+        self._lock_fd: Optional[int] = None
         if create:
             self.points.mkdir(parents=True, exist_ok=True)
             self.failed.mkdir(parents=True, exist_ok=True)
+
+    def lock(self) -> Optional[str]:
+        """
+        Take the directory's exclusive sweep lock; None, or who holds it already.
+
+        Returns
+        -------
+        str or None
+            None: this store holds the lock now (or the file system has no locks); else
+            the holder as its lock file names it (``pid N on HOST``).
+
+        """
+        if self._lock_fd is not None:
+            return None
+        path = self.root / LOCK_NAME
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 200, 0).decode('utf-8', 'replace').strip()
+            os.close(fd)
+            return holder or 'another process'
+        except OSError as exc:
+            if exc.errno not in _NO_LOCKS:
+                os.close(fd)
+                raise
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f'pid {os.getpid()} on {socket.gethostname()}\n'.encode(), 0)
+        self._lock_fd = fd
+        return None
+
+    def unlock(self) -> None:
+        """Release the lock :meth:`lock` took (the lock file stays)."""
+        fd, self._lock_fd = self._lock_fd, None
+        if fd is not None:
+            os.close(fd)
 
     @staticmethod
     def reachable(root) -> bool:

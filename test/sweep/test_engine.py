@@ -33,6 +33,7 @@ import pytest
 from ring_gyro_sim.sweep import load_spec, point, run_sweep
 from ring_gyro_sim.sweep.engine import SETUP_PREFIX, SweepError, TASK_PREFIX
 from ring_gyro_sim.sweep.results import open_results
+from ring_gyro_sim.sweep.store import LOCK_NAME, PointStore
 from sweep_harness import (assert_same_results, cli, DaskCluster, env, run_cli,
                            START_TIMEOUT_S, stored, TINY, wait_for, worker_of, write_spec)
 
@@ -211,3 +212,46 @@ def test_ctrl_c_then_resume_recomputes_nothing_finished(reference, tmp_path):
     assert {k: after[k] for k in finished} == finished
     assert_same_results(outcome.dataset, ref.dataset)
     assert Path(out / 'results.nc').is_file()
+
+
+def test_two_sweeps_into_one_directory_the_second_is_refused(reference, tmp_path):
+    # issue 22 item 14: two sweeps started together into one --out both exited 0, and one's
+    # results replaced the other's. The first holds the directory's lock; the second says so.
+    spec, _, ref = reference
+    out = tmp_path / 'out'
+    first = subprocess.Popen(cli('sweep', spec, '--out', out, '--workers', '1',
+                                 '--no-progress', '--no-plots', '--dashboard-address', ''),
+                             env=env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             text=True)
+    try:
+        wait_for(lambda: PointStore(out, create=False).root.joinpath(LOCK_NAME).is_file(),
+                 START_TIMEOUT_S, 'the first sweep to take its lock')
+        second = run_cli('sweep', spec, '--out', out, '--workers', '1', '--no-progress',
+                         '--no-plots', '--dashboard-address', '')
+        still_running = first.poll() is None
+    finally:
+        stdout, stderr = first.communicate(timeout=START_TIMEOUT_S)
+    assert second.returncode == 1, second.stderr
+    assert still_running, 'the first sweep had ended before the second started'
+    line = second.stderr.strip()
+    assert line.startswith('ring_gyro sweep: error: --out ') and '\n' not in line, line
+    assert f'another sweep is writing into it (pid {first.pid} on ' in line
+    assert first.returncode == 0, stderr
+    assert_same_results(open_results(out / 'results.nc'), ref.dataset)
+    again = sweep(spec, out, resume=True)                  # the lock went with the process
+    assert (again.computed, again.reused) == (0, 4)
+
+
+def test_a_held_lock_refuses_the_sweep_before_anything_is_written(tmp_path):
+    spec = write_spec(tmp_path)
+    holder = PointStore(tmp_path / 'out')
+    assert holder.lock() is None
+    try:
+        with pytest.raises(SweepError, match='another sweep is writing into it'):
+            sweep(spec, tmp_path / 'out', workers=1)
+        assert not (tmp_path / 'out' / 'sweep.json').exists()
+    finally:
+        holder.unlock()
+    after = PointStore(tmp_path / 'out')
+    assert after.lock() is None
+    after.unlock()
