@@ -45,7 +45,9 @@ Resume
     second one started there is refused at once, naming the holder.
     A new sweep refuses a ``DIR`` that already holds computed points; ``resume=True``
     keeps every stored point (never recomputed: its key is its content) and computes the
-    rest, failures included. Ctrl-C stops the client: what was stored stays.
+    rest, failures included. A stored file that holds no whole record (truncated) is
+    named on the log, kept as ``<key>.json.damaged`` and its point computed again.
+    Ctrl-C stops the client: what was stored stays.
 
 Output
     ``DIR/results.nc`` and ``DIR/results.csv`` (:mod:`.results`), ``DIR/jump_map.png``,
@@ -286,16 +288,26 @@ def _sweep(spec: SweepSpec, store: PointStore, out: str, wall0: float,
     """Run the sweep into ``store``, whose lock the caller holds (:func:`run_sweep`)."""
     from ring_gyro_sim.sweep import results
     points = spec.points()
-    stored = set(store.keys())
-    if stored and not resume:
-        raise SweepError(f'--out {out}: holds {len(stored)} computed points already: '
-                         f'--resume keeps them (none is recomputed), or choose another '
-                         f'directory')
+    stored, damaged = set(), {}
+    for key in store.keys():
+        why = store.check(key)
+        if why is None:
+            stored.add(key)
+        else:
+            damaged[key] = why
+    if (stored or damaged) and not resume:
+        raise SweepError(f'--out {out}: holds {len(stored) + len(damaged)} computed points '
+                         f'already: --resume keeps them (none is recomputed), or choose '
+                         f'another directory')
     with open(os.path.join(out, 'sweep.json'), 'w', encoding='utf-8') as fh:
         json.dump(spec.describe(), fh, indent=1, sort_keys=True, default=str)
     unique = {}
     for p in points:
         unique.setdefault(p.key, p)
+    for key in sorted(k for k in damaged if k in unique):
+        moved = store.set_aside(key)
+        log.write(f'[sweep] {store.path(key)}: damaged, {damaged[key]}: kept as {moved.name}; '
+                  f'the point is computed again\n')
     pending = [p for key, p in unique.items() if key not in stored]
     reused = len(unique) - len(pending)
     computed = 0

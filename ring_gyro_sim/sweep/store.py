@@ -21,7 +21,9 @@ The point store of a sweep: one small JSON file per finished point, written atom
 directory, flushed to disk (``fsync``) and renamed with ``os.replace``: a reader (or a
 resumed sweep) sees the whole record or none, whatever was killed when. Both the worker
 that computed a point (when it sees the directory) and the client (on receipt) store it;
-the two records are the same point, so whichever lands last is as good.
+the two records are the same point, so whichever lands last is as good. A file that does not
+hold a whole record (truncated by a full disk or a copy) is named by :meth:`PointStore.check`
+and set aside by the engine, which computes the point again.
 
 Non-finite floats are written as ``null`` (strict JSON) and read back as nan.
 
@@ -156,15 +158,36 @@ class PointStore:
 
     def read(self, key: str) -> Optional[Dict[str, Any]]:
         """Return the computed record of ``key`` (None: not computed, or unreadable)."""
+        record, _ = self._load(key)
+        return record
+
+    def check(self, key: str) -> Optional[str]:
+        """Return why the stored file of ``key`` holds no computed record (None: it does)."""
+        return self._load(key)[1]
+
+    def _load(self, key: str):
+        """Return ``(record, None)`` or ``(None, why not)`` for the file of ``key``."""
         try:
             text = self.path(key).read_text(encoding='utf-8')
+        except FileNotFoundError:
+            return None, 'no file'
+        except (OSError, UnicodeDecodeError) as exc:
+            return None, f'unreadable: {exc}'
+        try:
             record = json.loads(text)
-        except (OSError, ValueError):
-            return None
-        if not isinstance(record, dict) or record.get('key') != key or \
-                record.get('metrics') is None:
-            return None
-        return record
+        except ValueError as exc:
+            return None, f'not a whole JSON record ({len(text)} bytes; {exc})'
+        if not isinstance(record, dict) or record.get('key') != key:
+            return None, 'not the record of this point (its key differs)'
+        if record.get('metrics') is None:
+            return None, 'holds no metrics'
+        return record, None
+
+    def set_aside(self, key: str) -> Path:
+        """Rename the damaged file of ``key`` to ``<key>.json.damaged`` (kept); its path."""
+        target = self.path(key).with_name(f'{key}.json.damaged')
+        os.replace(self.path(key), target)
+        return target
 
     def has(self, key: str) -> bool:
         """Tell whether point ``key`` is computed (its file exists)."""

@@ -20,6 +20,7 @@ it (two workers, a separately started scheduler and workers, a worker killed wit
 an interrupted client resumed) must give the same Dataset, bit for bit, wall times aside.
 """
 
+import io
 import json
 import os
 from pathlib import Path
@@ -255,3 +256,22 @@ def test_a_held_lock_refuses_the_sweep_before_anything_is_written(tmp_path):
     after = PointStore(tmp_path / 'out')
     assert after.lock() is None
     after.unlock()
+
+
+def test_resume_names_a_truncated_point_file_and_computes_the_point_again(
+        reference, tmp_path):
+    # issue 22 item 15: a truncated point file blocked --resume for good ("not computed",
+    # exit 3, the file never named).
+    spec, ref_out, ref = reference
+    out = tmp_path / 'out'
+    shutil.copytree(ref_out / 'points', out / 'points')
+    cut = sorted((out / 'points').glob('*.json'))[1]
+    text = cut.read_bytes()
+    cut.write_bytes(text[:len(text) // 2])
+    log = io.StringIO()
+    outcome = sweep(spec, out, workers=1, resume=True, log=log)
+    assert (outcome.computed, outcome.reused, outcome.failures) == (1, 3, [])
+    assert f'{cut}: damaged, not a whole JSON record ({len(text) // 2} bytes' in log.getvalue()
+    assert (out / 'points' / f'{cut.name}.damaged').read_bytes() == text[:len(text) // 2]
+    assert json.loads(cut.read_text())['metrics'] is not None
+    assert_same_results(outcome.dataset, ref.dataset)
