@@ -237,6 +237,9 @@ def _temporary(output):
             fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666)
         except FileExistsError:
             continue
+        except OSError as exc:  # a read-only file system, a directory without write access
+            raise RecordingError(f'cannot write {str(output)!r}: cannot create a file in '
+                                 f'{str(output.parent)!r}: {exc.strerror or exc}') from exc
         os.close(fd)
         return path
     raise RecordingError(f'cannot create a temporary file beside {str(output)!r}')

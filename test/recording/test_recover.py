@@ -311,3 +311,22 @@ def test_a_sigkilled_run_recovers_and_resimulates_bit_for_bit(tmp_path):
         assert 0 <= len(repeated) - len(original) <= 1, topic
         for (t_a, a), (t_b, b) in zip(original, repeated):
             assert t_a == t_b and np.array_equal(a, b), (topic, t_a)
+
+
+def test_an_output_where_nothing_can_be_written_is_one_error(tmp_path, capsys):
+    # issue 22 item 16: `recover -o` on a read-only file system was an OSError traceback
+    # (the temporary file beside the output); /sys refuses new files to root as well.
+    try:
+        os.close(os.open('/sys/ring_gyro_probe', os.O_WRONLY | os.O_CREAT | os.O_EXCL))
+    except OSError:
+        pass
+    else:
+        os.unlink('/sys/ring_gyro_probe')
+        pytest.skip('/sys is writable here')
+    full = many_chunks(tmp_path / 'full.mcap', blocks=10)
+    with pytest.raises(RecordingError, match="cannot create a file in '/sys'"):
+        recover(full, '/sys/x.mcap')
+    assert cli.main(['recover', str(full), '-o', '/sys/x.mcap']) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("ring_gyro recover: error: cannot write '/sys/x.mcap': ") and \
+        err.count('\n') == 1, err
