@@ -131,6 +131,7 @@ import numpy as np
 
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.params import build_config, SimConfig, SPECS, STANDARD_GRAVITY
+from ring_gyro_sim.outdir import prepare_directory
 from ring_gyro_sim.run import Run, Sink
 
 __all__ = ['FULL', 'LOOP_PARAMETER', 'Plan', 'QUICK', 'allan_fit', 'available_loops',
@@ -658,6 +659,8 @@ def characterize(params_path: str, out_dir: str, quick: bool = False,
     ------
     ParameterError
         Not a gyroscope, an invalid file, an unknown loop mode (the message names the field).
+    OutputPathError
+        ``out_dir`` is a file, cannot be created or is not writable (checked first).
 
     """
     wall0, cpu0 = time.monotonic(), time.process_time()
@@ -670,8 +673,7 @@ def characterize(params_path: str, out_dir: str, quick: bool = False,
         if not peaks or not all(math.isfinite(g) and g > 0.0 for g in peaks):
             raise ParameterError('--shock-g: give positive shock amplitudes in g')
         plan = replace(plan, shock_peaks_g=peaks)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = prepare_directory(out_dir)  # before computing: 20 minutes lost otherwise
     total_s = plan.simulated_s + (len(loops) - 1) * len(plan.shock_peaks_g) * (
         plan.shock_at_s + plan.shock_after_s)
     bar = _Bar(total_s, progress)

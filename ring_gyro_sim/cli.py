@@ -249,12 +249,19 @@ def _plots_available(verb: str) -> bool:
     return False
 
 
+def _check_csv_output(output: str) -> None:
+    """Refuse a ``-o`` CSV path that cannot be written, before computing anything."""
+    from pathlib import Path
+    from ring_gyro_sim.outdir import check_file
+    if Path(output).suffix.lower() == '.png':
+        raise RingGyroError(f'-o {output}: give the CSV file; the PNG is written beside it')
+    check_file(output, '-o')
+
+
 def _write_result(result, output: str, plots: bool, **plot_options) -> Optional[str]:
     """Write ``result`` to the CSV ``output`` and its plot beside it; return the PNG path."""
     from pathlib import Path
     csv = Path(output)
-    if csv.suffix.lower() == '.png':
-        raise RingGyroError(f'-o {output}: give the CSV file; the PNG is written beside it')
     png = csv.with_suffix('.png')
     result.to_csv(csv)
     if not plots:
@@ -268,6 +275,7 @@ def cmd_backbone(args) -> int:
     """``ring_gyro backbone``."""
     from ring_gyro_sim.analysis import hbm
     plots = _plots_available('backbone')
+    _check_csv_output(args.output)
     config = _load(args.params, args.node_name)
     result = hbm.backbone(config, mode=args.mode, taylor_terms=args.taylor_terms,
                           max_amplitude_m=args.max_amplitude, harmonics=args.harmonics)
@@ -284,6 +292,7 @@ def cmd_frf(args) -> int:
     """``ring_gyro frf``."""
     from ring_gyro_sim.analysis import hbm
     plots = _plots_available('frf')
+    _check_csv_output(args.output)
     config = _load(args.params, args.node_name)
     result = hbm.frf(config, mode=args.mode, f_range_hz=tuple(args.f_range),
                      drive_amplitude=args.drive_amplitude, harmonics=args.harmonics,
@@ -373,6 +382,10 @@ def main(argv: Optional[List[str]] = None) -> int:
         return handler(args)
     except RingGyroError as exc:
         print(f'ring_gyro {args.verb}: error: {exc}', file=sys.stderr)
+        return 1
+    except OSError as exc:  # a file the verb reads or writes, after the checks at its start
+        where = f'{exc.filename}: ' if exc.filename else ''
+        print(f'ring_gyro {args.verb}: error: {where}{exc.strerror or exc}', file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         return 130

@@ -40,6 +40,7 @@ import numpy as np
 from ring_gyro_sim.core.gyro.electronics import RateSamples
 from ring_gyro_sim.core.gyro.stats import RateStats
 from ring_gyro_sim.core.rate_profile import RateProfile
+from ring_gyro_sim.outdir import prepare_directory
 from ring_gyro_sim.run import AngularRate, Shock
 
 __all__ = ['applied_rate', 'rate_report']
@@ -60,6 +61,7 @@ def rate_report(path: str, out_dir: str) -> Dict[str, Any]:
     from ring_gyro_sim.offline import load_recording
     from ring_gyro_sim.recording.errors import RecordingError
     from ring_gyro_sim.recording.reader import read_block_topic, read_rate
+    out = prepare_directory(out_dir, '--out')
     config, _, inputs, _, _ = load_recording(path)
     series = read_rate(path)
     t_ns = np.asarray(series.t_ns, dtype=np.int64)
@@ -73,8 +75,6 @@ def rate_report(path: str, out_dir: str) -> Dict[str, Any]:
     if shock_s is not None:
         stats.shock_at(shock_s)
     stats.add(RateSamples(t=t, rate=rate, quadrature=np.zeros_like(rate)), applied)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     with open(out / 'rate.csv', 'w', newline='', encoding='utf-8') as f:
         writer = csv.writer(f)
         writer.writerow(['t_s', 'rate_rad_s', 'applied_rad_s', 'error_rad_s'])

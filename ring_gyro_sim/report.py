@@ -64,6 +64,7 @@ from ring_gyro_sim.analysis import envelope as env
 from ring_gyro_sim.analysis import hbm, plotting
 from ring_gyro_sim.core.errors import RingGyroError
 from ring_gyro_sim.core.params import build_config, PAPER_RESONATOR
+from ring_gyro_sim.outdir import prepare_directory
 from ring_gyro_sim.run import format_number
 
 PAPER = {
@@ -626,6 +627,8 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
     ------
     ReportError
         The sweep extra is missing (said before anything runs), or a Case 4 point failed.
+    OutputPathError
+        ``out_dir`` is a file, cannot be created or is not writable (checked first).
 
     """
     out = Path(out_dir)
@@ -633,7 +636,7 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
     plan = make_plan(quick, base)
     if plan.sweep:
         _check_sweep_extra()
-    out.mkdir(parents=True, exist_ok=True)
+    prepare_directory(out)
     jobs = plan_jobs(plan)
     if progress:
         first = f'Case 4 ({len(plan.sweep)} points) through the sweep engine, then ' \

@@ -268,3 +268,118 @@ def test_console_script_in_its_own_process(tmp_path):
     assert result.returncode != 0
     assert 'modes.quality_factors' in result.stderr
     assert 'Traceback' not in result.stderr
+
+
+# ----------------------------------------------------- where the results go (issue 22 item 16)
+def unwritable_directory():
+    """Return an existing directory nothing can be created in (root included), or skip."""
+    try:
+        probe = os.open('/sys/ring_gyro_probe', os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except OSError:
+        return '/sys'
+    os.close(probe)
+    os.unlink('/sys/ring_gyro_probe')
+    pytest.skip('/sys is writable here')
+
+
+def one_error_line(err, verb):
+    line = err.strip()
+    assert '\n' not in line and 'Traceback' not in err, err
+    assert line.startswith(f'ring_gyro {verb}: error: '), line
+    return line
+
+
+@pytest.fixture
+def boom(monkeypatch):
+    """Make every computation of the verbs below fail the test: the check comes first."""
+    from ring_gyro_sim import characterize, rate_record, report
+    from ring_gyro_sim.analysis import hbm
+
+    def computing(*args, **kwargs):
+        raise AssertionError('computing before the output location was checked')
+    monkeypatch.setattr(characterize, 'load_device', lambda *a, **k: {})
+    monkeypatch.setattr(characterize, '_drift_and_step', computing)
+    monkeypatch.setattr(report, 'run_case4', computing)
+    monkeypatch.setattr(report, 'run_jobs', computing)
+    monkeypatch.setattr(hbm, 'backbone', computing)
+    monkeypatch.setattr(rate_record, 'applied_rate', computing)
+
+
+@pytest.mark.parametrize('verb, args, where, reason', [
+    ('rate', ['REC', '--out', 'FILE'], 'FILE', 'exists and is not a directory'),
+    ('rate', ['REC', '--out', 'RO/out'], 'RO/out', 'cannot create the directory'),
+    ('sweep', ['SPEC', '--out', 'FILE'], 'FILE', 'exists and is not a directory'),
+    ('sweep', ['SPEC', '--out', 'RO'], 'RO', 'cannot write in it'),
+    ('characterize', ['config/default.yaml', '--out', 'FILE'], 'FILE', 'exists and is not'),
+    ('characterize', ['config/default.yaml', '--out', 'RO/sheet'], 'RO/sheet',
+     'cannot create the directory'),
+    ('characterize', ['config/default.yaml', '--out', 'RO'], 'RO', 'cannot write in it'),
+    ('report', ['--out', 'FILE/sub', '--quick'], 'FILE/sub',
+     'cannot create the directory: Not a directory'),
+    ('backbone', ['-o', 'RO/b.csv'], 'RO/b.csv', "cannot write in 'RO'"),
+])
+def test_an_unusable_output_is_one_line_before_any_work(tmp_path, capsys, boom, verb, args,
+                                                        where, reason):
+    # issue 22 item 16: these were tracebacks, and characterize into a read-only directory
+    # computed for 13 s (20 minutes for the full sheet) before losing it all.
+    ro = unwritable_directory()
+    (tmp_path / 'FILE').write_text('a file')
+    (tmp_path / 'REC').write_bytes(b'\x89MCAP0\r\n')
+    (tmp_path / 'SPEC').write_text('duration: 0.01\naxes: {shock.peak_g: [1000.0]}\n')
+
+    def fill(text):
+        text = text.replace('RO', ro).replace('FILE', str(tmp_path / 'FILE'))
+        text = text.replace('REC', str(tmp_path / 'REC')).replace('SPEC', str(tmp_path / 'SPEC'))
+        return str(REPO_ROOT / text) if text.startswith('config/') else text
+    assert cli.main([verb] + [fill(a) for a in args]) == 1
+    line = one_error_line(capsys.readouterr().err, verb)
+    assert f'{fill(where)}: {fill(reason)}' in line, line
+    assert (tmp_path / 'FILE').read_text() == 'a file'
+
+
+def test_an_os_error_late_in_a_verb_is_one_line(tmp_path, capsys, monkeypatch):
+    def full(*args, **kwargs):
+        raise OSError(28, 'No space left on device', str(tmp_path / 'rate.csv'))
+    monkeypatch.setattr(cli, 'cmd_rate', full)
+    assert cli.main(['rate', 'x.mcap', '--out', str(tmp_path)]) == 1
+    line = one_error_line(capsys.readouterr().err, 'rate')
+    assert line.endswith(f'{tmp_path / "rate.csv"}: No space left on device')
+
+
+def read_only_mount_shell(directory):
+    """Return an argv prefix that runs a shell with a read-only tmpfs on ``directory``."""
+    unshare = shutil.which('unshare')
+    if unshare is None:
+        pytest.skip('no unshare')
+    argv = [unshare, '-m', 'sh', '-c']
+    probe = subprocess.run(argv + [f'mount -t tmpfs -o ro tmpfs {directory}'],
+                           capture_output=True, timeout=30, check=False)
+    if probe.returncode != 0:
+        pytest.skip(f'cannot mount a read-only file system here: {probe.stderr!r}')
+    return argv
+
+
+def test_a_read_only_file_system_is_one_line_per_verb(tmp_path):
+    # issue 22 item 16: `recover -o`, `rate --out`, `sweep --out` and `characterize --out` on
+    # a read-only file system (EROFS, which root meets too).
+    ro = tmp_path / 'ro'
+    ro.mkdir()
+    shell = read_only_mount_shell(ro)
+    recording = tmp_path / 'r.mcap'
+    assert cli.main(['run', str(scenario(tmp_path / 's.yaml', duration=0.01)), '-o',
+                     str(recording), '--no-progress']) == 0
+    spec = tmp_path / 'spec.yaml'
+    spec.write_text('duration: 0.01\naxes: {shock.peak_g: [1000.0]}\n')
+    python = f'PYTHONPATH={REPO_ROOT} {sys.executable} -m ring_gyro_sim.cli'
+    verbs = {'recover': f'recover {recording} -o {ro}/x.mcap',
+             'rate': f'rate {recording} --out {ro}/rate',
+             'sweep': f'sweep {spec} --out {ro}',
+             'characterize': f'characterize {REPO_ROOT}/config/default.yaml --out {ro} --quick'}
+    script = f'mount -t tmpfs -o ro tmpfs {ro} && ' + ' ; '.join(
+        f'{python} {args} 2> {tmp_path}/{verb}.err; echo $? > {tmp_path}/{verb}.rc'
+        for verb, args in verbs.items())
+    subprocess.run(shell + [script], timeout=600, check=True)
+    for verb in verbs:
+        err = (tmp_path / f'{verb}.err').read_text()
+        assert (tmp_path / f'{verb}.rc').read_text().strip() == '1', err
+        assert one_error_line(err, verb).endswith('Read-only file system'), err

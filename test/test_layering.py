@@ -177,6 +177,7 @@ LAYERS = {
     'version': set(),
     'core': set(),
     'progress': set(),
+    'outdir': {'core'},
     'run': {'core'},
     'paramfile': {'core'},
     'recording': {'core', 'version'},
@@ -184,12 +185,12 @@ LAYERS = {
     'ros': {'core', 'run', 'paramfile', 'recording', 'version'},
     'offline': {'core', 'run', 'paramfile', 'progress', 'recording', 'ros'},
     'replay': {'core', 'recording', 'ros'},
-    'sweep': {'core', 'analysis', 'paramfile', 'version'},
-    'rate_record': {'core', 'run', 'analysis', 'offline', 'recording'},
-    'characterize': {'core', 'run', 'analysis', 'paramfile', 'progress'},
-    'report': {'core', 'run', 'analysis', 'sweep'},
+    'sweep': {'core', 'analysis', 'paramfile', 'version', 'outdir'},
+    'rate_record': {'core', 'run', 'analysis', 'offline', 'recording', 'outdir'},
+    'characterize': {'core', 'run', 'analysis', 'paramfile', 'progress', 'outdir'},
+    'report': {'core', 'run', 'analysis', 'sweep', 'outdir'},
     'cli': {'core', 'run', 'analysis', 'paramfile', 'recording', 'ros', 'offline', 'replay',
-            'sweep', 'rate_record', 'characterize', 'report', 'progress', 'version'},
+            'sweep', 'rate_record', 'characterize', 'report', 'progress', 'version', 'outdir'},
 }
 """
 Which parts of the package each part may import (doc/architecture.md), lower layers first:

@@ -69,6 +69,7 @@ from typing import Any, Dict, List, Optional, TextIO
 import warnings
 
 from ring_gyro_sim.core.errors import RingGyroError
+from ring_gyro_sim.outdir import prepare_directory
 from ring_gyro_sim.sweep import point as point_mod
 from ring_gyro_sim.sweep.spec import describe, SweepSpec
 from ring_gyro_sim.sweep.store import PointStore
@@ -259,6 +260,8 @@ def run_sweep(spec: SweepSpec, out_dir, scheduler: Optional[str] = None,
         ``out_dir`` holds points and ``resume`` is False, another sweep is writing into it
         (its lock, :meth:`PointStore.lock`), ``workers`` with ``scheduler``, or the
         scheduler cannot be reached.
+    OutputPathError
+        ``out_dir`` is a file, cannot be created or is not writable (checked first).
     KeyboardInterrupt
         Ctrl-C: the points stored so far stay (``--resume`` continues).
 
@@ -270,6 +273,7 @@ def run_sweep(spec: SweepSpec, out_dir, scheduler: Optional[str] = None,
         raise SweepError(f'--workers: must be >= 1, got {workers!r}')
     wall0 = time.perf_counter()
     out = os.path.abspath(os.fspath(out_dir))
+    prepare_directory(out, '--out')
     store = PointStore(out)
     holder = store.lock()
     if holder is not None:
