@@ -337,6 +337,21 @@ def test_an_unusable_output_is_one_line_before_any_work(tmp_path, capsys, boom, 
     assert (tmp_path / 'FILE').read_text() == 'a file'
 
 
+@pytest.mark.parametrize('args, message', [
+    (['--scheduler', 'not an address'], "--scheduler 'not an address': not a scheduler "
+                                        'address (tcp://HOST:PORT)'),
+    (['--dashboard-address', 'garbage:xx'], "--dashboard-address 'garbage:xx': expected "
+                                            '[HOST]:PORT'),
+])
+def test_a_bad_dask_address_is_one_line(tmp_path, capsys, args, message):
+    # issue 22 item 16: ValueError and RuntimeError tracebacks from distributed
+    spec = tmp_path / 'spec.yaml'
+    spec.write_text('duration: 0.01\naxes: {shock.peak_g: [1000.0]}\n')
+    assert cli.main(['sweep', str(spec), '--out', str(tmp_path / 'o')] + args) == 1
+    assert message in one_error_line(capsys.readouterr().err, 'sweep')
+    assert not (tmp_path / 'o').exists()
+
+
 def test_an_os_error_late_in_a_verb_is_one_line(tmp_path, capsys, monkeypatch):
     def full(*args, **kwargs):
         raise OSError(28, 'No space left on device', str(tmp_path / 'rate.csv'))

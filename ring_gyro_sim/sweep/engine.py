@@ -163,6 +163,24 @@ def _dashboard_line(client, local: bool, disabled: bool = False) -> str:
                                            f'bokeh missing on the scheduler?)'
 
 
+def _check_addresses(scheduler: Optional[str], dashboard_address: Optional[str]) -> None:
+    """Refuse a scheduler or dashboard address that cannot be one, before anything runs."""
+    if scheduler:
+        from distributed.comm.addressing import parse_address, parse_host_port
+        try:
+            scheme, location = parse_address(scheduler)
+            if scheme in ('tcp', 'tls', 'ucx', 'ws', 'wss'):
+                parse_host_port(location)
+        except ValueError as exc:
+            raise SweepError(f'--scheduler {scheduler!r}: not a scheduler address '
+                             f'(tcp://HOST:PORT): {exc}') from None
+    if dashboard_address:
+        _, colon, port = dashboard_address.rpartition(':')
+        if not (colon and port.isdigit() and int(port) <= 65535):
+            raise SweepError(f'--dashboard-address {dashboard_address!r}: expected [HOST]:PORT '
+                             f"(:8787; :0 for any free port; '' for none)")
+
+
 @contextmanager
 def _client(scheduler: Optional[str], workers: Optional[int], dashboard_address):
     """Yield ``(client, local)`` connected to ``scheduler`` or to a new LocalCluster."""
@@ -171,7 +189,7 @@ def _client(scheduler: Optional[str], workers: Optional[int], dashboard_address)
     if scheduler:
         try:
             client = Client(scheduler, timeout='30s')
-        except (OSError, TimeoutError) as exc:
+        except (OSError, TimeoutError, ValueError) as exc:
             raise SweepError(f'--scheduler {scheduler}: cannot connect ({exc})') from None
         try:
             yield client, False
@@ -185,10 +203,15 @@ def _client(scheduler: Optional[str], workers: Optional[int], dashboard_address)
                 # no dashboard: the scheduler's plain HTTP server (health, metrics) then tries
                 # :8787 all the same and warns when it is taken; it moves to a free port
                 warnings.filterwarnings('ignore', message='Port .* is already in use')
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                   dashboard_address=dashboard_address,
-                                   silence_logs=logging.ERROR,
-                                   preload=['ring_gyro_sim.sweep._worker'])
+            try:
+                cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                       dashboard_address=dashboard_address,
+                                       silence_logs=logging.ERROR,
+                                       preload=['ring_gyro_sim.sweep._worker'])
+            except (OSError, RuntimeError, ValueError) as exc:
+                where = f' (dashboard {dashboard_address})' if dashboard_address else ''
+                raise SweepError(f'the local Dask cluster did not start{where}: '
+                                 f'{exc}') from None
         try:
             client = Client(cluster)
             try:
@@ -258,8 +281,9 @@ def run_sweep(spec: SweepSpec, out_dir, scheduler: Optional[str] = None,
     ------
     SweepError
         ``out_dir`` holds points and ``resume`` is False, another sweep is writing into it
-        (its lock, :meth:`PointStore.lock`), ``workers`` with ``scheduler``, or the
-        scheduler cannot be reached.
+        (its lock, :meth:`PointStore.lock`), ``workers`` with ``scheduler``, a scheduler
+        or dashboard address that is not one (checked first), the scheduler cannot be
+        reached or the local cluster does not start.
     OutputPathError
         ``out_dir`` is a file, cannot be created or is not writable (checked first).
     KeyboardInterrupt
@@ -271,6 +295,7 @@ def run_sweep(spec: SweepSpec, out_dir, scheduler: Optional[str] = None,
                          '(start as many dask workers as you want)')
     if workers is not None and workers < 1:
         raise SweepError(f'--workers: must be >= 1, got {workers!r}')
+    _check_addresses(scheduler, dashboard_address)
     wall0 = time.perf_counter()
     out = os.path.abspath(os.fspath(out_dir))
     prepare_directory(out, '--out')
