@@ -29,8 +29,9 @@ counts; ``ros_distro`` and ``custom_data`` from the original record if the file 
 Reading stops at the first record that is incomplete or fails its checks, like the project's
 reader (:func:`ring_gyro_sim.recording.reader.read_messages`): both see the same messages.
 The output is written to a temporary file beside the target and moved into place at the end,
-so a failed recovery leaves no partial output; an existing output is never replaced, and a
-file that a recorder is still writing is refused.
+so a failed recovery leaves no partial output; an existing output is never replaced, a file
+that holds no record after its header (nothing to recover) is refused rather than copied into
+an empty MCAP, and a file that a recorder is still writing is refused.
 """
 
 import dataclasses
@@ -141,6 +142,7 @@ class _Copy:
         self.channels = {}  # source id -> (new id, Channel)
         self.counts = {}  # new channel id -> messages
         self.message_count = 0
+        self.attachment_count = 0
         self.start_ns = None
         self.end_ns = None
 
@@ -284,7 +286,8 @@ def recover(path, output=None) -> Recovery:
     OutputBusyError
         If a recorder is still writing ``path``.
     RecordingError
-        If ``path`` cannot be read or is not an MCAP file, or the output cannot be written.
+        If ``path`` cannot be read, is not an MCAP file or holds no record after its header
+        (nothing to recover: no output is written), or the output cannot be written.
 
     """
     source = pathlib.Path(path)
@@ -304,6 +307,7 @@ def recover(path, output=None) -> Recovery:
     try:
         with open(temporary, 'wb') as sink, open(source, 'rb') as stream:
             result = _copy(stream, sink, compression, output.name)
+            _check_recovered(source, size, result)
             sink.flush()
             os.fsync(sink.fileno())
         _move_into_place(temporary, output)
@@ -319,6 +323,18 @@ def recover(path, output=None) -> Recovery:
         chunk_count=chunks, metadata_count=metadata_count, was_complete=was_complete,
         stopped_at=stop[0] if stop else None, reason=stop[1] if stop else '',
         source_size=size)
+
+
+def _check_recovered(source, size, result) -> None:
+    """Refuse a recovery that read no record beyond the header: an empty MCAP is no copy."""
+    copy, _, metadata_count, stop = result
+    if copy.schemas or copy.channels or copy.message_count or metadata_count or \
+            copy.attachment_count:
+        return
+    where = f'; reading stopped at byte {stop[0]} ({stop[1]})' if stop else ''
+    raise RecordingError(f'{str(source)!r} holds nothing to recover: no schema, channel, '
+                         f'message or metadata record after its header ({size} bytes'
+                         f'{where})')
 
 
 def _copy(stream, sink, compression, file_name):
@@ -354,6 +370,7 @@ def _copy(stream, sink, compression, file_name):
         elif isinstance(item, Attachment):
             copy.writer.add_attachment(item.create_time, item.log_time, item.name,
                                        item.media_type, item.data)
+            copy.attachment_count += 1
     chunks = counts.get('chunks', 0)
     stop = stops[0] if stops else None
     if copy is None:

@@ -330,3 +330,22 @@ def test_an_output_where_nothing_can_be_written_is_one_error(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith("ring_gyro recover: error: cannot write '/sys/x.mcap': ") and \
         err.count('\n') == 1, err
+
+
+@pytest.mark.parametrize('keep', ['magic', 'header'])
+def test_a_file_with_nothing_after_its_header_is_refused(tmp_path, capsys, keep):
+    # issue 22 item 17: an 8-byte file (the MCAP magic alone) "succeeded" with an empty MCAP
+    full = many_chunks(tmp_path / 'full.mcap', blocks=10)
+    data = full.read_bytes()
+    if keep == 'magic':
+        cut = 8
+    else:  # the magic and the header record: op (1), length (8), then the record
+        cut = 8 + 9 + int.from_bytes(data[9:17], 'little')
+    short = tmp_path / 'short.mcap'
+    short.write_bytes(data[:cut])
+    with pytest.raises(RecordingError, match=f'holds nothing to recover: .*{cut} bytes'):
+        recover(short)
+    assert not default_output(short).exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['full.mcap', 'short.mcap']
+    assert cli.main(['recover', str(short)]) == 1
+    assert 'nothing to recover' in capsys.readouterr().err
