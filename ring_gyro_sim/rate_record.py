@@ -56,14 +56,25 @@ def applied_rate(config, inputs, t_ns: np.ndarray) -> np.ndarray:
 
 
 def rate_report(path: str, out_dir: str) -> Dict[str, Any]:
-    """Write ``rate.png`` and ``rate.csv`` of a gyroscope recording; return its figures."""
+    """
+    Write ``rate.png`` and ``rate.csv`` of a gyroscope recording; return its figures.
+
+    A recording without ``~/rate`` messages is refused (``RecordingError``): an empty CSV and
+    a blank plot are not a report.
+    """
     from ring_gyro_sim.analysis import plotting
     from ring_gyro_sim.offline import load_recording
     from ring_gyro_sim.recording.errors import RecordingError
     from ring_gyro_sim.recording.reader import read_block_topic, read_rate
     out = prepare_directory(out_dir, '--out')
-    config, _, inputs, _, _ = load_recording(path)
+    config, _, inputs, _, namespace = load_recording(path)
     series = read_rate(path)
+    if not len(series.t_ns):
+        why = ('it was recorded without the gyroscope (gyro.enabled: false)'
+               if not config.gyro.enabled else
+               'record.topics left it out, or the run ended before its first rate sample')
+        raise RecordingError(f'{str(path)!r} holds no {namespace}/rate messages: {why}; '
+                             f'there is no rate output to report')
     t_ns = np.asarray(series.t_ns, dtype=np.int64)
     rate = np.asarray(series.rate, dtype=np.float64)
     applied = applied_rate(config, inputs, t_ns)
