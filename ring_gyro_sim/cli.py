@@ -26,6 +26,7 @@ import json
 import sys
 from typing import List, Optional
 
+from ring_gyro_sim import __version__
 from ring_gyro_sim.core.errors import RingGyroError
 
 
@@ -33,6 +34,8 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog='ring_gyro',
         description='Offline tools of ring_gyro_sim (a MEMS ring gyroscope under shock).')
+    p.add_argument('--version', action='version', version=f'ring_gyro {__version__}',
+                   help='print the package version and exit')
     sub = p.add_subparsers(dest='verb', metavar='VERB')
 
     run = sub.add_parser('run', help='run a scenario file offline, as fast as possible')

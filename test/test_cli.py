@@ -398,3 +398,12 @@ def test_a_read_only_file_system_is_one_line_per_verb(tmp_path):
         err = (tmp_path / f'{verb}.err').read_text()
         assert (tmp_path / f'{verb}.rc').read_text().strip() == '1', err
         assert one_error_line(err, verb).endswith('Read-only file system'), err
+
+
+def test_version_prints_the_package_version(capsys):
+    # issue 22 item 19: there was no `ring_gyro --version`
+    from ring_gyro_sim import __version__
+    with pytest.raises(SystemExit) as exc:
+        cli.main(['--version'])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out == f'ring_gyro {__version__}\n'
