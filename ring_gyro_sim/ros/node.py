@@ -527,8 +527,53 @@ class _StopOnSignal:
         node.stop_requested = name
 
 
+USAGE = """\
+usage: ring_gyro_node [-h] [--ros-args [--params-file FILE] [-r __node:=NAME] [-r __ns:=/NS]
+                      [-p NAME:=VALUE] ...]
+
+The vibrating-ring gyroscope as a ROS 2 node (default name ring_gyro): ~/rate (sensor_msgs/Imu),
+the modal displacements, gaps and capacitances, /diagnostics; inputs ~/shock,
+~/base_acceleration, ~/angular_rate, ~/drive/*; service ~/reset. It runs until Ctrl-C (or for
+`duration` s) and records to `record.path` when set.
+
+ROS arguments (after --ros-args):
+  --params-file FILE   the parameters, e.g. config/default.yaml (every parameter at its
+                       default: the gyroscope), config/demo.yaml, config/paper.yaml (the
+                       paper's resonator); installed under
+                       $(ros2 pkg prefix --share ring_gyro_sim)/config/
+  -r __node:=NAME      rename the node (the shipped files apply to any name)
+  -r __ns:=/NS         put it in a namespace
+  -p NAME:=VALUE       one parameter, e.g. -p duration:=5.0 -p record.path:=out/run.mcap
+
+  -h, --help           show this message and exit (the node does not start)
+
+Exit status: 0 at the end of `duration` or on SIGINT / SIGTERM; 1 for a bad parameter file
+or value (one FATAL line naming the parameter).
+Documentation: doc/interface.md (topics, parameters, QoS), doc/gyroscope.md,
+doc/recording.md; `ros2 param describe /ring_gyro NAME` on a running node; `ring_gyro --help`
+for the offline tools.
+"""
+"""What ``ring_gyro_node -h`` prints."""
+
+
+def asks_for_help(argv) -> bool:
+    """Tell whether ``-h`` or ``--help`` is among the node's own arguments (not ROS's)."""
+    in_ros = False
+    for arg in list(argv)[1:]:
+        if arg == '--ros-args':
+            in_ros = True
+        elif arg == '--' and in_ros:
+            in_ros = False
+        elif not in_ros and arg in ('-h', '--help'):
+            return True
+    return False
+
+
 def main(args=None) -> int:
     """Entry point of ``ring_gyro_node``: exit code 0 on a clean end, 1 if it cannot start."""
+    if asks_for_help(sys.argv if args is None else args):
+        print(USAGE, end='')
+        return 0
     try:  # one verdict on the params files with `ring_gyro run` (paramfile.py)
         check_node_arguments(sys.argv if args is None else args)
     except ParameterError as exc:
