@@ -74,8 +74,11 @@ def _parser() -> argparse.ArgumentParser:
                                            'through a target point (Fig. 4)')
     cal.add_argument('params', nargs='?',
                      help="params YAML (default: the paper's resonator, config/paper.yaml)")
-    cal.add_argument('--target-hz', type=float, default=10.6e3)
-    cal.add_argument('--amplitude', type=float, default=6e-6, help='m')
+    cal.add_argument('--target-hz', type=float, default=10.6e3,
+                     help='backbone frequency to reach at --amplitude, Hz (default 10600, '
+                          "the paper's Fig. 4)")
+    cal.add_argument('--amplitude', type=float, default=6e-6,
+                     help='amplitude of q1 where the frequency is matched, m (default 6e-6)')
     cal.add_argument('--low', type=float, default=40.0, help='voltage bracket low, V')
     cal.add_argument('--high', type=float, default=120.0, help='voltage bracket high, V')
     _add_harmonic_balance_verbs(sub)
@@ -106,8 +109,10 @@ def _add_characterize_verb(sub) -> None:
     ch.add_argument('--out', required=True, help='output directory')
     ch.add_argument('--quick', action='store_true',
                     help='short records (~20 simulated s; the figures are rough)')
-    ch.add_argument('--loops', help='loop modes of the shock table, comma-separated: open, '
-                                    'closed (default: those this build has)')
+    ch.add_argument('--loops', help='loop modes of the shock table, comma-separated: open '
+                                    '(the fixed drive), closed (PLL + AGC), rebalance (closed '
+                                    'loop + force-to-rebalance) (default: every one this '
+                                    'build has)')
     ch.add_argument('--shock-g', help='shock amplitudes, g, comma-separated (default 1000,'
                                       '3000,10000; --quick 1000,10000)')
     ch.add_argument('--no-progress', action='store_true', help='no progress bar')

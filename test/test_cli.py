@@ -407,3 +407,26 @@ def test_version_prints_the_package_version(capsys):
         cli.main(['--version'])
     assert exc.value.code == 0
     assert capsys.readouterr().out == f'ring_gyro {__version__}\n'
+
+
+def subparsers():
+    """Return ``{verb: its ArgumentParser}`` of ``ring_gyro``."""
+    import argparse
+    action = next(a for a in cli._parser()._actions
+                  if isinstance(a, argparse._SubParsersAction))
+    return dict(action.choices)
+
+
+def test_every_option_of_every_verb_has_help():
+    # issue 22 item 19: `calibrate --target-hz` had none
+    missing = [f'{verb} {act.option_strings or act.dest}'
+               for verb, parser in subparsers().items() for act in parser._actions
+               if not act.help]
+    assert missing == []
+
+
+def test_the_loops_help_names_every_loop_mode():
+    # issue 22 item 19: `characterize --loops` help omitted rebalance
+    from ring_gyro_sim.characterize import LOOP_MODES
+    loops = next(a for a in subparsers()['characterize']._actions if a.dest == 'loops')
+    assert [m for m in LOOP_MODES if m not in loops.help] == []
