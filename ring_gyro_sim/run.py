@@ -72,7 +72,7 @@ from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.core.simulator import channel_names, Samples, Simulator, Status
 
 __all__ = ['AngularRate', 'BaseAcceleration', 'Block', 'Diagnostics', 'DriveAmplitude',
-           'DriveFrequency',
+           'DriveFrequency', 'FINISHED',
            'Input', 'MAX_PENDING_BASE_ACCELERATION', 'MAX_PENDING_SHOCKS',
            'MAX_SHOCKS_PER_BLOCK', 'NullSink',
            'PARAMETER_REFUSAL_KINDS',
@@ -88,6 +88,9 @@ MAX_PENDING_BASE_ACCELERATION = 100_000
 """Base-acceleration samples stamped in the future; beyond this one is refused."""
 SUMMARY_WINDOW_S = 0.01
 """Window (s) of the final amplitudes and of the q2 amplitude before the first shock."""
+FINISHED = 'finished'
+"""``RunSummary.status`` of a run that ended with the ring free (its simulator still
+``running``): a summary describes a run that is over."""
 PARAMETER_REFUSAL_KINDS = ('undeclared', 'read_only', 'range', 'invalid')
 """Kinds of refused parameter changes: the first three are refused by ROS before the run
 sees them (``ros/parameters.py``), ``invalid`` by the run's validation."""
@@ -370,7 +373,12 @@ class RunStats:
 
 @dataclass
 class RunSummary:
-    """Numbers of one run (SI units; ``*_m`` in metres), as ``ring_gyro run --json`` prints."""
+    """
+    Numbers of one run (SI units; ``*_m`` in metres), as ``ring_gyro run`` prints them.
+
+    ``status`` is how the run ended: :data:`FINISHED` (the ring was free to the end),
+    ``contact`` or ``failed`` (the simulator's status, with ``message``).
+    """
 
     sim_time_s: float
     wall_time_s: float
@@ -809,7 +817,7 @@ class Run:
         return self._clock() - self._wall0 if self._wall0 is not None else 0.0
 
     def summary(self, output: Optional[str] = None) -> RunSummary:
-        """Return the run's numbers (``ring_gyro run --json``)."""
+        """Return the run's numbers (``ring_gyro run``); ``status`` as the run ended."""
         sim = self.sim
         wall = self.wall_time_s()
         return RunSummary(
@@ -817,7 +825,8 @@ class Run:
             real_time_factor=sim.time_s / wall if wall > 0 else math.inf,
             peak_abs_m={n: float(v) for n, v in zip(sim.coordinates, self.stats.peak)},
             final_abs_m=self.stats.final(), min_gap_m=self.stats.min_gap,
-            contact=not self.running, status=str(sim.status), message=sim.message,
+            contact=not self.running,
+            status=FINISHED if self.running else str(sim.status), message=sim.message,
             samples=self.stats.samples, steps=sim.steps_taken, output=output,
             extra=self.gyro_figures())
 

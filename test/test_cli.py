@@ -430,3 +430,15 @@ def test_the_loops_help_names_every_loop_mode():
     from ring_gyro_sim.characterize import LOOP_MODES
     loops = next(a for a in subparsers()['characterize']._actions if a.dest == 'loops')
     assert [m for m in LOOP_MODES if m not in loops.help] == []
+
+
+@pytest.mark.parametrize('peak_g, status', [(10_000, 'finished'), (40_000, 'contact')])
+def test_the_json_status_says_how_the_run_ended(tmp_path, capsys, peak_g, status):
+    # issue 22 item 19: every run that had ended said "status": "running"
+    path = scenario(tmp_path / 's.yaml', duration=0.01)
+    path.write_text(path.read_text().replace(repr(SHOCK_10000G),
+                                             repr(peak_g * STANDARD_GRAVITY)))
+    assert cli.main(['run', str(path), '--json', '--no-progress']) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert (summary['status'], summary['contact']) == (status, status == 'contact')
+    assert bool(summary['message']) == (status == 'contact')
