@@ -279,6 +279,11 @@ def _write_result(result, output: str, plots: bool, **plot_options) -> Optional[
     return str(png)
 
 
+def _ended(result) -> dict:
+    """Return ``status`` / ``message`` of a continuation: finished, or stopped and why."""
+    return {'status': 'stopped' if result.status else 'finished', 'message': result.status}
+
+
 def cmd_backbone(args) -> int:
     """``ring_gyro backbone``."""
     from ring_gyro_sim.analysis import hbm
@@ -292,7 +297,7 @@ def cmd_backbone(args) -> int:
                       'taylor_terms': result.taylor_terms, 'harmonics': result.harmonics,
                       'amplitude_m': float(result.amplitude_m[-1]),
                       'frequency_hz': float(result.frequency_hz[-1]),
-                      'status': result.status}))
+                      **_ended(result)}))
     return 0
 
 
@@ -310,7 +315,7 @@ def cmd_frf(args) -> int:
                       'drive_amplitude': result.drive_amplitude,
                       'fold_frequencies_hz': list(result.fold_frequencies_hz),
                       'max_amplitude_m': float(result.amplitude_m.max()),
-                      'status': result.status}))
+                      **_ended(result)}))
     return 0
 
 

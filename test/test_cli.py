@@ -442,3 +442,29 @@ def test_the_json_status_says_how_the_run_ended(tmp_path, capsys, peak_g, status
     summary = json.loads(capsys.readouterr().out)
     assert (summary['status'], summary['contact']) == (status, status == 'contact')
     assert bool(summary['message']) == (status == 'contact')
+
+
+@pytest.mark.parametrize('verb', ['backbone', 'frf'])
+@pytest.mark.parametrize('why, status', [('', 'finished'),
+                                         ('the amplitude turned back at 6e-06 m', 'stopped')])
+def test_the_continuations_say_finished_or_stopped(tmp_path, capsys, monkeypatch, verb, why,
+                                                   status):
+    # issue 22 item 19: backbone and frf printed "status": "" when they had finished
+    from ring_gyro_sim.analysis import hbm
+
+    class Result:
+        amplitude_m = frequency_hz = np.array([1e-6, 2e-6])
+        taylor_terms, harmonics, drive_amplitude, fold_frequencies_hz = 4, 3, 0.065, ()
+
+        def __init__(self, *args, **kwargs):
+            self.status = why
+
+        def to_csv(self, path):
+            pathlib.Path(path).write_text('x\n')
+
+        def plot(self, path, **kwargs):
+            pathlib.Path(path).write_bytes(b'')
+    monkeypatch.setattr(hbm, verb, Result)
+    assert cli.main([verb, '-o', str(tmp_path / 'r.csv')]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert (printed['status'], printed['message']) == (status, why)
