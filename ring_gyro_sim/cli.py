@@ -15,6 +15,10 @@
 """
 ``ring_gyro``: the offline command line (run, replay, calibrate, ...).
 
+Every verb prints one JSON object on stdout (its numbers and files) and writes what a person
+reads (progress, notes, the run's summary) on stderr; an error is one line on stderr,
+``ring_gyro VERB: error: ...``, exit 1 (2 for a usage error: argparse's).
+
 ``main()`` only parses arguments; the work is done by importable functions
 (``ring_gyro_sim.offline``, ``ring_gyro_sim.replay``, ``ring_gyro_sim.analysis``). Each verb
 imports its modules when it runs, on purpose: ``ring_gyro --help`` and argument errors answer
@@ -47,7 +51,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument('--overwrite', action='store_true',
                      help='replace an existing recording (record.overwrite: true; never the '
                           'scenario or the source recording itself)')
-    run.add_argument('--json', action='store_true', help='print one JSON summary on stdout')
+    run.add_argument('--json', action='store_true',
+                     help='the JSON object on stdout only: no readable summary on stderr '
+                          '(the JSON is printed either way)')
     run.add_argument('--no-progress', action='store_true', help='no progress bar')
     run.add_argument('--node-name', default='ring_gyro',
                      help='node name whose ros__parameters to read (default ring_gyro)')
@@ -202,19 +208,19 @@ def cmd_run(args) -> int:
         summary = offline.run_offline(config, args.duration, output=output,
                                       progress=not args.no_progress,
                                       overwrite=args.overwrite or None)
-    if args.json:
-        print(summary.to_json())
-    else:
-        print(f'simulated {summary.sim_time_s:.4f} s in {summary.wall_time_s:.2f} s '
-              f'(x{summary.real_time_factor:.1f} real time), status {summary.status}')
+    if not args.json:
+        lines = [f'simulated {summary.sim_time_s:.4f} s in {summary.wall_time_s:.2f} s '
+                 f'(x{summary.real_time_factor:.1f} real time), status {summary.status}']
         for name, peak in summary.peak_abs_m.items():
-            print(f'  {name}: peak {format_number(peak * 1e6)} um, last 10 ms '
-                  f'{format_number(summary.final_abs_m[name] * 1e6)} um')
-        print(f'  smallest outer gap {format_number(summary.min_gap_m * 1e6)} um')
+            lines.append(f'  {name}: peak {format_number(peak * 1e6)} um, last 10 ms '
+                         f'{format_number(summary.final_abs_m[name] * 1e6)} um')
+        lines.append(f'  smallest outer gap {format_number(summary.min_gap_m * 1e6)} um')
         if summary.message:
-            print(f'  {summary.message}')
+            lines.append(f'  {summary.message}')
         if summary.output:
-            print(f'  recorded to {summary.output}')
+            lines.append(f'  recorded to {summary.output}')
+        print('\n'.join(lines), file=sys.stderr)
+    print(summary.to_json())
     return 0
 
 
@@ -225,13 +231,22 @@ def cmd_replay(args) -> int:
                     max_gap_s=MAX_GAP_S if args.max_gap is None else args.max_gap,
                     wait_for_subscribers_s=args.wait_for_subscribers)
     print(f'ring_gyro replay: {result.describe()}', file=sys.stderr)
+    from dataclasses import asdict
+    print(json.dumps(dict(asdict(result), recording=args.recording), sort_keys=True))
     return 0  # also when SIGINT / SIGTERM stopped it (the note says so)
 
 
 def cmd_recover(args) -> int:
     """``ring_gyro recover``."""
     from ring_gyro_sim.recording.recover import recover
-    print(recover(args.recording, args.output).describe())
+    result = recover(args.recording, args.output)
+    print(f'ring_gyro recover: {result.describe()}', file=sys.stderr)
+    print(json.dumps({'source': str(result.source), 'output': str(result.output),
+                      'messages': result.message_count, 'topics': result.topics,
+                      'chunks': result.chunk_count, 'metadata_records': result.metadata_count,
+                      'was_complete': result.was_complete, 'stopped_at': result.stopped_at,
+                      'reason': result.reason, 'source_size': result.source_size},
+                     sort_keys=True))
     return 0
 
 

@@ -129,13 +129,39 @@ def test_run_json_prints_exactly_one_object(tmp_path, capsys):
     assert 0.55e-5 < summary['peak_abs_m']['q1'] < 0.60e-5
 
 
-def test_run_text_summary(tmp_path, capsys):
+def test_run_prints_json_on_stdout_and_the_readable_summary_on_stderr(tmp_path, capsys):
+    # issue 22 item 19: every verb prints one JSON object on stdout; `run` did so only with
+    # --json (its text summary went to stdout), which is now kept for scripts: JSON only.
     path = scenario(tmp_path / 's.yaml', duration=0.01)
     assert cli.main(['run', str(path), '--no-progress']) == 0
-    out = capsys.readouterr().out
-    assert 'simulated 0.0100 s' in out and 'q1: peak' in out and 'smallest outer gap' in out
-    with pytest.raises(json.JSONDecodeError):
-        json.loads(out)
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)['sim_time_s'] == pytest.approx(0.01)
+    err = captured.err
+    assert 'simulated 0.0100 s' in err and 'q1: peak' in err and 'smallest outer gap' in err
+    assert 'status finished' in err
+    assert cli.main(['run', str(path), '--no-progress', '--json']) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)['sim_time_s'] == pytest.approx(0.01)
+    assert captured.err == ''
+
+
+def test_every_verb_prints_one_json_object(tmp_path, capsys):
+    # issue 22 item 19: recover printed text on stdout, replay nothing
+    path = scenario(tmp_path / 's.yaml', duration=0.02)
+    recording = tmp_path / 'r.mcap'
+    assert cli.main(['run', str(path), '-o', str(recording), '--no-progress']) == 0
+    capsys.readouterr()
+    assert cli.main(['recover', str(recording)]) == 0
+    captured = capsys.readouterr()
+    printed = json.loads(captured.out)
+    assert printed['output'] == str(tmp_path / 'r.recovered.mcap') and printed['messages'] > 0
+    assert 'written to' in captured.err
+    assert cli.main(['replay', str(recording), '--rate', '1000', '--topics',
+                     f'{NS}/modal_displacement']) == 0
+    captured = capsys.readouterr()
+    printed = json.loads(captured.out)
+    assert printed['published'] == printed['total'] > 0
+    assert 'replayed' in captured.err
 
 
 def test_duration_option_overrides_the_file(tmp_path, capsys):

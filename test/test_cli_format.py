@@ -56,7 +56,7 @@ def test_run_prints_a_huge_held_state_in_a_few_characters(monkeypatch, capsys, t
                               node_name='ring_gyro', duration=None, no_progress=True,
                               json=False, overwrite=False)
     assert cli.cmd_run(args) == 0
-    out = capsys.readouterr().out
+    out = capsys.readouterr().err  # the readable summary (stdout has the JSON)
     print(out)
     assert max(len(line) for line in out.splitlines()) < 100
     assert 'q1: peak 1.7000e+306 um' in out and 'q2: peak 0.1000 um' in out

@@ -19,6 +19,7 @@ The recovered files are read with readers that share no code with ours: ``mcap``
 ``make_reader`` with the ``mcap_ros2`` decoder, and rosbags.
 """
 
+import json
 import os
 import pathlib
 import signal
@@ -224,8 +225,10 @@ def test_the_recover_verb(tmp_path, capsys):
     killed = tmp_path / 'k.mcap'
     killed.write_bytes(full.read_bytes()[:full.stat().st_size // 2])
     assert cli.main(['recover', str(killed), '-o', str(tmp_path / 'out' / 'r.mcap')]) == 0
-    out = capsys.readouterr().out
-    assert 'written to' in out and 'reading stopped at byte' in out
+    captured = capsys.readouterr()
+    assert 'written to' in captured.err and 'reading stopped at byte' in captured.err
+    printed = json.loads(captured.out)
+    assert printed['output'] == str(tmp_path / 'out' / 'r.mcap') and printed['stopped_at'] > 0
     assert (tmp_path / 'out' / 'r.mcap').exists()
     assert cli.main(['recover', str(killed), '-o', str(tmp_path / 'out' / 'r.mcap')]) == 1
     err = capsys.readouterr().err
