@@ -33,6 +33,13 @@ from typing import List, Optional
 from ring_gyro_sim import __version__
 from ring_gyro_sim.core.errors import RingGyroError
 
+FILE_OPTION = ('-o', '--out', '--output')
+DIR_OPTION = ('-o', '--out')
+"""Where a verb writes, one spelling for all: ``-o`` / ``--out``, a file or a directory as the
+verb writes one (``FILE``, ``DIR`` in its help); ``--output``, the former spelling of the file
+verbs, stays accepted for the scripts that use it."""
+OLD_SPELLING = ' (--output: the former spelling, still accepted)'
+
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
@@ -44,7 +51,8 @@ def _parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser('run', help='run a scenario file offline, as fast as possible')
     run.add_argument('scenario', nargs='?', help='params YAML (same file as the node takes)')
-    run.add_argument('-o', '--output', help='record the run to this MCAP file')
+    run.add_argument(*FILE_OPTION, dest='output', metavar='FILE.mcap',
+                     help='record the run to this MCAP file' + OLD_SPELLING)
     run.add_argument('--from', dest='source', metavar='FILE.mcap',
                      help='re-simulate a recording from its parameters and inputs')
     run.add_argument('--duration', type=float, help='simulated time, s (overrides duration)')
@@ -73,8 +81,9 @@ def _parser() -> argparse.ArgumentParser:
     rec = sub.add_parser('recover', help='write a complete copy of a killed recording that '
                                          'every MCAP reader opens')
     rec.add_argument('recording', help='MCAP file (e.g. of a killed run: no summary)')
-    rec.add_argument('-o', '--output', help='the copy (default FILE.recovered.mcap; an '
-                                            'existing file is refused)')
+    rec.add_argument(*FILE_OPTION, dest='output', metavar='FILE.mcap',
+                     help='the copy (default FILE.recovered.mcap; an existing file is '
+                          'refused)' + OLD_SPELLING)
 
     cal = sub.add_parser('calibrate', help='outer voltage that puts the 1theta backbone '
                                            'through a target point (Fig. 4)')
@@ -91,11 +100,13 @@ def _parser() -> argparse.ArgumentParser:
     rt = sub.add_parser('rate', help='the rate output of a gyroscope recording against the '
                         'applied rate: rate.png, rate.csv and its figures (JSON)')
     rt.add_argument('recording', help='MCAP of a run with gyro.enabled')
-    rt.add_argument('--out', required=True, help='directory for rate.png and rate.csv')
+    rt.add_argument(*DIR_OPTION, required=True, metavar='DIR',
+                    help='directory for rate.png and rate.csv (created)')
 
     rpt = sub.add_parser('report', help='regenerate the paper figures (PNG) and summary.json '
                                         "/ summary.md with our numbers beside the paper's")
-    rpt.add_argument('--out', required=True, help='output directory')
+    rpt.add_argument(*DIR_OPTION, required=True, metavar='DIR',
+                     help='output directory (created)')
     rpt.add_argument('--quick', action='store_true',
                      help='short runs (a few minutes; branches not decided)')
     rpt.add_argument('--workers', type=int, default=2,
@@ -112,7 +123,8 @@ def _add_characterize_verb(sub) -> None:
                                              'and PNGs (doc/datasheet.md)')
     ch.add_argument('params', help='params YAML of a gyroscope (gyro.enabled: true), as '
                                    '`ring_gyro run` takes it')
-    ch.add_argument('--out', required=True, help='output directory')
+    ch.add_argument(*DIR_OPTION, required=True, metavar='DIR',
+                    help='output directory (created)')
     ch.add_argument('--quick', action='store_true',
                     help='short records (~20 simulated s; the figures are rough)')
     ch.add_argument('--loops', help='loop modes of the shock table, comma-separated: open '
@@ -130,8 +142,8 @@ def _add_sweep_verb(sub) -> None:
     sw = sub.add_parser('sweep', help='a parameter sweep on Dask (jump maps): results.nc, '
                                       'results.csv and PNG maps (doc/sweeps.md)')
     sw.add_argument('spec', help='sweep spec YAML (base params file, axes, duration, metrics)')
-    sw.add_argument('--out', required=True, help='output directory (points/ stored as they '
-                                                 'finish)')
+    sw.add_argument(*DIR_OPTION, required=True, metavar='DIR',
+                    help='output directory (created; points/ stored as they finish)')
     sw.add_argument('--scheduler', metavar='ADDRESS',
                     help='a running Dask scheduler (tcp://host:port); default: a local '
                          'cluster')
@@ -156,8 +168,9 @@ def _add_harmonic_balance_verbs(sub) -> None:
     bb.add_argument('--max-amplitude', type=float, default=6.5e-6,
                     help='continue up to this max |q_mode|, m (default 6.5e-6)')
     bb.add_argument('--harmonics', type=int, default=12, help='N_h (default 12)')
-    bb.add_argument('-o', '--output', default='backbone.csv',
-                    help='CSV file (amplitude_m,frequency_hz); the plot goes beside it (.png)')
+    bb.add_argument(*FILE_OPTION, dest='output', default='backbone.csv', metavar='FILE.csv',
+                    help='CSV file (amplitude_m,frequency_hz); the plot goes beside it (.png)'
+                         + OLD_SPELLING)
     bb.add_argument('--node-name', default='ring_gyro',
                     help='node name whose ros__parameters to read (default ring_gyro)')
 
@@ -176,9 +189,9 @@ def _add_harmonic_balance_verbs(sub) -> None:
     fr.add_argument('--harmonics', type=int, default=3, help='N_h (default 3)')
     fr.add_argument('--stability', choices=('hill', 'monodromy'), default='hill',
                     help="Floquet multipliers by Hill's method or the monodromy matrix")
-    fr.add_argument('-o', '--output', default='frf.csv',
+    fr.add_argument(*FILE_OPTION, dest='output', default='frf.csv', metavar='FILE.csv',
                     help='CSV file (frequency_hz,amplitude_m,stable); the plot goes beside '
-                         'it (.png)')
+                         'it (.png)' + OLD_SPELLING)
     fr.add_argument('--node-name', default='ring_gyro',
                     help='node name whose ros__parameters to read (default ring_gyro)')
 

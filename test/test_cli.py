@@ -494,3 +494,30 @@ def test_the_continuations_say_finished_or_stopped(tmp_path, capsys, monkeypatch
     assert cli.main([verb, '-o', str(tmp_path / 'r.csv')]) == 0
     printed = json.loads(capsys.readouterr().out)
     assert (printed['status'], printed['message']) == (status, why)
+
+
+WRITES = {'run': 'FILE.mcap', 'recover': 'FILE.mcap', 'backbone': 'FILE.csv',
+          'frf': 'FILE.csv', 'rate': 'DIR', 'report': 'DIR', 'sweep': 'DIR',
+          'characterize': 'DIR'}
+"""Verbs that write: what ``-o`` / ``--out`` names for each."""
+
+
+def test_every_verb_that_writes_takes_o_and_out():
+    # issue 22 item 19: `-o/--output` on some verbs, a required `--out` on others
+    parsers = subparsers()
+    for verb, metavar in WRITES.items():
+        where = [a for a in parsers[verb]._actions if '--out' in a.option_strings]
+        assert len(where) == 1, verb
+        assert where[0].option_strings[:2] == ['-o', '--out'] and where[0].metavar == metavar
+        if metavar != 'DIR':  # the file verbs' former spelling stays for scripts
+            assert '--output' in where[0].option_strings
+    others = [verb for verb, parser in parsers.items() if verb not in WRITES
+              for a in parser._actions if {'-o', '--out', '--output'} & set(a.option_strings)]
+    assert others == []
+
+
+def test_the_three_spellings_reach_the_same_option(tmp_path, capsys):
+    path = scenario(tmp_path / 's.yaml', duration=0.002)
+    for i, flag in enumerate(('-o', '--out', '--output')):
+        assert cli.main(['run', str(path), flag, str(tmp_path / f'{i}.mcap'), '--json']) == 0
+        assert json.loads(capsys.readouterr().out)['output'] == str(tmp_path / f'{i}.mcap')
