@@ -343,6 +343,9 @@ class _Bar:
     def update(self, run_s: float, note: str) -> None:
         self.progress.update(self.done_s + run_s, note)
 
+    def note(self, text: str) -> None:
+        self.progress.note(f'characterize: {text}')
+
     def finish_run(self, planned_s: float) -> None:
         self.done_s += planned_s
         self.progress.update(self.done_s)
@@ -357,7 +360,7 @@ def _simulate(values: Mapping[str, Any], duration_s: float, bar: _Bar, note: str
     trace = _Trace()
     with warnings.catch_warnings():
         warnings.simplefilter('ignore', RuntimeWarning)  # unstable to the companions
-        run = Run(config, sink=trace)  # one shooting per device and drive (memoised)
+        run = Run(config, sink=trace, log=bar.note)  # one shooting per device and drive
     total = int(round(duration_s / (config.run.output_period_ns * 1e-9)))
     block = config.run.block_samples
     done = 0

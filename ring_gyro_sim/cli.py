@@ -203,6 +203,13 @@ def _load(path: Optional[str], node_name: str = 'ring_gyro'):
     return load_yaml(path, node_name) if path else paper_config()
 
 
+def _note(verb: str):
+    """Return a function that writes one line ``ring_gyro VERB: ...`` on stderr at once."""
+    def note(text: str) -> None:
+        print(f'ring_gyro {verb}: {text}', file=sys.stderr, flush=True)
+    return note
+
+
 def cmd_run(args) -> int:
     """``ring_gyro run``."""
     from ring_gyro_sim import offline
@@ -220,7 +227,7 @@ def cmd_run(args) -> int:
         check_output_path(output, [args.scenario])
         summary = offline.run_offline(config, args.duration, output=output,
                                       progress=not args.no_progress,
-                                      overwrite=args.overwrite or None)
+                                      overwrite=args.overwrite or None, log=_note('run'))
     if not args.json:
         lines = [f'simulated {summary.sim_time_s:.4f} s in {summary.wall_time_s:.2f} s '
                  f'(x{summary.real_time_factor:.1f} real time), status {summary.status}']

@@ -29,7 +29,7 @@ reproduces its outputs bit for bit.
 from dataclasses import replace
 import json
 import math
-from typing import List, Optional, Sequence
+from typing import Callable, List, Optional, Sequence
 
 import numpy as np
 
@@ -58,7 +58,8 @@ def run_offline(config: SimConfig, duration_s: Optional[float] = None,
                 output: Optional[str] = None, progress: bool = True,
                 namespace: str = '/ring_gyro', start_state=None,
                 inputs: Sequence[Input] = (), block_sizes: Optional[List[int]] = None,
-                overwrite: Optional[bool] = None) -> RunSummary:
+                overwrite: Optional[bool] = None,
+                log: Optional[Callable[[str], None]] = None) -> RunSummary:
     """
     Run a scenario as fast as possible.
 
@@ -83,6 +84,9 @@ def run_offline(config: SimConfig, duration_s: Optional[float] = None,
         Samples per block (re-simulation: the same cuts as the original).
     overwrite : bool, optional
         Replace an existing ``output`` (default: ``record.overwrite`` of the configuration).
+    log : callable, optional
+        Told, one line each, what takes a while before the first block (computing the start
+        state of ``drive.start_on``: seconds, silent otherwise), as the node logs it.
 
     """
     duration = config.run.duration if duration_s is None else duration_s
@@ -102,7 +106,7 @@ def run_offline(config: SimConfig, duration_s: Optional[float] = None,
             output, config, names, namespace, publish_clock=config.run.publish_clock),
             frame_id=config.gyro.frame_id)
     try:
-        run = Run(config, start_state=start_state, sink=sink)
+        run = Run(config, start_state=start_state, sink=sink, log=log)
     except BaseException:
         sink.discard()
         raise

@@ -80,6 +80,14 @@ class Progress:
                        '[{elapsed}<{remaining}, x{rate_noinv_fmt}]'.replace(
                            '{desc}', '{desc}: ' if name else ''))
 
+    def note(self, text: str) -> None:
+        """Write one line on stderr now (above the bar when there is one), shown or not."""
+        if self._bar is not None:
+            self._bar.write(text, file=self._bar.fp)
+        else:
+            sys.stderr.write(text + '\n')
+            sys.stderr.flush()
+
     def update(self, sim_s: float, note: str = '') -> None:
         """Report that ``sim_s`` simulated seconds are done (``note``: a short postfix)."""
         if self._bar is None:

@@ -32,6 +32,7 @@ import numpy as np
 import pytest
 from ring_gyro_sim import characterize as ch
 from ring_gyro_sim import cli
+from ring_gyro_sim.core.gyro import operating_point
 from ring_gyro_sim.core.params import paper_config
 from ring_gyro_sim.run import Run
 from scipy import signal
@@ -39,6 +40,8 @@ from scipy import signal
 REPO_ROOT = Path(__file__).resolve().parents[1]
 GYRO = REPO_ROOT / 'config' / 'gyro.yaml'
 PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
+QUICK_STDERR = []
+"""What the quick characterization wrote on stderr."""
 SETTLE_PPM_FS = 150.0
 """Settling of the quick table's points (noise off, 0 - 0.5 s means: -207 / -387 ppm of the
 reading at 300 / 100 deg/s, i.e. 69 / 129 ppm of full scale; doc/datasheet.md)."""
@@ -48,10 +51,12 @@ reading at 300 / 100 deg/s, i.e. 69 / 129 ppm of full scale; doc/datasheet.md)."
 def quick(tmp_path_factory):
     """One ``ring_gyro characterize config/gyro.yaml --quick``: (exit code, stdout, DIR)."""
     out = tmp_path_factory.mktemp('datasheet')
-    stdout = io.StringIO()
-    with contextlib.redirect_stdout(stdout):
+    stdout, stderr = io.StringIO(), io.StringIO()
+    operating_point._MEMO.clear()  # as a fresh process: the start states are computed here
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
         code = cli.main(['characterize', str(GYRO), '--out', str(out), '--quick',
                          '--no-progress'])
+    QUICK_STDERR.append(stderr.getvalue())
     return code, stdout.getvalue(), out
 
 
@@ -80,6 +85,13 @@ def test_the_run_succeeds_and_prints_its_summary_last(quick, sheet):
     assert set(summary['files']) == {str(out / n) for n in (
         'datasheet.json', 'datasheet.md', 'allan.png', 'scale_factor.png', 'step.png',
         'shock_recovery.png')}
+
+
+def test_it_says_when_it_computes_a_start_state(quick):
+    # issue 22 item 20: the start state (seconds each, ~30 s for a new device) was silent
+    notes = [line for line in QUICK_STDERR[0].splitlines()
+             if line.startswith('characterize: computing the start state (upper_branch')]
+    assert notes, QUICK_STDERR[0]
 
 
 def test_the_datasheet_has_the_figures_and_the_predictions(sheet):

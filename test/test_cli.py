@@ -521,3 +521,18 @@ def test_the_three_spellings_reach_the_same_option(tmp_path, capsys):
     for i, flag in enumerate(('-o', '--out', '--output')):
         assert cli.main(['run', str(path), flag, str(tmp_path / f'{i}.mcap'), '--json']) == 0
         assert json.loads(capsys.readouterr().out)['output'] == str(tmp_path / f'{i}.mcap')
+
+
+def test_run_says_when_it_computes_the_start_state(tmp_path, capsys, monkeypatch):
+    # issue 22 item 20: the start state (30 s for config/paper.yaml) was computed in silence
+    from collections import OrderedDict
+    from ring_gyro_sim.core.gyro import operating_point
+    monkeypatch.setattr(operating_point, '_MEMO', OrderedDict())
+    monkeypatch.setattr(operating_point, 'drive_orbit', lambda config: None)  # the 30 s
+    path = scenario(tmp_path / 's.yaml', duration=0.002)
+    path.write_text(path.read_text().replace('drive: {amplitude: 0.0, start_on: rest}',
+                                             'drive: {amplitude: 0.065, start_on: upper_branch}'))
+    assert cli.main(['run', str(path), '--json', '--no-progress']) == 0
+    err = capsys.readouterr().err
+    assert err.startswith('ring_gyro run: computing the start state (upper_branch of the drive '
+                          'at 15798.6 Hz, 0.065 m/s^2): a few seconds\n'), err
