@@ -210,11 +210,20 @@ def _note(verb: str):
     return note
 
 
+def _say_if_compiling(note, who: str = 'the kernels') -> None:
+    """Say, before anything runs, that the kernels compile (numba's cache is cold)."""
+    from ring_gyro_sim.core.kernels import cache
+    if cache.cold_kernels():
+        note(f'compiling {who} (first run of this version on this machine, '
+             f'~{cache.COMPILE_CPU_S:.0f} s of CPU; the next runs load them)...')
+
+
 def cmd_run(args) -> int:
     """``ring_gyro run``."""
     from ring_gyro_sim import offline
     from ring_gyro_sim.ros.recorder import check_output_path
     from ring_gyro_sim.run import format_number
+    _say_if_compiling(_note('run'))
     if args.source:
         check_output_path(args.output, [args.source])
         summary = offline.resimulate(args.source, args.output, progress=not args.no_progress,
@@ -365,6 +374,7 @@ def cmd_report(args) -> int:
     """``ring_gyro report``."""
     from ring_gyro_sim.report import build_report
     plots = _plots_available('report')
+    _say_if_compiling(_note('report'), 'the kernels in each worker')
     summary = build_report(args.out, quick=args.quick, workers=args.workers)
     if not plots:
         print(f'ring_gyro report: figures skipped (no matplotlib); CSVs and summary in '
@@ -387,6 +397,7 @@ def cmd_characterize(args) -> int:
         except ValueError:
             raise RingGyroError(f'--shock-g: not numbers: {args.shock_g!r}') from None
     _plots_available('characterize')
+    _say_if_compiling(_note('characterize'))
     sheet = characterize(args.params, args.out, quick=args.quick, loops=loops,
                          progress=not args.no_progress, node_name=args.node_name,
                          shock_peaks_g=peaks)
@@ -406,7 +417,10 @@ def cmd_characterize(args) -> int:
 def cmd_sweep(args) -> int:
     """``ring_gyro sweep``: exit 0, or 3 when some points failed (results written)."""
     from ring_gyro_sim.sweep import load_spec, run_sweep
-    outcome = run_sweep(load_spec(args.spec), args.out, scheduler=args.scheduler,
+    spec = load_spec(args.spec)
+    if not args.scheduler:  # a cluster elsewhere has its own cache
+        _say_if_compiling(_note('sweep'), 'the kernels in each worker')
+    outcome = run_sweep(spec, args.out, scheduler=args.scheduler,
                         workers=args.workers, resume=args.resume,
                         progress=not args.no_progress, plots=not args.no_plots,
                         dashboard_address=args.dashboard_address or None)

@@ -536,3 +536,16 @@ def test_run_says_when_it_computes_the_start_state(tmp_path, capsys, monkeypatch
     err = capsys.readouterr().err
     assert err.startswith('ring_gyro run: computing the start state (upper_branch of the drive '
                           'at 15798.6 Hz, 0.065 m/s^2): a few seconds\n'), err
+
+
+@pytest.mark.parametrize('cold, said', [(['run_samples'], True), ([], False), (None, False)])
+def test_run_says_it_compiles_when_the_cache_is_cold(tmp_path, capsys, monkeypatch, cold,
+                                                     said):
+    # issue 22 item 20: the first compile (~25 s of CPU, ~45 s wall on the loaded 2 cores)
+    # was silent
+    from ring_gyro_sim.core.kernels import cache
+    monkeypatch.setattr(cache, 'cold_kernels', lambda: cold)
+    path = scenario(tmp_path / 's.yaml', duration=0.002)
+    assert cli.main(['run', str(path), '--json', '--no-progress']) == 0
+    err = capsys.readouterr().err
+    assert ('ring_gyro run: compiling the kernels' in err) == said, err

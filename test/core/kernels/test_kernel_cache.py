@@ -86,3 +86,32 @@ def test_second_start_loads_the_kernels_from_disk_when_installed_read_only(tmp_p
     # Nothing was written into the read-only package; the cache is the user's.
     assert not list((parent / 'ring_gyro_sim').rglob('*.nbi'))
     assert list(cache_home.rglob('*.nbi'))
+
+
+COLD = ('import json\n'
+        'from ring_gyro_sim.core.kernels.cache import cold_kernels\n'
+        'print(json.dumps(cold_kernels()))')
+
+
+def cold_in_a_fresh_process(**env):
+    package_parent = Path(ring_gyro_sim.__file__).parents[1]
+    result = subprocess.run([sys.executable, '-c', COLD], capture_output=True, text=True,
+                            timeout=120, check=False,
+                            env={'PATH': '/usr/bin:/bin', 'PYTHONPATH': str(package_parent),
+                                 **env})
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout)
+
+
+def test_cold_kernels_tells_an_empty_cache_from_a_filled_one(tmp_path):
+    # issue 22 item 20: the first compile (~25 s of CPU) was silent; the command line asks
+    # this before it runs anything (it compiles nothing itself).
+    from ring_gyro_sim.core.params import paper_config
+    from ring_gyro_sim.core.simulator import Simulator
+    Simulator(paper_config({'drive.start_on': 'rest'})).advance(0.001)  # fills the cache
+    assert cold_in_a_fresh_process() == []
+    empty = tmp_path / 'numba'
+    empty.mkdir()
+    assert cold_in_a_fresh_process(NUMBA_CACHE_DIR=str(empty)) == ['run_samples',
+                                                                   'output_channels']
+    assert list(empty.rglob('*.nb[ic]')) == []  # asking compiled nothing
