@@ -281,13 +281,28 @@ def cmd_recover(args) -> int:
 
 def cmd_calibrate(args) -> int:
     """``ring_gyro calibrate``."""
+    import time
     from ring_gyro_sim.analysis.nnm import calibrate_outer_voltage, frequency_at_amplitude
+    note = _note('calibrate')
     config = _load(args.params)
+    started = time.monotonic()
+    note(f'the outer voltage that puts the 1theta backbone through {args.target_hz:g} Hz at '
+         f"{args.amplitude * 1e6:g} um, by Brent's method over {args.low:g}-{args.high:g} V: "
+         f'~10 backbones by shooting, seconds each')
+
+    def step(count: int, volts: float, frequency_hz: float) -> None:
+        note(f'{count}: V_o = {volts:.4f} V -> {frequency_hz:.2f} Hz at '
+             f'{args.amplitude * 1e6:g} um ({frequency_hz - args.target_hz:+.2f} Hz; '
+             f'{time.monotonic() - started:.0f} s)')
     volts = calibrate_outer_voltage(config, args.target_hz, args.amplitude,
-                                    (args.low, args.high))
+                                    (args.low, args.high), progress=step)
+    note(f"V_o = {volts:.4f} V; the backbone at the file's "
+         f'{config.electrodes.outer_voltage:g} V for comparison...')
+    at_default = frequency_at_amplitude(config, args.amplitude)
+    note(f'done in {time.monotonic() - started:.0f} s')
     print(json.dumps({'outer_voltage_v': volts, 'target_hz': args.target_hz,
                       'amplitude_m': args.amplitude,
-                      'frequency_at_default_hz': frequency_at_amplitude(config, args.amplitude),
+                      'frequency_at_default_hz': at_default,
                       'default_outer_voltage_v': config.electrodes.outer_voltage}))
     return 0
 

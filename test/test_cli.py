@@ -549,3 +549,24 @@ def test_run_says_it_compiles_when_the_cache_is_cold(tmp_path, capsys, monkeypat
     assert cli.main(['run', str(path), '--json', '--no-progress']) == 0
     err = capsys.readouterr().err
     assert ('ring_gyro run: compiling the kernels' in err) == said, err
+
+
+def test_calibrate_shows_each_evaluation_as_it_goes(capsys, monkeypatch):
+    # issue 22 item 20: ~70 s without a word. The backbone (seconds each) is replaced by a
+    # line in V_o here: what is tested is what the verb says, not the shooting.
+    from ring_gyro_sim.analysis import nnm
+
+    def backbone_at(config, amplitude_m, mode=1):
+        return 10.0e3 + 10.0 * (config.electrodes.outer_voltage - 40.0)
+    monkeypatch.setattr(nnm, 'frequency_at_amplitude', backbone_at)
+    assert cli.main(['calibrate', '--target-hz', '10500']) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)['outer_voltage_v'] == pytest.approx(90.0, abs=1e-3)
+    lines = captured.err.splitlines()
+    assert lines[0].startswith('ring_gyro calibrate: the outer voltage that puts the 1theta '
+                               'backbone through 10500 Hz at 6 um')
+    steps = [line for line in lines if line.startswith('ring_gyro calibrate: 1: ')
+             or line.startswith('ring_gyro calibrate: 2: ')]
+    assert steps[0].startswith('ring_gyro calibrate: 1: V_o = 40.0000 V -> 10000.00 Hz at 6 um '
+                               '(-500.00 Hz;'), steps
+    assert lines[-1].startswith('ring_gyro calibrate: done in ')

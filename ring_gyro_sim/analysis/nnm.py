@@ -30,7 +30,7 @@ which is what the default outer voltage is calibrated on (:func:`calibrate_outer
 """
 
 from dataclasses import dataclass, replace
-from typing import List, Sequence
+from typing import Callable, List, Optional, Sequence
 
 import numpy as np
 from ring_gyro_sim.core.errors import SimulationError
@@ -154,7 +154,9 @@ def frequency_at_amplitude(config: SimConfig, amplitude_m: float, mode: int = 1,
 
 def calibrate_outer_voltage(config: SimConfig, target_hz: float = 10.6e3,
                             amplitude_m: float = 6e-6, bracket_v=(40.0, 120.0),
-                            mode: int = 1) -> float:
+                            mode: int = 1,
+                            progress: Optional[Callable[[int, float, float], None]] = None
+                            ) -> float:
     """
     Outer voltage (V) at which the backbone passes through (amplitude, target frequency).
 
@@ -170,10 +172,20 @@ def calibrate_outer_voltage(config: SimConfig, target_hz: float = 10.6e3,
         Voltage bracket, V.
     mode : int
         n of the calibrated n-theta mode (1: the 1theta mode).
+    progress : callable, optional
+        Called after each backbone evaluation (seconds each, about 12 in all) with its count
+        (from 1), the voltage (V) and the frequency found (Hz).
 
     """
+    count = 0
+
     def miss(volts: float) -> float:
+        nonlocal count
         c = replace(config, electrodes=replace(config.electrodes, outer_voltage=volts))
-        return frequency_at_amplitude(c, amplitude_m, mode) - target_hz
+        frequency = frequency_at_amplitude(c, amplitude_m, mode)
+        count += 1
+        if progress is not None:
+            progress(count, volts, frequency)
+        return frequency - target_hz
 
     return float(brentq(miss, bracket_v[0], bracket_v[1], xtol=1e-4))
