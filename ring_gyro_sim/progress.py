@@ -15,10 +15,11 @@
 """
 One progress reporter for long offline runs (``ring_gyro run``, the paper cases, ``report``).
 
-A thin layer over ``tqdm`` (the field's progress bar, not a hand-written one) in simulated
-seconds. It appears only once a run has taken :data:`DELAY_S` of wall time, refreshes about
-twice a second on a terminal and, when stderr is not a terminal (a log file, CI), writes one
-plain line every :data:`PIPE_INTERVAL_S` instead of carriage-return updates.
+A thin layer over ``tqdm`` (the field's progress bar, not a hand-written one): :class:`Progress`
+in simulated seconds, :class:`Counter` in things done (a sweep's points). It appears only once
+a run has taken :data:`DELAY_S` of wall time, refreshes about twice a second on a terminal and,
+when stderr is not a terminal (a log file, CI), writes one plain line every
+:data:`PIPE_INTERVAL_S` instead of carriage-return updates.
 """
 
 import sys
@@ -26,7 +27,7 @@ from typing import Optional, TextIO
 
 from tqdm import tqdm
 
-__all__ = ['DELAY_S', 'PIPE_INTERVAL_S', 'Progress']
+__all__ = ['Counter', 'DELAY_S', 'PIPE_INTERVAL_S', 'Progress']
 
 DELAY_S = 2.0
 """Wall seconds before the bar appears (short runs show nothing)."""
@@ -97,6 +98,61 @@ class Progress:
         if note:
             self._bar.set_postfix_str(note, refresh=False)
         self._bar.update(step)
+
+    def close(self) -> None:
+        """Finish the bar (a final line when it was shown)."""
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
+
+class Counter:
+    """
+    A progress bar over ``total`` things (a sweep's points) on ``stream`` (stderr).
+
+    Parameters
+    ----------
+    total : int
+        Things in all.
+    initial : int
+        Already done (stored points of a resumed sweep).
+    unit : str
+        What is counted.
+    enabled : bool
+        False shows no bar (:meth:`write` still writes).
+    name : str, optional
+        Prefix of the bar.
+    stream : file, optional
+        Where the bar goes (default: ``sys.stderr`` at the time of the call).
+
+    """
+
+    def __init__(self, total: int, initial: int = 0, unit: str = 'point',
+                 enabled: bool = True, name: Optional[str] = None,
+                 stream: Optional[TextIO] = None) -> None:
+        stream = sys.stderr if stream is None else stream
+        self.stream = stream
+        tty = bool(getattr(stream, 'isatty', lambda: False)())
+        self._bar = None
+        if enabled:
+            self._bar = tqdm(total=total, initial=initial, unit=unit, desc=name,
+                             file=stream if tty else _Lines(stream), delay=DELAY_S,
+                             mininterval=0.5 if tty else PIPE_INTERVAL_S,
+                             dynamic_ncols=tty, ncols=None if tty else 100)
+
+    def update(self, count: int = 1) -> None:
+        """Count ``count`` more done."""
+        if self._bar is not None:
+            self._bar.update(count)
+
+    def write(self, text: str, file: Optional[TextIO] = None) -> None:
+        """Write one line on ``file`` (default: the bar's stream), above the bar if shown."""
+        target = self.stream if file is None else file
+        if self._bar is not None and target is self.stream:
+            self._bar.write(text, file=self._bar.fp)
+        else:
+            target.write(text + '\n')
+            target.flush()
 
     def close(self) -> None:
         """Finish the bar (a final line when it was shown)."""

@@ -185,7 +185,7 @@ LAYERS = {
     'ros': {'core', 'run', 'paramfile', 'recording', 'version'},
     'offline': {'core', 'run', 'paramfile', 'progress', 'recording', 'ros'},
     'replay': {'core', 'recording', 'ros'},
-    'sweep': {'core', 'analysis', 'paramfile', 'version', 'outdir'},
+    'sweep': {'core', 'analysis', 'paramfile', 'version', 'outdir', 'progress'},
     'rate_record': {'core', 'run', 'analysis', 'offline', 'recording', 'outdir'},
     'characterize': {'core', 'run', 'analysis', 'paramfile', 'progress', 'outdir'},
     'report': {'core', 'run', 'analysis', 'sweep', 'outdir'},

@@ -70,6 +70,7 @@ import warnings
 
 from ring_gyro_sim.core.errors import RingGyroError
 from ring_gyro_sim.outdir import prepare_directory
+from ring_gyro_sim.progress import Counter
 from ring_gyro_sim.sweep import point as point_mod
 from ring_gyro_sim.sweep.spec import describe, SweepSpec
 from ring_gyro_sim.sweep.store import PointStore
@@ -240,9 +241,8 @@ def local_cluster_config() -> Dict[str, Any]:
 
 
 def _bar(total: int, initial: int, enabled: bool):
-    from tqdm import tqdm
-    return tqdm(total=total, initial=initial, unit='point', desc='sweep', disable=not enabled,
-                file=sys.stderr, mininterval=0.5, dynamic_ncols=True)
+    """Return the points' progress bar on stderr: plain lines when it is not a terminal."""
+    return Counter(total, initial, unit='point', enabled=enabled, name='sweep')
 
 
 def run_sweep(spec: SweepSpec, out_dir, scheduler: Optional[str] = None,
@@ -265,7 +265,8 @@ def run_sweep(spec: SweepSpec, out_dir, scheduler: Optional[str] = None,
     resume : bool
         Keep the points already stored in ``out_dir`` and compute the rest.
     progress : bool
-        Progress bar (tqdm) on stderr.
+        Progress bar on stderr (``progress.Counter``: whole lines when it is not a
+        terminal).
     dashboard_address : str or None
         Dashboard of the LocalCluster (``':8787'``; ``':0'`` any free port; None: none).
     plots : bool

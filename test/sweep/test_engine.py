@@ -275,3 +275,17 @@ def test_resume_names_a_truncated_point_file_and_computes_the_point_again(
     assert (out / 'points' / f'{cut.name}.damaged').read_bytes() == text[:len(text) // 2]
     assert json.loads(cut.read_text())['metrics'] is not None
     assert_same_results(outcome.dataset, ref.dataset)
+
+
+def test_the_progress_bar_writes_whole_lines_into_a_log(reference, tmp_path):
+    # issue 22 item 20: tqdm's carriage-return frames went into non-terminal stderr
+    spec, _, _ = reference
+    log = tmp_path / 'sweep.log'
+    with open(log, 'w') as stderr:
+        result = subprocess.run(cli('sweep', spec, '--out', tmp_path / 'out', '--workers', '1',
+                                    '--no-plots', '--dashboard-address', ''), env=env(),
+                                stdout=subprocess.PIPE, stderr=stderr, text=True,
+                                timeout=START_TIMEOUT_S * 3, check=False)
+    text = log.read_text()
+    assert result.returncode == 0, text
+    assert '\r' not in text and '\x1b[' not in text, repr(text)
