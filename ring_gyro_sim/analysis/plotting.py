@@ -370,16 +370,56 @@ def plot_spectrogram(spec, path, ridge_t=None, ridge_hz=None, f_max_hz=70e3,
 # float metric (m drawn in um); a metric that is nan everywhere is not drawn.
 # envelope_<channel>.png (a spec with ``envelopes``): the kept envelope over time, one line per
 # point (Fig. 13 for config/sweep_case4.yaml), up to SWEEP_ENVELOPE_LINES points.
+# An axis is named for the reader (``Q_1`` for modes.quality_factors[0]: sweep_axis_name), with
+# its unit unless it has none; titles wrap to the figure's width; a 1-D metric map has the
+# metric's values on its y axis and spans at least MIN_RELATIVE_SPAN of them.
 SWEEP_PANELS_PER_FILE = 16
 SWEEP_ENVELOPE_LINES = 24
 SWEEP_BRANCH_COLOURS = ('#bdbdbd', '#3b6fb6', '#f2b134', '#c0392b')
 """Colours of branch_code -1 (none / failed), 0 (lower), 1 (upper), 2 (contact)."""
 
 
+SWEEP_NAMES = {'shock.peak_g': 'shock peak', 'shock.phase': 'shock phase',
+               'shock.angle_deg': 'shock angle', 'drive.frequency': 'drive frequency',
+               'drive.amplitude': 'drive amplitude', 'electrodes.outer_voltage': 'V_o',
+               'electrodes.inner_voltage': 'V_i', 'electrodes.gap': 'd_g'}
+"""What a sweep axis is called on a plot (the spec's name when it is not here)."""
+SWEEP_LIST_NAMES = {'modes.quality_factors': 'Q_{n}', 'modes.frequencies': 'f_{n}',
+                    'modes.companion_quality_factors': 'Q_{n}s',
+                    'modes.companion_frequencies': 'f_{n}s'}
+"""The same for an element ``[i]`` of a list parameter: ``n`` is ``i + 1``, the mode."""
+SWEEP_UNITS = {'shock.phase': 'drive periods'}
+"""Units to show instead of the table's."""
+TITLE_CHARACTERS_PER_INCH = 15
+"""Characters of a 9-point title per inch of figure width (titles wrap there)."""
+
+
 def _sweep_fmt(value) -> str:
     if isinstance(value, (float, np.floating)):
         return f'{value:.6g}'
     return str(value)
+
+
+def sweep_axis_name(name: str) -> str:
+    """Return what a sweep axis is called on a plot: ``Q_1`` for ``modes.quality_factors[0]``."""
+    if name in SWEEP_NAMES:
+        return SWEEP_NAMES[name]
+    base, bracket, index = name.partition('[')
+    if bracket and base in SWEEP_LIST_NAMES and index[:-1].isdigit():
+        return SWEEP_LIST_NAMES[base].format(n=int(index[:-1]) + 1)
+    return name
+
+
+def sweep_axis_label(name: str, units: str = '') -> str:
+    """Return an axis label: the plot name and the unit, none for a dimensionless one."""
+    units = SWEEP_UNITS.get(name, units)
+    return sweep_axis_name(name) + (f' ({units})' if units not in ('', '-', '1') else '')
+
+
+def _wrapped(text: str, figure_width_in: float) -> str:
+    """Return ``text`` in lines that fit a figure of that width (a title is not cut)."""
+    import textwrap
+    return textwrap.fill(text, max(20, int(figure_width_in * TITLE_CHARACTERS_PER_INCH)))
 
 
 def _sweep_panels(ds, plot_axes: Sequence[str]):
@@ -390,7 +430,7 @@ def _sweep_panels(ds, plot_axes: Sequence[str]):
         return
     for combo in itertools.product(*(ds[d].values for d in others)):
         sel = dict(zip(others, combo))
-        yield ', '.join(f'{k} = {_sweep_fmt(v)}' for k, v in sel.items()), sel
+        yield ', '.join(f'{sweep_axis_name(k)} = {_sweep_fmt(v)}' for k, v in sel.items()), sel
 
 
 def _sweep_grid(plt, n: int, width: float = 4.2, height: float = 3.4):
@@ -410,16 +450,20 @@ def _sweep_matrix(da, plot_axes: Sequence[str]) -> np.ndarray:
     return np.asarray(da.transpose(plot_axes[1], plot_axes[0]).values)
 
 
-def _sweep_label_axes(ax, ds, plot_axes: Sequence[str]) -> None:
+def _sweep_label_axes(ax, ds, plot_axes: Sequence[str], values_on_y: bool = False) -> None:
+    """Label the cells with the axis values; ``values_on_y``: a 1-D map whose y is a metric."""
     x = ds[plot_axes[0]]
     ax.set_xticks(range(x.size))
     ax.set_xticklabels([_sweep_fmt(v) for v in x.values], rotation=60, fontsize=7)
-    ax.set_xlabel(f'{plot_axes[0]} ({x.attrs.get("units", "")})', fontsize=8)
+    ax.set_xlabel(sweep_axis_label(plot_axes[0], x.attrs.get('units', '')), fontsize=8)
     if len(plot_axes) > 1:
         y = ds[plot_axes[1]]
         ax.set_yticks(range(y.size))
         ax.set_yticklabels([_sweep_fmt(v) for v in y.values], fontsize=7)
-        ax.set_ylabel(f'{plot_axes[1]} ({y.attrs.get("units", "")})', fontsize=8)
+        ax.set_ylabel(sweep_axis_label(plot_axes[1], y.attrs.get('units', '')), fontsize=8)
+    elif values_on_y:
+        ax.ticklabel_format(axis='y', useOffset=False)  # the values, not offsets from one
+        ax.tick_params(axis='y', labelsize=7)
     else:
         ax.set_yticks([])
 
@@ -467,11 +511,30 @@ def plot_sweep_jump_map(ds, plot_axes: Sequence[str], path) -> List[str]:
         handles.append(Patch(color=SWEEP_BRANCH_COLOURS[0], label='none / failed (x)'))
         axes[-1].legend(handles=handles, loc='upper left', bbox_to_anchor=(1.02, 1.0),
                         fontsize=7, frameon=False)
-        fig.suptitle('Jump map: final branch of the 2theta drive (? = not settled)',
-                     fontsize=9, x=0.02, ha='left')
+        fig.suptitle(_wrapped('Jump map: final branch of the 2theta drive (? = not settled)',
+                              fig.get_figwidth()), fontsize=9, x=0.02, ha='left')
         _save(plt, fig, target)
         written.append(str(target))
     return written
+
+
+MIN_RELATIVE_SPAN = 0.01
+"""A 1-D metric map spans at least this fraction of its largest value: 1.2037 and
+1.2066 um (0.24 %) are drawn as the near-equal values they are, not as a jump across the
+panel."""
+
+
+def _minimum_span(ax, values) -> None:
+    """Widen the y range of a 1-D map to :data:`MIN_RELATIVE_SPAN` of its values' size."""
+    finite = np.asarray(values, dtype=float)
+    finite = finite[np.isfinite(finite)]
+    if not finite.size:
+        return
+    low, high = float(finite.min()), float(finite.max())
+    span = MIN_RELATIVE_SPAN * max(abs(low), abs(high))
+    if 0.0 < high - low < span:
+        middle = 0.5 * (low + high)
+        ax.set_ylim(middle - 0.6 * span, middle + 0.6 * span)
 
 
 def plot_sweep_metric_maps(ds, plot_axes: Sequence[str], metrics: Sequence[str],
@@ -500,15 +563,16 @@ def plot_sweep_metric_maps(ds, plot_axes: Sequence[str], metrics: Sequence[str],
                     ax.plot(x, m[0], 'o-', ms=4)
                     ax.set_ylabel(f'{name} ({unit})', fontsize=8)
                     ax.grid(True, alpha=0.3)
-                    _sweep_label_axes(ax, sub, plot_axes)
+                    _sweep_label_axes(ax, sub, plot_axes, values_on_y=True)
+                    _minimum_span(ax, m[0])
                 else:
                     im = ax.imshow(m, origin='lower', aspect='auto', interpolation='nearest',
                                    vmin=vmin, vmax=vmax, cmap='viridis')
                     fig.colorbar(im, ax=ax, label=f'{unit}')
                     _sweep_label_axes(ax, sub, plot_axes)
                 ax.set_title(title or name, fontsize=8)
-            fig.suptitle(f'{name}: {ds[name].attrs.get("long_name", "")}', fontsize=9,
-                         x=0.02, ha='left')
+            fig.suptitle(_wrapped(f'{name}: {ds[name].attrs.get("long_name", "")}',
+                                  fig.get_figwidth()), fontsize=9, x=0.02, ha='left')
             _save(plt, fig, target)
             written.append(str(target))
     return written
@@ -530,7 +594,8 @@ def plot_sweep_envelopes(ds, out_dir) -> List[str]:
         t = ds['time'].values
         for combo in combos:
             y = da.sel(dict(zip(axes, combo))).values * 1e6
-            label = ', '.join(f'{k} = {_sweep_fmt(v)}' for k, v in zip(axes, combo))
+            label = ', '.join(f'{sweep_axis_name(k)} = {_sweep_fmt(v)}'
+                              for k, v in zip(axes, combo))
             ax.plot(t, np.where(y > 0.0, y, np.nan), lw=0.9, label=label)
         ax.set_yscale('log')
         ax.set_xlabel('time (s)')
