@@ -344,8 +344,9 @@ def plot_spectrogram(spec, path, ridge_t=None, ridge_hz=None, f_max_hz=70e3,
     sel = spec.f <= f_max_hz
     db = 10.0 * np.log10(np.maximum(spec.power[sel], 1e-40))
     vmax = float(np.max(db))
-    ax.pcolormesh(spec.t, spec.f[sel] * 1e-3, db, shading='auto', cmap='Greys',
-                  vmin=vmax - 80.0, vmax=vmax)
+    mesh = ax.pcolormesh(spec.t, spec.f[sel] * 1e-3, db, shading='auto', cmap='Greys',
+                         vmin=vmax - 80.0, vmax=vmax)
+    fig.colorbar(mesh, ax=ax, label='power spectral density (dB re 1 m^2/Hz)')
     ax.set_xlabel('time (s)')
     ax.set_ylabel('frequency (kHz)')
     ax.set_title(title, fontsize=9)

@@ -85,3 +85,15 @@ def test_sweep_axis_names_are_the_readers():
     assert plotting.sweep_axis_label('shock.peak_g', 'g') == 'shock peak (g)'
     assert plotting.sweep_axis_label('shock.phase', '1') == 'shock phase (drive periods)'
     assert plotting.sweep_axis_label('ring.radius', 'm') == 'ring.radius (m)'
+
+
+def test_the_spectrogram_has_a_colour_bar(tmp_path, drawn):
+    # issue 22 item 21: fig07's grey levels had no scale
+    from ring_gyro_sim.analysis import envelope as env
+    rate = 200e3
+    t = np.arange(int(0.05 * rate)) / rate
+    spec = env.spectrogram(1e-6 * np.sin(2 * np.pi * 10.6e3 * t), rate, segment_s=5e-3,
+                           overlap=0.5)
+    assert plotting.plot_spectrogram(spec, tmp_path / 'fig07.png')
+    labels = [ax['ylabel'] for ax in drawn[0]['axes']]
+    assert 'power spectral density (dB re 1 m^2/Hz)' in labels, labels
