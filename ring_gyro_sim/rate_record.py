@@ -23,7 +23,8 @@ streamed ``~/angular_rate`` a step that replaces the knots after it:
 
 * ``DIR/rate.png``: the rate output and the applied rate, their difference (log scale, the
   1 % band drawn) in deg/s, and the drive pick-off over its value at the start (from
-  ``/ring_gyro/demodulator`` when recorded), the first shock marked
+  ``/ring_gyro/demodulator`` when recorded), the first shock marked and when the rate was
+  back within its band for good (or that it was not by the end)
   (``analysis.plotting.plot_rate``);
 * ``DIR/rate.csv``: ``t_s, rate_rad_s, applied_rad_s, error_rad_s``;
 * the figures of ``ring_gyro run --json`` over the record (``core.gyro.stats.RateStats``),
@@ -101,9 +102,10 @@ def rate_report(path: str, out_dir: str) -> Dict[str, Any]:
         cols = {name: k for k, name in enumerate(demod.labels)}
         amp = np.hypot(demod.data[:, cols['drive_i']], demod.data[:, cols['drive_q']])
         drive = [('', demod.data[:, cols['t']], amp / amp[0])]
+    figures = stats.figures()
     if plotting.plot_rate([('', t, rate, applied)], out / 'rate.png',
                           title=f'Rate output of {Path(path).name}', shock_s=shock_s,
-                          drive=drive):
+                          drive=drive, recovery_s=figures.get('rate_recovery_s')):
         files.append(str(out / 'rate.png'))
-    figures = dict(stats.figures(), samples=int(t.size), files=files)
+    figures = dict(figures, samples=int(t.size), files=files)
     return json.loads(json.dumps(figures, allow_nan=False))

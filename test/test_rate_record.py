@@ -14,10 +14,14 @@
 
 """Tests of rate_record.py (``ring_gyro rate``) beyond the gyroscope's own (test_gyro.py)."""
 
+from pathlib import Path
+
 import pytest
 from ring_gyro_sim import cli
 from ring_gyro_sim.rate_record import rate_report
 from ring_gyro_sim.recording.errors import RecordingError
+
+REPO = Path(__file__).resolve().parents[1]
 
 RESONATOR = """\
 /**:
@@ -45,3 +49,21 @@ def test_a_recording_without_the_rate_is_refused(tmp_path, capsys):
     assert err.startswith('ring_gyro rate: error: ') and err.count('\n') == 1, err
     assert capsys.readouterr().out == ''
     assert not list(tmp_path.glob('*/rate.*'))
+
+
+def test_the_plot_is_given_the_recovery(tmp_path, monkeypatch):
+    # issue 22 item 21: rate.png did not mark the recovery; the figures' rate_recovery_s
+    # (None: not back by the end of this 0.1 s after the shock) is what the plot gets
+    from ring_gyro_sim.analysis import plotting
+    seen = {}
+
+    def plot_rate(traces, path, **kwargs):
+        seen.update(kwargs)
+        return False
+    monkeypatch.setattr(plotting, 'plot_rate', plot_rate)
+    recording = tmp_path / 'demo.mcap'
+    assert cli.main(['run', str(REPO / 'config' / 'demo.yaml'), '--duration', '0.6', '-o',
+                     str(recording), '--no-progress', '--json']) == 0
+    figures = rate_report(str(recording), str(tmp_path / 'rate'))
+    assert seen['shock_s'] == pytest.approx(0.5)
+    assert 'recovery_s' in seen and seen['recovery_s'] == figures['rate_recovery_s']

@@ -643,7 +643,7 @@ def plot_sweep(ds, plot_axes: Sequence[str], metrics: Sequence[str], out_dir) ->
 
 
 def plot_rate(traces, path, title='Rate output', shock_s=None, drive=None,
-              band=0.01) -> bool:
+              band=0.01, recovery_s=None) -> bool:
     """
     Save the rate output against the applied rate, its error and the drive (against time).
 
@@ -662,6 +662,10 @@ def plot_rate(traces, path, title='Rate output', shock_s=None, drive=None,
         The drive pick-off over its value at the operating point (a third panel).
     band : float
         Relative band drawn on the error panel (the recovery band, 1 %).
+    recovery_s : float, optional
+        After the shock, when the rate was back within its band for good, s from the shock's
+        start (``core.gyro.stats``: ``rate_recovery_s``); marked. With ``shock_s`` and no
+        recovery, the error panel says it was not back by the end.
 
     """
     plt = _pyplot()
@@ -683,11 +687,21 @@ def plot_rate(traces, path, title='Rate output', shock_s=None, drive=None,
         axes[2].set_ylabel('drive pick-off / nominal')
     for ax in axes:
         if shock_s is not None:
-            ax.axvline(shock_s, color='k', lw=0.6, ls=':')
+            ax.axvline(shock_s, color='k', lw=0.6, ls=':',
+                       label='shock' if ax is middle else None)
+        if shock_s is not None and recovery_s is not None:
+            ax.axvline(shock_s + recovery_s, color='tab:green', lw=1.0, ls='--',
+                       label=(f'back within the band {recovery_s:.4g} s after the shock'
+                              if ax is middle else None))
         ax.grid(True, lw=0.3)
+    if shock_s is not None and recovery_s is None:
+        middle.text(0.99, 0.95, 'not back within the band by the end', color='tab:red',
+                    ha='right', va='top', fontsize=8, transform=middle.transAxes)
     top.set_ylabel('rate (deg/s)')
     middle.set_ylabel(f'|error| (deg/s); {100 * band:g} % band')
     axes[-1].set_xlabel('t (s)')
+    if shock_s is not None:
+        middle.legend(fontsize=7, loc='lower right')
     top.legend(fontsize=7)
     top.set_title(title)
     _save(plt, fig, path)

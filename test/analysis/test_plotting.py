@@ -39,7 +39,8 @@ def drawn(monkeypatch):
                         'axes': [{'xlabel': ax.get_xlabel(), 'ylabel': ax.get_ylabel(),
                                   'title': ax.get_title(), 'ylim': ax.get_ylim(),
                                   'yticks': [t.get_text() for t in ax.get_yticklabels()],
-                                  'lines': [line.get_label() for line in ax.get_lines()]}
+                                  'lines': [line.get_label() for line in ax.get_lines()],
+                                  'texts': [text.get_text() for text in ax.texts]}
                                  for ax in fig.axes]})
         save(plt, fig, path)
     monkeypatch.setattr(plotting, '_save', keep)
@@ -97,3 +98,19 @@ def test_the_spectrogram_has_a_colour_bar(tmp_path, drawn):
     assert plotting.plot_spectrogram(spec, tmp_path / 'fig07.png')
     labels = [ax['ylabel'] for ax in drawn[0]['axes']]
     assert 'power spectral density (dB re 1 m^2/Hz)' in labels, labels
+
+
+@pytest.mark.parametrize('recovery_s', [1.25, None])
+def test_the_rate_plot_marks_the_recovery(tmp_path, drawn, recovery_s):
+    # issue 22 item 21: rate.png marked the shock, not when the rate was back (or that not)
+    t = np.linspace(0.0, 3.0, 301)
+    applied = np.full_like(t, 0.1745)
+    rate = applied + np.where(t > 0.5, 0.5 * np.exp(-(t - 0.5) / 0.2), 0.0)
+    assert plotting.plot_rate([('', t, rate, applied)], tmp_path / 'rate.png', shock_s=0.5,
+                              recovery_s=recovery_s)
+    error = drawn[0]['axes'][1]
+    marks = [label for label in error['lines'] if label.startswith('back within the band')]
+    if recovery_s is None:
+        assert marks == [] and 'not back within the band by the end' in error['texts']
+    else:
+        assert marks == ['back within the band 1.25 s after the shock'], error['lines']
