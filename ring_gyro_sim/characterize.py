@@ -912,12 +912,21 @@ def _write(out: Path, sheet, drift, table, shocks, loops) -> List[str]:
 
 
 def _fmt(value, digits: int = 4) -> str:
+    """
+    Format a number for the sheet with ``digits`` significant digits, never as ``1e+04``.
+
+    A whole number, and one too large for ``digits`` without an exponent, is written as the
+    nearest integer in groups of three (``10 000`` g, ``3 104`` deg/s).
+    """
     if value is None:
         return '-'
     if isinstance(value, bool):
         return 'yes' if value else 'no'
     if isinstance(value, float) and not math.isfinite(value):
         return '-'
+    if isinstance(value, float) and abs(value) < 1e15 and (
+            value.is_integer() or abs(value) >= 10.0 ** digits):
+        return f'{round(value):,}'.replace(',', ' ')
     if isinstance(value, float):
         return f'{value:.{digits}g}'
     return str(value)

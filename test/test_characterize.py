@@ -324,3 +324,13 @@ def test_the_drive_figures_tell_a_drive_that_stays_down_from_one_that_returns():
     stays = ch._drive_figures(ch._Record(drive=down, **common), 1.0)
     assert stays['drive_ratio_end'] == pytest.approx(0.1)
     assert stays['drive_ratio_end'] < ch.JUMP_RATIO and stays['drive_recovery_s'] is None
+
+
+def test_whole_numbers_are_written_in_full(quick):
+    # issue 22 item 21: the shock table said "1e+04" for 10 000 g
+    text = (quick[2] / 'datasheet.md').read_text(encoding='utf-8')
+    rows = [line for line in text.splitlines() if line.startswith('| 10 000 | ')]
+    assert rows and '1e+04' not in text, text
+    assert ch._fmt(10000.0) == '10 000' and ch._fmt(-300.0) == '-300'
+    assert ch._fmt(3104.2, 3) == '3 104' and ch._fmt(5318.7, 3) == '5 319'
+    assert ch._fmt(0.0123456) == '0.01235' and ch._fmt(15798.6, 6) == '15798.6'
