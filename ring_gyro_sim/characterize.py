@@ -129,6 +129,7 @@ import warnings
 
 import numpy as np
 
+from ring_gyro_sim import extras
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.params import build_config, SimConfig, SPECS, STANDARD_GRAVITY
 from ring_gyro_sim.outdir import prepare_directory
@@ -164,6 +165,8 @@ SLOPE_ONLY_TC = 10.0
 """The plain -1/2 fit starts at this many time constants."""
 TAU_FRACTION = 8.0
 """The Allan deviation is computed up to ``record / TAU_FRACTION``."""
+NEEDS = ('allantools',)
+"""Libraries beyond the node's (:mod:`ring_gyro_sim.extras`), checked before anything runs."""
 
 
 @dataclass(frozen=True)
@@ -664,9 +667,12 @@ def characterize(params_path: str, out_dir: str, quick: bool = False,
         Not a gyroscope, an invalid file, an unknown loop mode (the message names the field).
     OutputPathError
         ``out_dir`` is a file, cannot be created or is not writable (checked first).
+    MissingDependencyError
+        allantools is not installed (checked first).
 
     """
     wall0, cpu0 = time.monotonic(), time.process_time()
+    extras.require(NEEDS, 'characterize (the Allan deviation)')
     flat = load_device(params_path, node_name)
     loops = tuple(loops) if loops is not None else available_loops()
     parse_loops(','.join(loops))

@@ -387,6 +387,8 @@ def cmd_rate(args) -> int:
 
 def cmd_report(args) -> int:
     """``ring_gyro report``."""
+    from ring_gyro_sim import extras
+    extras.require(extras.SWEEP, 'report (its Case 4 runs through the sweep engine)')
     from ring_gyro_sim.report import build_report
     plots = _plots_available('report')
     _say_if_compiling(_note('report'), 'the kernels in each worker')
@@ -403,7 +405,9 @@ def cmd_report(args) -> int:
 def cmd_characterize(args) -> int:
     """``ring_gyro characterize``."""
     from pathlib import Path
-    from ring_gyro_sim.characterize import characterize, parse_loops
+    from ring_gyro_sim import extras
+    from ring_gyro_sim.characterize import characterize, NEEDS, parse_loops
+    extras.require(NEEDS, 'characterize (the Allan deviation)')
     loops = parse_loops(args.loops)
     peaks = None
     if args.shock_g is not None:
@@ -431,6 +435,8 @@ def cmd_characterize(args) -> int:
 
 def cmd_sweep(args) -> int:
     """``ring_gyro sweep``: exit 0, or 3 when some points failed (results written)."""
+    from ring_gyro_sim import extras
+    extras.require(extras.SWEEP, 'sweep')  # at the start, before the spec is even read
     from ring_gyro_sim.sweep import load_spec, run_sweep
     spec = load_spec(args.spec)
     if not args.scheduler:  # a cluster elsewhere has its own cache

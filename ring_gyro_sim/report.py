@@ -47,7 +47,6 @@ final branches are not decided.
 
 from concurrent.futures import as_completed, ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
-import importlib.util
 import io
 import json
 import math
@@ -59,6 +58,7 @@ import time
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
+from ring_gyro_sim import extras
 from ring_gyro_sim.analysis import cases
 from ring_gyro_sim.analysis import envelope as env
 from ring_gyro_sim.analysis import hbm, plotting
@@ -122,7 +122,7 @@ fold (stable orbit and saddle 0.5 % apart); the default drive, 15 798.6 Hz, is w
 upper branch has the paper's q2 = 0.39 um."""
 CASE4_SWEEP_DIR = 'case4_sweep'
 """Subdirectory of the report's Case 4 sweep (a ``ring_gyro sweep --out`` directory)."""
-SWEEP_MODULES = ('distributed', 'xarray', 'netCDF4')
+SWEEP_MODULES = extras.SWEEP
 """What the Case 4 sweep imports (setup.py extra ``sweep``)."""
 
 
@@ -338,12 +338,8 @@ def case4_sweep_mapping(specs: Sequence[cases.CaseSpec],
 
 
 def _check_sweep_extra() -> None:
-    """Raise :class:`ReportError` before anything runs when the sweep extra is missing."""
-    missing = [m for m in SWEEP_MODULES if importlib.util.find_spec(m) is None]
-    if missing:
-        raise ReportError(f'Case 4 runs through the sweep engine (ring_gyro sweep), which '
-                          f'needs {", ".join(missing)}: pip install "dask[distributed]" '
-                          f'xarray netCDF4 (setup.py extra "sweep")')
+    """Raise ``MissingDependencyError`` before anything runs when the sweep extra is missing."""
+    extras.require(SWEEP_MODULES, 'the report (its Case 4 runs through the sweep engine)')
 
 
 def run_case4(plan: ReportPlan, out_dir, workers: int = 2, progress: bool = True
@@ -636,8 +632,10 @@ def build_report(out_dir, quick: bool = False, workers: int = 2, progress: bool 
 
     Raises
     ------
+    MissingDependencyError
+        The sweep extra is missing (said before anything runs).
     ReportError
-        The sweep extra is missing (said before anything runs), or a Case 4 point failed.
+        A Case 4 point failed.
     OutputPathError
         ``out_dir`` is a file, cannot be created or is not writable (checked first).
 

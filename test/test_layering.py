@@ -178,6 +178,7 @@ LAYERS = {
     'core': set(),
     'progress': set(),
     'outdir': {'core'},
+    'extras': {'core'},
     'run': {'core'},
     'paramfile': {'core'},
     'recording': {'core', 'version'},
@@ -185,12 +186,13 @@ LAYERS = {
     'ros': {'core', 'run', 'paramfile', 'recording', 'version'},
     'offline': {'core', 'run', 'paramfile', 'progress', 'recording', 'ros'},
     'replay': {'core', 'recording', 'ros'},
-    'sweep': {'core', 'analysis', 'paramfile', 'version', 'outdir', 'progress'},
+    'sweep': {'core', 'analysis', 'paramfile', 'version', 'outdir', 'progress', 'extras'},
     'rate_record': {'core', 'run', 'analysis', 'offline', 'recording', 'outdir'},
-    'characterize': {'core', 'run', 'analysis', 'paramfile', 'progress', 'outdir'},
-    'report': {'core', 'run', 'analysis', 'sweep', 'outdir'},
+    'characterize': {'core', 'run', 'analysis', 'paramfile', 'progress', 'outdir', 'extras'},
+    'report': {'core', 'run', 'analysis', 'sweep', 'outdir', 'extras'},
     'cli': {'core', 'run', 'analysis', 'paramfile', 'recording', 'ros', 'offline', 'replay',
-            'sweep', 'rate_record', 'characterize', 'report', 'progress', 'version', 'outdir'},
+            'sweep', 'rate_record', 'characterize', 'report', 'progress', 'version', 'outdir',
+            'extras'},
 }
 """
 Which parts of the package each part may import (doc/architecture.md), lower layers first:

@@ -68,6 +68,7 @@ import time
 from typing import Any, Dict, List, Optional, TextIO
 import warnings
 
+from ring_gyro_sim import extras
 from ring_gyro_sim.core.errors import RingGyroError
 from ring_gyro_sim.outdir import prepare_directory
 from ring_gyro_sim.progress import Counter
@@ -291,6 +292,7 @@ def run_sweep(spec: SweepSpec, out_dir, scheduler: Optional[str] = None,
         Ctrl-C: the points stored so far stay (``--resume`` continues).
 
     """
+    extras.require(extras.SWEEP, 'sweep')
     if scheduler and workers:
         raise SweepError('--workers: applies to the local cluster only, not with --scheduler '
                          '(start as many dask workers as you want)')
