@@ -239,7 +239,7 @@ class DriveLoop:
         self.lock_threshold = float(c.lock_threshold)
         self.drive_limit = float(c.drive_limit)
         self.rebalance = bool(c.rebalance)
-        self.phase_error = float(config.gyro.phase_error)  # the sense reference's (E3b)
+        self.sense_phase_error = float(config.gyro.phase_error)  # the sense reference's (E3b)
         kp = 2.0 * math.pi * c.pll_bandwidth
         self.pll_gains = (kp, kp * kp / 4.0)
         self.agc_gains = amplitude_gains(self.omega_c, c.agc_bandwidth)
@@ -322,7 +322,7 @@ class DriveLoop:
         sc, ss = self.rebalance_force
         # the rebalance modulator's reference is the sense channel's, off by its error
         return (self.omega, self.force, math.hypot(sc, ss),
-                math.atan2(ss, sc) - self.phase_error)
+                math.atan2(ss, sc) - self.sense_phase_error)
 
     def row(self) -> np.ndarray:
         """Return the :data:`CONTROL_CHANNELS` values in force now."""
@@ -406,8 +406,8 @@ class DriveLoop:
         elif self.rebalance:
             gain = self.pickoff.sense_gain
             y_c, y_s = coef[0, 0] / gain, coef[1, 0] / gain
-            if self.phase_error:  # demodulated against the sense reference phi + error
-                ce, se = math.cos(self.phase_error), math.sin(self.phase_error)
+            if self.sense_phase_error:  # demodulated against the sense reference phi + error
+                ce, se = math.cos(self.sense_phase_error), math.sin(self.sense_phase_error)
                 y_c, y_s = y_c * ce - y_s * se, y_c * se + y_s * ce
             kp, ki = self.rebalance_gains
             lim = self.drive_limit

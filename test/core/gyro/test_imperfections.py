@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 import pytest
-from ring_gyro_sim.core.params import paper_config
+from ring_gyro_sim.core.params import build_config, paper_config
 from ring_gyro_sim.run import Run
 
 TEN_DEG_S = math.radians(10.0)
@@ -40,10 +40,10 @@ OPEN_LOOP = {'modes.companions': True, 'gyro.enabled': True, 'drive.amplitude': 
              'gyro.input_noise_density': 0.0}
 
 
-def readout(values, rate, seconds=0.3):
+def readout(values, rate, seconds=0.3, base=OPEN_LOOP):
     """Return (rate, quadrature) of ~/rate over the last 0.1 s of a run at ``rate`` rad/s."""
-    config = paper_config({**OPEN_LOOP, **values, 'scenario.rate_times': [0.0],
-                           'scenario.rate_values': [rate]})
+    config = (paper_config if base is OPEN_LOOP else build_config)(
+        {**base, **values, 'scenario.rate_times': [0.0], 'scenario.rate_values': [rate]})
     run = Run(config)
     blocks = [run.advance(config.run.block_samples) for _ in range(int(round(seconds / 0.01)))]
     r = np.concatenate([b.rate.rate for b in blocks])[-100:]
@@ -134,3 +134,18 @@ def test_a_pickoff_gain_mismatch_scales_the_sense_amplifier_only():
     mismatched = Run(paper_config({**OPEN_LOOP, 'gyro.pickoff_gain_mismatch': g})).sim.pickoff
     assert mismatched.sense_gain == pytest.approx((1.0 + g) * perfect.sense_gain, rel=1e-12)
     assert mismatched.drive_gain == perfect.drive_gain
+
+
+def test_force_to_rebalance_reads_through_a_phase_error_as_a_rotation():
+    # (E3b) with the rebalance loop: its demodulation and its modulation share the sense
+    # reference, so the loop still cancels the Coriolis force, and the force it reads is
+    # turned by eps: rate Omega cos(eps), quadrature Omega sin(eps) in magnitude; the PLL is
+    # untouched
+    eps = 0.02
+    ftr = {'gyro.enabled': True, 'control.drive_loop': 'closed', 'control.rebalance': True,
+           'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0}
+    rate, quadrature = readout({**ftr, 'gyro.phase_error': eps}, TEN_DEG_S, seconds=0.2,
+                               base={})
+    print(f'rate {rate:.6e}, quadrature {quadrature:.6e} rad/s')
+    assert rate == pytest.approx(TEN_DEG_S * math.cos(eps), rel=2e-3)
+    assert abs(quadrature) == pytest.approx(TEN_DEG_S * math.sin(eps), rel=2e-2)
