@@ -29,11 +29,12 @@ reproduces its outputs bit for bit.
 from dataclasses import replace
 import json
 import math
-from typing import Callable, List, Optional, Sequence
+from typing import Any, Callable, List, Optional, Sequence
 
 import numpy as np
 
 from ring_gyro_sim.core.errors import ParameterError
+from ring_gyro_sim.core.gyro.calibration import Calibration
 from ring_gyro_sim.core.params import build_config, SimConfig
 from ring_gyro_sim.core.simulator import channel_names
 from ring_gyro_sim.paramfile import load_text
@@ -47,7 +48,8 @@ from ring_gyro_sim.run import (AngularRate, BaseAcceleration, DriveAmplitude, Dr
                                Input, NullSink, Pacing, ParameterChange, Reset, Run,
                                RunSummary, Shock, Sink)
 
-__all__ = ['DIAGNOSTICS_PERIOD_NS', 'RunSummary', 'load_recording', 'resimulate',
+__all__ = ['DIAGNOSTICS_PERIOD_NS', 'RunSummary', 'load_recording', 'recorded_calibration',
+           'resimulate',
            'run_offline']
 
 DIAGNOSTICS_PERIOD_NS = 1_000_000_000
@@ -59,7 +61,8 @@ def run_offline(config: SimConfig, duration_s: Optional[float] = None,
                 namespace: str = '/ring_gyro', start_state=None,
                 inputs: Sequence[Input] = (), block_sizes: Optional[List[int]] = None,
                 overwrite: Optional[bool] = None,
-                log: Optional[Callable[[str], None]] = None) -> RunSummary:
+                log: Optional[Callable[[str], None]] = None,
+                calibration: Any = 'auto') -> RunSummary:
     """
     Run a scenario as fast as possible.
 
@@ -87,6 +90,8 @@ def run_offline(config: SimConfig, duration_s: Optional[float] = None,
     log : callable, optional
         Told, one line each, what takes a while before the first block (computing the start
         state of ``drive.start_on``: seconds, silent otherwise), as the node logs it.
+    calibration : Calibration, None or 'auto'
+        The rate output's held calibration (a recording's); ``'auto'``: as ``Run``.
 
     """
     duration = config.run.duration if duration_s is None else duration_s
@@ -106,7 +111,8 @@ def run_offline(config: SimConfig, duration_s: Optional[float] = None,
             output, config, names, namespace, publish_clock=config.run.publish_clock),
             frame_id=config.gyro.frame_id)
     try:
-        run = Run(config, start_state=start_state, sink=sink, log=log)
+        run = Run(config, start_state=start_state, sink=sink, log=log,
+                  calibration=calibration)
     except BaseException:
         sink.discard()
         raise
@@ -195,4 +201,20 @@ def resimulate(path: str, output: Optional[str] = None, progress: bool = True,
     duration = sum(sizes) * config.run.output_period_ns * 1e-9
     return run_offline(config, duration, output=output, progress=progress,
                        namespace=namespace, start_state=start, inputs=inputs,
-                       block_sizes=sizes, overwrite=overwrite)
+                       block_sizes=sizes, overwrite=overwrite,
+                       calibration=recorded_calibration(path))
+
+
+def recorded_calibration(path: str) -> Any:
+    """
+    Return the held calibration a recording holds (None: ideal), 'auto' when it has none.
+
+    A recording made before the calibration was recorded leaves it to ``Run`` (``'auto'``).
+    """
+    text = read_metadata(path, METADATA_NAME).get('calibration')
+    if text is None:
+        return 'auto'
+    values = json.loads(text)
+    if values is None:
+        return None
+    return Calibration.from_dict(values)

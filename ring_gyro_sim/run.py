@@ -64,7 +64,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
 import numpy as np
 
 from ring_gyro_sim.core.errors import InputError, ParameterError
-from ring_gyro_sim.core.gyro import operating_point
+from ring_gyro_sim.core.gyro import calibration as gyro_calibration, operating_point
 from ring_gyro_sim.core.gyro.control import ControlSamples, update_rows
 from ring_gyro_sim.core.gyro.electronics import DemodSamples, RateSamples
 from ring_gyro_sim.core.gyro.stats import describe, DriveStats, RateStats
@@ -250,6 +250,9 @@ class Sink:
 
     def start(self, state: Tuple[np.ndarray, np.ndarray]) -> None:
         """Take the start ``state`` = (q, v) (m, m/s): called once by :class:`Run`."""
+
+    def set_calibration(self, calibration: Optional[Dict[str, Any]]) -> None:
+        """Take the rate output's held calibration (``Calibration.to_dict``; None: ideal)."""
 
     def set_rate_variance(self, variance: float) -> None:
         """Take the predicted variance of the rate output, (rad/s)^2 (``gyro.enabled``)."""
@@ -438,17 +441,26 @@ class Run:
     clock : callable
         Wall clock for the summary, s (``time.monotonic``).
     log : callable, optional
-        Told what takes a while at construction (computing a start state), one line each.
+        Told what takes a while at construction (computing a start state, calibrating),
+        one line each.
+    calibration : Calibration, None or 'auto'
+        The rate output's held calibration (``core.gyro.calibration``), for a run that
+        continues a recorded one; ``'auto'`` (default): what ``gyro.calibration.source``
+        asks for (``factory``: measured once per device and memoised).
 
     """
 
     def __init__(self, config: SimConfig, start_state=None, sink: Optional[Sink] = None,
                  late_tolerance_ns: int = 0,
                  clock: Callable[[], float] = time.monotonic,
-                 log: Optional[Callable[[str], None]] = None) -> None:
+                 log: Optional[Callable[[str], None]] = None,
+                 calibration: Any = 'auto') -> None:
         if start_state is None:
             start_state = operating_point.start_state(config, log)
-        self.sim = Simulator(config, start_state)
+        if isinstance(calibration, str) and calibration == 'auto':
+            calibration = gyro_calibration.for_config(config, log)
+        self.calibration: Optional[gyro_calibration.Calibration] = calibration
+        self.sim = Simulator(config, start_state, calibration=calibration)
         self.start_state: Tuple[np.ndarray, np.ndarray] = (self.sim.q.copy(),
                                                            self.sim.v.copy())
         self.rate_stats: Optional[RateStats] = None
@@ -459,6 +471,7 @@ class Run:
         self.sink: Sink = sink if sink is not None else NullSink()
         if self.sim.sense is not None:
             self.sink.set_rate_variance(self.sim.sense.electronics.rate_variance())
+            self.sink.set_calibration(None if calibration is None else calibration.to_dict())
         self.late_tolerance_ns = int(late_tolerance_ns)
         self.stats = RunStats(self.sim.coordinates, self.sim.period_ns, self.sim.model.gap)
         self.rejected: Dict[str, int] = {topic: 0 for topic in INPUT_TOPICS}
@@ -844,6 +857,10 @@ class Run:
             return out
         out.update(self.rate_stats.figures())
         diag = self.sim.sense.diagnostics_values()
+        if self.calibration is not None:
+            out.update({f'calibration_{k}': v for k, v in self.calibration.to_dict().items()})
+        else:
+            out['calibration_source'] = 'ideal'
         for key in ('rate_scale_factor_v_per_rad_s', 'scale_factor_valid',
                     'drive_amplitude_ratio', 'predicted_arw_deg_per_sqrt_h', 'bandwidth_hz'):
             if key in diag:

@@ -392,6 +392,20 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
     ParamSpec('gyro.pickoff_gain_mismatch', 'gyro.pickoff_gain_mismatch', 'float', 0.0, '-',
               'relative gain error of the sense amplifier against the drive amplifier (E1)',
               -0.5, 0.5, range_note='a gain error of the order of the gain is a broken part'),
+    ParamSpec('gyro.calibration.source', 'gyro.calibration_source', 'str', 'factory', '-',
+              "where the rate output's bias and scale factor come from: factory (measured "
+              'on a simulated rate table at the start, then held), given '
+              "(gyro.calibration.bias and .scale_factor as set) or ideal (the model's own "
+              'scale factor of the device in force, no bias: the mechanics alone)',
+              choices=('factory', 'given', 'ideal')),
+    ParamSpec('gyro.calibration.bias', 'gyro.calibration_bias', 'float', 0.0, 'rad/s',
+              'with source given: the zero-rate output subtracted from the rate',
+              -10.0, 10.0, range_note='beyond the rate range of the model'),
+    ParamSpec('gyro.calibration.scale_factor', 'gyro.calibration_scale_factor', 'float', 0.0,
+              'readout/(rad/s)',
+              'with source given: the readout per rad/s (V per rad/s of the sense '
+              'demodulator open loop, m/s^2 per rad/s of the rebalance force with '
+              'control.rebalance; 0 = not set)', **_NON_NEGATIVE),
     ParamSpec('control.drive_loop', 'control.drive_loop', 'str', 'closed', '-',
               'the 2theta drive: open (the paper: drive.amplitude at drive.frequency) or '
               'closed (a PLL on the drive pick-off sets the frequency, an AGC the amplitude; '
@@ -766,12 +780,18 @@ class GyroParams:
     phase_error: float
     sense_misalignment: float
     pickoff_gain_mismatch: float
+    calibration_source: str
+    calibration_bias: float
+    calibration_scale_factor: float
 
     def _check(self) -> None:
         if self.filter_bandwidth >= 0.5 * self.output_rate:
             raise _fail('gyro.filter_bandwidth',
                         f'must be below half of gyro.output_rate ({self.output_rate:g} Hz): '
                         f'the low-pass is the anti-alias filter of ~/rate')
+        if self.calibration_source == 'given' and self.calibration_scale_factor == 0.0:
+            raise _fail('gyro.calibration.scale_factor',
+                        'must be set (> 0) with gyro.calibration.source: given')
 
 
 @_parameter_group('control')

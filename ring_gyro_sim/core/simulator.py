@@ -60,7 +60,7 @@ import numpy as np
 
 from ring_gyro_sim.core import forces, kernels, noise, structure
 from ring_gyro_sim.core.errors import InputError, SimulationError
-from ring_gyro_sim.core.gyro import control, electronics
+from ring_gyro_sim.core.gyro import calibration as gyro_calibration, control, electronics
 from ring_gyro_sim.core.gyro.channel import SenseChain
 from ring_gyro_sim.core.params import BOLTZMANN, build_config, EPSILON_0, SimConfig, to_flat
 from ring_gyro_sim.core.rate_profile import RateProfile
@@ -245,6 +245,13 @@ class Simulator:
     ----------
     config : SimConfig
         Validated configuration. ``scenario.shock_times`` / ``shock_peaks`` are scheduled.
+    start_state : (q, v), optional
+        Initial coordinates (m) and velocities (m/s); None: at rest.
+    calibration : Calibration, None or 'auto'
+        The rate output's held calibration (``core.gyro.calibration``, K1); None: the
+        model's own readout (``ideal``); ``'auto'`` (default): what
+        ``gyro.calibration.source`` asks for (``factory`` measures the device once per
+        process).
 
     Attributes
     ----------
@@ -255,7 +262,11 @@ class Simulator:
     """
 
     def __init__(self, config: SimConfig,
-                 start_state: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> None:
+                 start_state: Optional[Tuple[np.ndarray, np.ndarray]] = None,
+                 calibration: Any = 'auto') -> None:
+        if isinstance(calibration, str) and calibration == 'auto':
+            calibration = gyro_calibration.for_config(config)
+        self.calibration: Optional[gyro_calibration.Calibration] = calibration
         self._config = config
         self.period_ns = config.run.output_period_ns
         self.period_s = self.period_ns * 1e-9
@@ -306,7 +317,8 @@ class Simulator:
             self._set_state(*start_state)
         self._start_state = (self.q.copy(), self.v.copy())
         if config.gyro.enabled:
-            self.sense = SenseChain(config, self, self._start_state, self.pickoff)
+            self.sense = SenseChain(config, self, self._start_state, self.pickoff,
+                                    calibration=calibration)
 
     # ------------------------------------------------------------------ configuration
     def _build(self, config: SimConfig) -> None:
@@ -697,7 +709,8 @@ class Simulator:
         if self.sample_index == 0:
             self._start_state = (self.q.copy(), self.v.copy())
             if self.sense is not None:
-                self.sense = SenseChain(self._config, self, self._start_state, self.pickoff)
+                self.sense = SenseChain(self._config, self, self._start_state, self.pickoff,
+                                        calibration=self.calibration)
 
     def _set_state(self, q: np.ndarray, v: np.ndarray) -> None:
         q = np.asarray(q, dtype=np.float64)

@@ -348,6 +348,7 @@ class RunRecorder:
             raise
         self._blocks = [name for name in BLOCK_TOPICS if name in self._topics]
         self._initial_state = initial_state
+        self._calibration = None
         self._started = False
         self._now_ns = 0  # log time of the latest output written: inputs after it wait
         # Inputs acting after _now_ns, as a heap of (t_ns, order, name, build, args): compact,
@@ -390,6 +391,18 @@ class RunRecorder:
                                  f'the first message is recorded')
         self._initial_state = (q, v)
 
+    def set_calibration(self, calibration) -> None:
+        """
+        Set the rate output's held calibration written to the metadata record.
+
+        ``calibration``: ``Calibration.to_dict()``, or None (``gyro.calibration.source:
+        ideal``, or no gyroscope). Before the first message, as :meth:`set_initial_state`.
+        """
+        if self._started:
+            raise RecordingError(f'{str(self.path)!r}: the calibration must be set before '
+                                 f'the first message is recorded')
+        self._calibration = calibration
+
     def start(self, initial_state) -> None:
         """Set the initial state (q, v) of the run (the :class:`~ring_gyro_sim.run.Sink` call)."""
         self.set_initial_state(*initial_state)
@@ -427,6 +440,7 @@ class RunRecorder:
             'record_topics': json.dumps(list(self._topics.values())),
             'block_topics': json.dumps([self._topics[name] for name in self._blocks]),
             'compression': self.writer.compression,
+            'calibration': json.dumps(self._calibration),
         })
 
     def __enter__(self) -> 'RunRecorder':

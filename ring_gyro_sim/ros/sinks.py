@@ -90,6 +90,9 @@ class NullRecorder:
     def start(self, initial_state) -> None:
         """Do nothing."""
 
+    def set_calibration(self, calibration) -> None:
+        """Do nothing."""
+
     def close(self) -> None:
         """Do nothing."""
 
@@ -200,6 +203,10 @@ class RosSink(run_mod.Sink):
     def set_rate_variance(self, variance: float) -> None:
         """Take the electronics' predicted variance of ``~/rate`` (``Run`` calls it)."""
         self.rate_variance = variance
+
+    def set_calibration(self, calibration) -> None:
+        """Take the rate output's held calibration for the recording (``Run`` calls it)."""
+        self.recorder.set_calibration(calibration)
 
     def start(self, state) -> None:
         """Write the recording's metadata with the start state."""

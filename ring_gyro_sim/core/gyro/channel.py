@@ -37,6 +37,7 @@ from typing import Any, Dict, Optional, Tuple
 
 import numpy as np
 from ring_gyro_sim.core.gyro import validity
+from ring_gyro_sim.core.gyro.calibration import Calibration
 from ring_gyro_sim.core.gyro.control import CONTROL_CHANNELS
 from ring_gyro_sim.core.gyro.electronics import (deg_per_h_to_rad_per_s, DemodSamples,
                                                  RateSamples, SenseElectronics)
@@ -61,13 +62,17 @@ class SenseChain:
     pickoff : electronics.PickOff
         The amplifiers (shared with the drive loop).
     previous : SenseChain, optional
-        The chain this one replaces after a parameter change: its operating point and its
-        running state are taken over.
+        The chain this one replaces after a parameter change: its operating point, its
+        running state and its calibration are taken over.
+    calibration : Calibration, optional
+        The held calibration of the rate output (``core.gyro.calibration``, K1); None: the
+        model's own readout (``ideal``).
 
     """
 
     def __init__(self, config: SimConfig, sim, start_state, pickoff,
-                 previous: Optional['SenseChain'] = None) -> None:
+                 previous: Optional['SenseChain'] = None,
+                 calibration: Optional[Calibration] = None) -> None:
         if previous is not None:
             amp, phase = previous.operating_point
         else:
@@ -85,8 +90,8 @@ class SenseChain:
         start_rate = float(sim.rates_at(np.zeros(1, np.int64))[0])
         self.electronics = SenseElectronics(electronics_config, sim, amp, phase,
                                             start_rate=start_rate, pickoff=pickoff)
-        self._rebalance_columns = [CONTROL_CHANNELS.index('rebalance_rate_rad_s'),
-                                   CONTROL_CHANNELS.index('rebalance_quadrature_rad_s')]
+        self._rebalance_columns = [CONTROL_CHANNELS.index(name) for name in (
+            'rebalance_rate_rad_s', 'rebalance_quadrature_rad_s', 'rebalance_c', 'rebalance_s')]
         self._loop_columns = [CONTROL_CHANNELS.index(name) for name in
                               ('locked', 'rebalance_on', 'amplitude_m', 'frequency_hz')]
         self._setpoint_m = sim.loop.setpoint_m if sim.loop is not None else 0.0
@@ -105,6 +110,9 @@ class SenseChain:
             el.bandwidth_hz, config.gyro.output_rate,
             0.0 if el.rebalance else el.rate_quadrature_per_rate)
         if previous is not None:
+            calibration = previous.electronics.calibration
+        self.electronics.calibration = calibration
+        if previous is not None:
             self.electronics.continue_from(previous.electronics)
             self.validity.continue_from(previous.validity)
             self._dc_partial = previous._dc_partial
@@ -112,6 +120,11 @@ class SenseChain:
             self._nco_reference = previous._nco_reference
             self._nco_mean = previous._nco_mean
             return
+        if sim.loop is not None and self.electronics.rebalance:
+            # the output filter starts at the forces that hold the start state (C6)
+            loop = sim.loop
+            self.electronics.start_rebalance(np.array([
+                loop.rebalance_rate, loop.rebalance_quadrature, *loop.rebalance_force]))
         w = 2.0 * math.pi * config.drive.frequency
         # A start state without drive motion (rest) keeps the default: the filters at the
         # linear operating point the drive will build up to.
@@ -263,12 +276,19 @@ class SenseChain:
         """
         Return the rate channel's state for ``/diagnostics``.
 
-        The electronics' values and the latest rate sample's standing
+        The electronics' values, the calibration in force (``calibration_source``, and when
+        held ``calibration_bias_rad_s``, ``calibration_scale_factor`` with its
+        ``calibration_scale_factor_unit``) and the latest rate sample's standing
         (``core.gyro.validity``): ``rate_valid``, ``rate_sigma_rad_s``, ``rate_band_rad_s``
         (the stated band of its error) and ``rate_invalid_reason``.
         """
         out = self.electronics.diagnostics_values()
         state = self.validity.state
+        held = self.electronics.calibration
+        if held is None:
+            out['calibration_source'] = 'ideal'
+        else:
+            out.update({f'calibration_{k}': v for k, v in held.to_dict().items()})
         out.update({'rate_valid': bool(state.valid), 'rate_sigma_rad_s': float(state.sigma),
                     'rate_band_rad_s': float(state.band),
                     'rate_invalid_reason': state.reason})

@@ -693,9 +693,14 @@ class SenseElectronics:
         self.rebalance = bool(config.control.rebalance)
         self.start_rate = float(start_rate)
         self.phase_error = float(g.phase_error)
+        # (E14) the rebalance loop's rate, quadrature and forces through the same low-pass
         self._zi_rb = signal.sosfilt_zi(self._sos)[:, :, None] * np.array(
-            [float(start_rate), 0.0])[None, None, :]
+            [float(start_rate), 0.0, 0.0, 0.0])[None, None, :]
         self.bandwidth_hz = self._bandwidth()
+        # (K1) a held calibration (core.gyro.calibration; None: this model's readout), and
+        # the drive pick-off's amplitude its ratiometric readout is relative to, held with it
+        self.calibration = None
+        self.readout_reference_v = self.drive_pickoff_nominal_v
 
     def _bandwidth(self) -> float:
         """(E9): -3 dB frequency of the sense envelope's pole times the Butterworth, Hz."""
@@ -754,6 +759,18 @@ class SenseElectronics:
         self._zi = signal.sosfilt_zi(self._sos)[:, :, None] * steady[None, None, :]
         self._latest = steady.copy()
 
+    def start_rebalance(self, values) -> None:
+        """
+        Start the rebalance output's low-pass in the steady state of the loop's start values.
+
+        ``values``: its rate and quadrature (rad/s, C7) and its in-phase and quadrature
+        forces (m/s^2, C6), as the loop holds the start state with them.
+        """
+        if self._next_index is not None:
+            raise InputError('values: the filters are already running')
+        steady = _check_array('values', values, (4,))
+        self._zi_rb = signal.sosfilt_zi(self._sos)[:, :, None] * steady[None, None, :]
+
     def continue_from(self, previous: 'SenseElectronics') -> None:
         """
         Take over the running state of the chain this one replaces (a parameter change).
@@ -769,6 +786,7 @@ class SenseElectronics:
         self._latest_rate = previous._latest_rate
         self._next_index = previous._next_index
         self.flicker = previous.flicker
+        self.readout_reference_v = previous.readout_reference_v
 
     def rate_variance(self) -> float:
         """
@@ -817,9 +835,9 @@ class SenseElectronics:
             Outer electrode capacitances, F (``Samples.capacitance``).
         drive_phase : ndarray, shape (K,)
             Phase ``phi_drive`` of the drive force at each sample, rad.
-        rebalance : ndarray, shape (K, 2), optional
+        rebalance : ndarray, shape (K, 4), optional
             With ``control.rebalance``: the rebalance rate and quadrature of each sample,
-            rad/s (E14; required then).
+            rad/s, and its in-phase and quadrature forces, m/s^2 (E14, K1; required then).
 
         Returns
         -------
@@ -882,33 +900,43 @@ class SenseElectronics:
         d = self.decimation
         start = (d - (first_index + 1) % d) % d
         picks = np.arange(start, count, d)
+        held = self.calibration
         if self.rebalance:
-            rebalance = _check_array('rebalance', rebalance, (count, 2))
+            rebalance = _check_array('rebalance', rebalance, (count, 4))
             if count:
                 rb, self._zi_rb = signal.sosfilt(self._sos, rebalance, axis=0,
                                                  zi=self._zi_rb)  # (E14)
             else:
                 rb = rebalance
-            rate = rb[picks, 0].copy()
-            quadrature = rb[picks, 1].copy()
-            if picks.size:
-                self._latest_rate = float(rate[-1])
+            if held is not None:  # (K1) the forces are the readout
+                rate, quadrature = held.apply(rb[picks, 2], rb[picks, 3])
+            else:
+                rate = rb[picks, 0].copy()
+                quadrature = rb[picks, 1].copy()
+        elif held is not None:
+            # (K1) the ratiometric readout against the drive pick-off's held amplitude
+            rho = np.maximum(np.hypot(values[picks, 2], values[picks, 3])
+                             / self.readout_reference_v, RHO_FLOOR)
+            rate, quadrature = held.apply(values[picks, 0] / rho, values[picks, 1] / rho)
         elif self.has_scale_factor:
             rho = np.maximum(np.hypot(values[picks, 2], values[picks, 3])
                              / self.drive_pickoff_nominal_v, RHO_FLOOR)
             rate = values[picks, 0] / (self.scale_factor * rho)  # (E4)
             quadrature = values[picks, 1] / (self.scale_factor * rho)
-            if picks.size:
-                self._latest_rate = float(rate[-1])
         else:
             rate = np.zeros(picks.size)
             quadrature = np.zeros(picks.size)
+        if picks.size and (self.rebalance or held is not None or self.has_scale_factor):
+            self._latest_rate = float(rate[-1])
         if picks.size:
             rate += self.flicker.samples((first_index + start + 1) // d - 1, picks.size)
         self._next_index = first_index + count
         if count:
             self._latest = values[-1].copy()
-            if self.rebalance:
+            if held is not None:
+                if picks.size:
+                    self._latest_quadrature = float(quadrature[-1])
+            elif self.rebalance:
                 self._latest_quadrature = float(rb[-1, 1])
             elif self.has_scale_factor:
                 rho = max(math.hypot(values[-1, 2], values[-1, 3])

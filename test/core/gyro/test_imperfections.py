@@ -37,7 +37,7 @@ Q2 = 64700.0
 OPEN_LOOP = {'modes.companions': True, 'gyro.enabled': True, 'drive.amplitude': 0.0065,
              'drive.frequency': 15800.0, 'control.drive_loop': 'open',
              'control.rebalance': False, 'gyro.temperature': 0.0,
-             'gyro.input_noise_density': 0.0}
+             'gyro.input_noise_density': 0.0, 'gyro.calibration.source': 'ideal'}
 
 
 def readout(values, rate, seconds=0.3, base=OPEN_LOOP):
@@ -143,7 +143,8 @@ def test_force_to_rebalance_reads_through_a_phase_error_as_a_rotation():
     # untouched
     eps = 0.02
     ftr = {'gyro.enabled': True, 'control.drive_loop': 'closed', 'control.rebalance': True,
-           'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0}
+           'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0,
+           'gyro.calibration.source': 'ideal'}
     rate, quadrature = readout({**ftr, 'gyro.phase_error': eps}, TEN_DEG_S, seconds=0.2,
                                base={})
     print(f'rate {rate:.6e}, quadrature {quadrature:.6e} rad/s')

@@ -1,0 +1,227 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+r"""
+The calibration of the rate output: a bias and a scale factor held for the whole run.
+
+A real gyroscope does not know its own scale factor: it is measured once, on a rate table
+at the factory, and the sensor then applies that number whatever happens to the device.
+``~/rate`` is (K1)::
+
+    rate = r / S - b,   quadrature = r_q / S                                       (K1)
+
+``r, r_q`` the readout (the sense demodulator's in-phase and quadrature outputs over the
+drive pick-off's amplitude relative to its value at the start, V, open loop; the in-phase and
+quadrature rebalance forces, m/s^2, with ``control.rebalance``; both through the output
+low-pass), ``S`` the scale factor (readout per rad/s), ``b`` the bias (rad/s).
+
+``gyro.calibration.source``
+    ``factory`` (default): ``S`` and ``b`` measured on this device as a factory does (K2),
+    at the start of the run, then held. ``given``: ``gyro.calibration.scale_factor`` and
+    ``gyro.calibration.bias`` as set. ``ideal``: no calibration: the rate is the readout
+    over the model's own scale factor of the device in force (the mechanics alone, without
+    bias; ``core.gyro.electronics`` E4, E7, and ``core.gyro.control`` C7).
+
+Nothing recomputes a held calibration during the run: a parameter change, a shock that moves
+the operating point or (with ``scenario.temperature_*``) the die temperature show up in the
+rate as the errors they are.
+
+The factory procedure (K2)
+    A rate transfer test (IEEE Std 1431's scale-factor test, reduced to three rates) on the
+    device as configured, simulated without noise (``gyro.temperature``,
+    ``gyro.input_noise_density`` and ``gyro.bias_instability`` at 0), without the scenario
+    (no shock, no rate profile), at the rates ``0`` and ``+-FACTORY_RATE``::
+
+        S = (r(+W) - r(-W)) / (2 W),   b = r(0) / S                                  (K2)
+
+    Each rate is a run that starts on its drive orbit with the sense mode's response
+    (``operating_point.start_state``), settles for :data:`FACTORY_SETTLE_TIME_CONSTANTS`
+    time constants of the slowest of the rate path (``1 / (2 pi f_bw)``, E9: 1.3 s open loop
+    at the default Q, the loop's with force-to-rebalance) and, closed loop, the AGC and the
+    PLL (the AGC's 32 ms at 5 Hz: the start's drive force is that of the open-loop orbit,
+    3 % off the locked one) and is averaged over :data:`FACTORY_AVERAGE_S`. The default
+    gyroscope takes 1.6 simulated s; the open-loop sense readout, for its mode's time
+    constant, about 40. A device is calibrated once per process (:func:`factory`, memoised
+    on the configuration that matters).
+"""
+
+from collections import OrderedDict
+from dataclasses import dataclass, replace
+import math
+import threading
+from typing import Any, Callable, Dict, Optional, Tuple
+
+import numpy as np
+from ring_gyro_sim.core.errors import SimulationError
+from ring_gyro_sim.core.params import SimConfig
+
+__all__ = ['Calibration', 'FACTORY_AVERAGE_S', 'FACTORY_RATE', 'FACTORY_SETTLE_TIME_CONSTANTS',
+           'factory', 'for_config', 'given', 'readout_unit']
+
+FACTORY_RATE = math.radians(10.0)
+"""The rate table's rates, +-10 deg/s about 0: inside the linear range of every loop mode."""
+FACTORY_SETTLE_TIME_CONSTANTS = 10.0
+"""Time constants of the rate path each table rate settles for before it is averaged."""
+FACTORY_MIN_SETTLE_S = 0.05
+"""Shortest settling (s): the output filter and the loops' start."""
+FACTORY_AVERAGE_S = 0.2
+"""Length of each table rate's average, s."""
+FACTORY_MEMO_SIZE = 16
+
+
+def readout_unit(config: SimConfig) -> str:
+    """Return the unit of the readout ``r`` of (K1) and of ``S`` per rad/s."""
+    return 'm/s^2' if config.control.rebalance else 'V'
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """
+    A held calibration (K1).
+
+    Attributes
+    ----------
+    source : str
+        ``factory`` or ``given``.
+    bias : float
+        ``b``, rad/s.
+    scale_factor : float
+        ``S``, readout per rad/s (``unit``).
+    unit : str
+        Unit of the readout (``readout_unit``).
+
+    """
+
+    source: str
+    bias: float
+    scale_factor: float
+    unit: str
+
+    def apply(self, readout: np.ndarray, quadrature: np.ndarray):
+        """Return ``(rate, quadrature)`` in rad/s of readouts (K1)."""
+        return readout / self.scale_factor - self.bias, quadrature / self.scale_factor
+
+    @classmethod
+    def from_dict(cls, values: Dict[str, Any]) -> 'Calibration':
+        """Return the calibration of :meth:`to_dict`'s values (a recording's)."""
+        unit = str(values['scale_factor_unit'])
+        return cls(str(values['source']), float(values['bias_rad_s']),
+                   float(values['scale_factor']), unit[:unit.index('/(rad/s)')])
+
+    def to_dict(self) -> Dict[str, Any]:
+        """Return the calibration as plain values (for a recording and the diagnostics)."""
+        return {'source': self.source, 'bias_rad_s': float(self.bias),
+                'scale_factor': float(self.scale_factor),
+                'scale_factor_unit': f'{self.unit}/(rad/s)'}
+
+
+def given(config: SimConfig) -> Calibration:
+    """Return the calibration of ``gyro.calibration.bias`` and ``.scale_factor`` as set."""
+    g = config.gyro
+    return Calibration('given', float(g.calibration_bias), float(g.calibration_scale_factor),
+                       readout_unit(config))
+
+
+def for_config(config: SimConfig,
+               log: Optional[Callable[[str], None]] = None) -> Optional[Calibration]:
+    """Return the calibration ``gyro.calibration.source`` asks for (None: ideal, or no gyro)."""
+    if not config.gyro.enabled or config.gyro.calibration_source == 'ideal':
+        return None
+    if config.gyro.calibration_source == 'given':
+        return given(config)
+    return factory(config, log)
+
+
+def _bench(config: SimConfig) -> SimConfig:
+    """Return the device on the factory's rate table: no noise, no scenario, raw readout."""
+    g = replace(config.gyro, temperature=0.0, input_noise_density=0.0, bias_instability=0.0,
+                calibration_source='given', calibration_bias=0.0,
+                calibration_scale_factor=1.0)
+    run = replace(config.run, shock_times=(), shock_peaks=(), shock_angles=(),
+                  rate_times=(0.0,), rate_values=(0.0,), record_path='',
+                  duration=0.0)
+    drive = config.drive
+    if drive.start_on == 'rest':  # the factory calibrates the running sensor
+        drive = replace(drive, start_on='upper_branch')
+    return replace(config, gyro=g, run=run, drive=drive)
+
+
+_MEMO: 'OrderedDict[SimConfig, Calibration]' = OrderedDict()
+_MEMO_LOCK = threading.Lock()
+
+
+def factory(config: SimConfig, log: Optional[Callable[[str], None]] = None) -> Calibration:
+    """
+    Return the factory calibration of the device of ``config`` (K2), memoised.
+
+    ``log`` is told when one is measured (it takes the simulated time of three table runs).
+    """
+    bench = _bench(config)
+    with _MEMO_LOCK:
+        if bench in _MEMO:
+            _MEMO.move_to_end(bench)
+            return _MEMO[bench]
+    calibration = measure(bench, log)
+    with _MEMO_LOCK:
+        _MEMO[bench] = calibration
+        while len(_MEMO) > FACTORY_MEMO_SIZE:
+            _MEMO.popitem(last=False)
+    return calibration
+
+
+def _bandwidths_hz(config: SimConfig, sim) -> list:
+    """Return the rate path's bandwidth (E9) and, closed loop, the AGC's and the PLL's, Hz."""
+    out = [sim.sense.electronics.bandwidth_hz]
+    if config.control.closed:
+        out += [config.control.agc_bandwidth, config.control.pll_bandwidth]
+    return out
+
+
+def measure(bench: SimConfig, log: Optional[Callable[[str], None]] = None) -> Calibration:
+    """Run the table of (K2) on a bench configuration (``_bench``)."""
+    scale, zero = _table(bench, log)
+    if not (math.isfinite(scale) and scale > 0.0 and math.isfinite(zero)):
+        raise SimulationError(
+            f'gyro.calibration.source: the factory rate table reads no rate on this device '
+            f'(scale factor {scale:.3g} {readout_unit(bench)} per rad/s: is the drive on?); '
+            f'use given or ideal')
+    return Calibration('factory', zero / scale, scale, readout_unit(bench))
+
+
+def _table(bench: SimConfig, log: Optional[Callable[[str], None]]) -> Tuple[float, float]:
+    """Return ``(S, r(0))`` of the three table rates (K2) on a bench."""
+    from ring_gyro_sim.core.gyro import operating_point
+    from ring_gyro_sim.core.simulator import Simulator
+    raw = Calibration('given', 0.0, 1.0, readout_unit(bench))
+    readings = {}
+    for rate in (0.0, FACTORY_RATE, -FACTORY_RATE):
+        cfg = replace(bench, run=replace(bench.run, rate_values=(rate,)))
+        state = operating_point.start_state(cfg)
+        sim = Simulator(cfg, state, calibration=raw)
+        tau = 1.0 / (2.0 * math.pi * min(_bandwidths_hz(cfg, sim)))
+        settle = max(FACTORY_SETTLE_TIME_CONSTANTS * tau, FACTORY_MIN_SETTLE_S)
+        if rate == 0.0 and log is not None:
+            log(f'calibrating the device on a simulated rate table (0, +-10 deg/s, '
+                f'{3.0 * (settle + FACTORY_AVERAGE_S):.3g} simulated s)')
+        per_block = cfg.run.block_samples
+        blocks = int(math.ceil((settle + FACTORY_AVERAGE_S) * cfg.run.output_rate / per_block))
+        values, times = [], []
+        for _ in range(blocks):
+            samples = sim.advance_samples(per_block)
+            values.append(samples.rate_output.rate)
+            times.append(samples.rate_output.t)
+        t, r = np.concatenate(times), np.concatenate(values)
+        readings[rate] = float(np.mean(r[t > t[-1] - FACTORY_AVERAGE_S]))
+    scale = (readings[FACTORY_RATE] - readings[-FACTORY_RATE]) / (2.0 * FACTORY_RATE)
+    return scale, readings[0.0]
