@@ -63,16 +63,17 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
+from ring_gyro_sim.core import thermal
 from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.gyro import calibration as gyro_calibration, operating_point
 from ring_gyro_sim.core.gyro.control import ControlSamples, update_rows
 from ring_gyro_sim.core.gyro.electronics import DemodSamples, RateSamples
 from ring_gyro_sim.core.gyro.stats import describe, DriveStats, RateStats
-from ring_gyro_sim.core.params import SimConfig
+from ring_gyro_sim.core.params import SimConfig, TEMPERATURE_RANGE_K
 from ring_gyro_sim.core.simulator import channel_names, Samples, Simulator, Status
 
-__all__ = ['AngularRate', 'BaseAcceleration', 'Block', 'Diagnostics', 'DriveAmplitude',
-           'DriveFrequency', 'FINISHED',
+__all__ = ['AmbientTemperature', 'AngularRate', 'BaseAcceleration', 'Block', 'Diagnostics',
+           'DriveAmplitude', 'DriveFrequency', 'FINISHED',
            'Input', 'MAX_PENDING_BASE_ACCELERATION', 'MAX_PENDING_SHOCKS',
            'MAX_SHOCKS_PER_BLOCK', 'NullSink',
            'PARAMETER_REFUSAL_KINDS',
@@ -95,7 +96,7 @@ PARAMETER_REFUSAL_KINDS = ('undeclared', 'read_only', 'range', 'invalid')
 """Kinds of refused parameter changes: the first three are refused by ROS before the run
 sees them (``ros/parameters.py``), ``invalid`` by the run's validation."""
 INPUT_TOPICS = ('shock', 'base_acceleration', 'drive/amplitude', 'drive/frequency',
-                'events/reset', 'events/parameters', 'angular_rate')
+                'events/reset', 'events/parameters', 'angular_rate', 'temperature')
 """Input topics (relative names) in the order the diagnostics list their counts."""
 
 
@@ -162,6 +163,21 @@ class ParameterChange:
 
 
 @dataclass(frozen=True)
+class AmbientTemperature:
+    """
+    The ambient temperature, K, from ``at_ns`` on: a step, held (``core.thermal``, T1).
+
+    It replaces ``scenario.temperature_*`` after its time; the die follows it with
+    ``thermal.time_constant``. ``~/temperature`` carries degrees Celsius (sensor_msgs), the
+    run kelvin.
+    """
+
+    kelvin: float
+    at_ns: Optional[int] = None
+    topic = 'temperature'
+
+
+@dataclass(frozen=True)
 class AngularRate:
     """
     Angular rate of the sensor frame about z (the ring's axis), rad/s, REP-103 sign.
@@ -178,7 +194,7 @@ class AngularRate:
 
 
 Input = Union[Shock, BaseAcceleration, DriveAmplitude, DriveFrequency, Reset, ParameterChange,
-              AngularRate]
+              AngularRate, AmbientTemperature]
 
 
 # ---------------------------------------------------------------------------------- outputs
@@ -455,8 +471,8 @@ class Run:
                  clock: Callable[[], float] = time.monotonic,
                  log: Optional[Callable[[str], None]] = None,
                  calibration: Any = 'auto') -> None:
-        if start_state is None:
-            start_state = operating_point.start_state(config, log)
+        if start_state is None:  # on the device at the die's start temperature (T2)
+            start_state = operating_point.start_state(thermal.start_state_device(config), log)
         if isinstance(calibration, str) and calibration == 'auto':
             calibration = gyro_calibration.for_config(config, log)
         self.calibration: Optional[gyro_calibration.Calibration] = calibration
@@ -565,6 +581,14 @@ class Run:
         elif isinstance(event, AngularRate):
             at_ns = self.acting_time(event.at_ns)
             sim.set_rate(at_ns, float(event.z))
+        elif isinstance(event, AmbientTemperature):
+            kelvin = float(event.kelvin)
+            low, high = TEMPERATURE_RANGE_K
+            if not (math.isfinite(kelvin) and low <= kelvin <= high):
+                raise InputError(f'temperature: must be within {low:g} .. {high:g} K '
+                                 f'(the temperature laws of core.thermal), got {kelvin!r}')
+            at_ns = self.acting_time(event.at_ns)
+            sim.set_ambient(kelvin, at_ns=at_ns)
         elif isinstance(event, DriveAmplitude):
             at_ns = self._now_only(event.at_ns)
             sim.set_drive(amplitude=float(event.value), at_ns=at_ns)
@@ -786,6 +810,7 @@ class Run:
         for kind, count in self.parameter_refusals.items():
             values[f'rejected_parameter_{kind}'] = count
         values['rejected_angular_rate'] = self.rejected['angular_rate']
+        values['rejected_temperature'] = self.rejected['temperature']
         values['lost_inputs'] = sum(self.lost.values())
         values['pending_shocks'] = self.pending_shocks
         values['pending_inputs'] = self.pending_inputs
@@ -794,6 +819,8 @@ class Run:
         values['drive_amplitude'] = drive.amplitude
         values['drive_frequency_hz'] = drive.frequency
         values['withheld_nonfinite_blocks'] = self.withheld_blocks
+        values['die_temperature_k'] = float(sim.die.kelvin)
+        values['ambient_temperature_k'] = float(sim.die.ambient.at(sim.time_s))
         gyro_warning = ''
         if sim.loop is not None:
             loop = sim.loop.diagnostics_values()

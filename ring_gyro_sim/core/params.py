@@ -195,6 +195,10 @@ class ParamSpec:
         return self.field.split('.', 1)[1]
 
 
+TEMPERATURE_RANGE_K = (150.0, 500.0)
+"""Temperatures (K) the parameters and ``~/temperature`` take (:data:`_TEMPERATURE_NOTE`)."""
+_TEMPERATURE_NOTE = ("the device's temperature laws are linear about the reference; a "
+                     'silicon die works from about 230 K to 400 K')
 _POSITIVE = {'minimum': 0.0, 'open_minimum': True}
 _NON_NEGATIVE = {'minimum': 0.0}
 _TIME = {'minimum': 0.0, 'maximum': MAX_TIME_S,
@@ -345,6 +349,30 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
     ParamSpec('scenario.rate_values', 'run.rate_values', 'float_list', [], 'rad/s',
               'angular rate about z (REP-103: counter-clockwise seen from +z) at each knot '
               '(same length as scenario.rate_times); needs gyro.enabled'),
+    ParamSpec('scenario.temperature_times', 'run.temperature_times', 'float_list', [], 's',
+              'knots of the ambient temperature (non-decreasing; a repeated time is a step); '
+              'linear between knots, the first value before the first and the last after the '
+              'last (empty = thermal.reference_temperature)', **_TIME),
+    ParamSpec('scenario.temperature_values', 'run.temperature_values', 'float_list', [], 'K',
+              'ambient temperature at each knot (same length as scenario.temperature_times)',
+              *TEMPERATURE_RANGE_K, range_note=_TEMPERATURE_NOTE),
+    ParamSpec('thermal.reference_temperature', 'thermal.reference_temperature', 'float',
+              298.15, 'K', 'the die temperature at which modes.*, gyro.feedback_capacitance '
+              'and gyro.temperature hold, and the calibration is made',
+              *TEMPERATURE_RANGE_K, range_note=_TEMPERATURE_NOTE),
+    ParamSpec('thermal.time_constant', 'thermal.time_constant', 'float', 30.0, 's',
+              'time constant of the die temperature behind the ambient (0 = the ambient)',
+              **_NON_NEGATIVE),
+    ParamSpec('thermal.frequency_coefficient', 'thermal.frequency_coefficient', 'float',
+              -30e-6, '1/K', 'relative change of every frequency per K of die temperature '
+              '(silicon: about -30e-6)', -1e-3, 1e-3,
+              range_note='a linear law; silicon is near -30e-6 /K'),
+    ParamSpec('thermal.quality_factor_exponent', 'thermal.quality_factor_exponent', 'float',
+              1.0, '-', 'Q of every principal axis times (T / T_ref)^-exponent', -5.0, 5.0,
+              range_note='a power law over a narrow range'),
+    ParamSpec('thermal.gain_coefficient', 'thermal.gain_coefficient', 'float', 50e-6, '1/K',
+              "relative change of the charge amplifiers' gain per K (their feedback "
+              'capacitance)', -1e-2, 1e-2, range_note='a linear law'),
     ParamSpec('gyro.enabled', 'gyro.enabled', 'bool', True, '-',
               'the gyroscope: rotation of the sensor frame (Coriolis coupling), sense '
               'electronics, ~/rate and ~/demodulator; needs modes.companions (the sense mode '
@@ -406,6 +434,17 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               'with source given: the readout per rad/s (V per rad/s of the sense '
               'demodulator open loop, m/s^2 per rad/s of the rebalance force with '
               'control.rebalance; 0 = not set)', **_NON_NEGATIVE),
+    ParamSpec('gyro.calibration.temperature_points', 'gyro.calibration_temperature_points',
+              'float_list', [], 'K', 'with source factory: die temperatures of a temperature '
+              'series whose bias and scale factor the compensation fits (empty = no '
+              'compensation; 1 point fits a line through the reference, 2 or more a '
+              'parabola in T - T_ref)',
+              *TEMPERATURE_RANGE_K, range_note=_TEMPERATURE_NOTE),
+    ParamSpec('gyro.calibration.temperature_coefficients',
+              'gyro.calibration_temperature_coefficients', 'float_list', [], '-',
+              'with source given: the compensation [b_1, .., b_k, s_1, .., s_k]: bias '
+              'b + sum b_i dT^i (rad/s per K^i) and scale factor S (1 + sum s_i dT^i) '
+              '(per K^i), dT = die - thermal.reference_temperature (empty = none)'),
     ParamSpec('control.drive_loop', 'control.drive_loop', 'str', 'closed', '-',
               'the 2theta drive: open (the paper: drive.amplitude at drive.frequency) or '
               'closed (a PLL on the drive pick-off sets the frequency, an AGC the amplitude; '
@@ -783,12 +822,21 @@ class GyroParams:
     calibration_source: str
     calibration_bias: float
     calibration_scale_factor: float
+    calibration_temperature_points: Tuple[float, ...]
+    calibration_temperature_coefficients: Tuple[float, ...]
 
     def _check(self) -> None:
         if self.filter_bandwidth >= 0.5 * self.output_rate:
             raise _fail('gyro.filter_bandwidth',
                         f'must be below half of gyro.output_rate ({self.output_rate:g} Hz): '
                         f'the low-pass is the anti-alias filter of ~/rate')
+        if len(self.calibration_temperature_coefficients) % 2:
+            raise _fail('gyro.calibration.temperature_coefficients',
+                        f'needs as many scale-factor as bias coefficients (an even count), '
+                        f'got {len(self.calibration_temperature_coefficients)}')
+        if len(set(self.calibration_temperature_points)) != len(
+                self.calibration_temperature_points):
+            raise _fail('gyro.calibration.temperature_points', 'has a temperature twice')
         if self.calibration_source == 'given' and self.calibration_scale_factor == 0.0:
             raise _fail('gyro.calibration.scale_factor',
                         'must be set (> 0) with gyro.calibration.source: given')
@@ -841,6 +889,17 @@ class IntegratorParams:
     max_step: float
 
 
+@_parameter_group('thermal')
+class ThermalParams:
+    """The die temperature and the device's dependences on it (``core.thermal``)."""
+
+    reference_temperature: float
+    time_constant: float
+    frequency_coefficient: float
+    quality_factor_exponent: float
+    gain_coefficient: float
+
+
 @_parameter_group('run')
 class RunParams:
     """Pacing, output, recording and scheduled inputs."""
@@ -857,6 +916,8 @@ class RunParams:
     shock_angles: Tuple[float, ...]
     rate_times: Tuple[float, ...]
     rate_values: Tuple[float, ...]
+    temperature_times: Tuple[float, ...]
+    temperature_values: Tuple[float, ...]
     record_topics: Tuple[str, ...]
     record_decimation: int
     record_compression: str
@@ -880,6 +941,13 @@ class RunParams:
                         f'{len(self.rate_times)}')
         if any(b < a for a, b in zip(self.rate_times, self.rate_times[1:])):
             raise _fail('scenario.rate_times', 'must not decrease (a repeated time is a step)')
+        if len(self.temperature_values) != len(self.temperature_times):
+            raise _fail('scenario.temperature_values',
+                        f'has {len(self.temperature_values)} values but '
+                        f'scenario.temperature_times has {len(self.temperature_times)}')
+        if any(b < a for a, b in zip(self.temperature_times, self.temperature_times[1:])):
+            raise _fail('scenario.temperature_times',
+                        'must not decrease (a repeated time is a step)')
         if self.shock_angles and len(self.shock_angles) != len(self.shock_times):
             raise _fail('scenario.shock_angles',
                         f'has {len(self.shock_angles)} values but scenario.shock_times has '
@@ -921,6 +989,7 @@ class SimConfig:
     control: ControlParams = field(default_factory=ControlParams)
     integrator: IntegratorParams = field(default_factory=IntegratorParams)
     run: RunParams = field(default_factory=RunParams)
+    thermal: ThermalParams = field(default_factory=ThermalParams)
 
     def __post_init__(self) -> None:
         e = self.electrodes

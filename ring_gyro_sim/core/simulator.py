@@ -58,12 +58,18 @@ from typing import Any, Callable, List, Mapping, Optional, Tuple
 
 import numpy as np
 
-from ring_gyro_sim.core import forces, kernels, noise, structure
+from ring_gyro_sim.core import forces, kernels, noise, structure, thermal
 from ring_gyro_sim.core.errors import InputError, SimulationError
 from ring_gyro_sim.core.gyro import calibration as gyro_calibration, control, electronics
 from ring_gyro_sim.core.gyro.channel import SenseChain
 from ring_gyro_sim.core.params import BOLTZMANN, build_config, EPSILON_0, SimConfig, to_flat
 from ring_gyro_sim.core.rate_profile import RateProfile
+
+THERMAL_UPDATE_S = 0.01
+"""How often the die temperature is followed, s of simulated time (T2)."""
+THERMAL_STEP_K = 0.01
+"""How far the die moves before the device is rebuilt at its temperature, K (0.3 ppm of
+frequency at -30 ppm/K: 5 mHz at 15.8 kHz, a twentieth of the sense mode's half-width)."""
 
 _EMPTY = np.empty(0)
 _NO_NOISE = np.empty((0, 1))
@@ -218,6 +224,8 @@ class Samples:
     rate_output : electronics.RateSamples or None
         The gyroscope's rate output (``~/rate``, at ``gyro.output_rate``); None: gyroscope
         off.
+    die_temperature : float or None
+        The die temperature at the last sample, K (core.thermal, T2).
 
     """
 
@@ -232,6 +240,7 @@ class Samples:
     control: Optional[np.ndarray] = None
     demod: Optional[electronics.DemodSamples] = None
     rate_output: Optional[electronics.RateSamples] = None
+    die_temperature: Optional[float] = None
 
     def __len__(self) -> int:
         return int(self.t.size)
@@ -270,7 +279,14 @@ class Simulator:
         self._config = config
         self.period_ns = config.run.output_period_ns
         self.period_s = self.period_ns * 1e-9
-        self._build(config)
+        # The die temperature (core.thermal, T2): the mechanics and the amplifiers are those
+        # of the device at it (T3-T6), the loops' and the sense chain's constants those of
+        # the device as configured, at the reference temperature.
+        self.die = thermal.DieTemperature(config)
+        self.device_temperature = self.die.kelvin
+        self._thermal_live = bool(config.run.temperature_times)
+        self._thermal_window = max(1, int(round(THERMAL_UPDATE_S / self.period_s)))
+        self._build(thermal.device_at(config, self.device_temperature))
         n = self.model.n_coordinates
         self.q = np.zeros(n)
         self.v = np.zeros(n)
@@ -297,18 +313,20 @@ class Simulator:
         # The pick-off amplifiers (read by the loops and the sense chain alike), the loops
         # and the sense chain: the simulator owns them and rebuilds them with the
         # configuration (_apply_config).
-        self.pickoff: Optional[electronics.PickOff] = None
+        self.pickoff: Optional[electronics.PickOff] = None  # the amplifiers at the die's T
+        self._held_pickoff: Optional[electronics.PickOff] = None  # as designed (T_ref)
         self.loop: Optional[control.DriveLoop] = None
         self.sense: Optional[SenseChain] = None
         self._loop_volts: Optional[np.ndarray] = None
         self._loop_phase: Optional[np.ndarray] = None
         if config.control.closed or config.gyro.enabled:
-            self.pickoff = electronics.PickOff(config, self, noisy=config.gyro.enabled)
+            self._make_pickoffs(config)
         if config.control.closed:
-            self.loop = control.DriveLoop(config, self.pickoff)
+            self.loop = control.DriveLoop(config, self._held_pickoff)
             self._loop_volts = np.empty((self.loop.window, 2))
             self._loop_phase = np.empty(self.loop.window)
-            self._drive_phase = self.loop.start(self.q, self.v, self._rate_at_start())
+            self._drive_phase = self.loop.start(self.q, self.v, self._rate_at_start(),
+                                                self._start_omega())
         self._drive = self._drive_args()
         self.steps_taken = 0
         for at_ns, peak_x, peak_y in config.run.scheduled_shocks():
@@ -317,10 +335,58 @@ class Simulator:
             self._set_state(*start_state)
         self._start_state = (self.q.copy(), self.v.copy())
         if config.gyro.enabled:
-            self.sense = SenseChain(config, self, self._start_state, self.pickoff,
+            self.sense = SenseChain(config, self, self._start_state, self._held_pickoff,
                                     calibration=calibration)
 
     # ------------------------------------------------------------------ configuration
+    def _make_pickoffs(self, config: SimConfig) -> None:
+        """Build the amplifiers at the die's temperature and as designed (one when equal)."""
+        noisy = config.gyro.enabled
+        device = thermal.device_at(config, self.device_temperature)
+        self.pickoff = electronics.PickOff(device, self, noisy=noisy)
+        self._held_pickoff = (self.pickoff if device is config
+                              else electronics.PickOff(config, self, noisy=noisy))
+
+    def _start_omega(self) -> Optional[float]:
+        """Return the NCO's start frequency on a die off the reference, rad/s (None: at it)."""
+        if self.device_temperature == self._config.thermal.reference_temperature:
+            return None
+        return (2.0 * math.pi * self._config.drive.frequency
+                * thermal.frequency_scale(self._config, self.device_temperature))
+
+    def _follow_die(self) -> None:
+        """
+        Advance the die temperature to now; rebuild the device at it if it moved enough.
+
+        The device (its linear coefficients, its force noise and its amplifiers, T3-T6) is
+        rebuilt when the die has moved :data:`THERMAL_STEP_K` from the temperature it was
+        built at; the loops, the sense chain and the calibration keep theirs.
+        """
+        kelvin = self.die.advance_to(self.time_s)
+        if self.sense is not None:  # the die's temperature sensor, for the compensation
+            self.sense.electronics.die_temperature = kelvin
+        if abs(kelvin - self.device_temperature) < THERMAL_STEP_K:
+            return
+        self.device_temperature = kelvin
+        device = thermal.device_at(self._config, kelvin)
+        self._build(device)
+        if self.pickoff is not None:
+            self.pickoff = electronics.PickOff(device, self, noisy=self._config.gyro.enabled)
+        if self.status == Status.RUNNING:
+            self._refresh_acceleration()
+
+    def set_ambient(self, kelvin: float, at_ns: Optional[int] = None) -> None:
+        """Set the ambient temperature (K) from a sample time on: a step, held (T1)."""
+        if not (math.isfinite(kelvin) and kelvin > 0.0):
+            raise InputError(f'temperature: must be a finite temperature above 0 K, got '
+                             f'{kelvin!r}')
+
+        def apply() -> None:
+            self.die.advance_to(self.time_s)
+            self.die.ambient.step(self.time_s, kelvin)
+            self._thermal_live = True
+        self._schedule(at_ns, apply)
+
     def _build(self, config: SimConfig) -> None:
         self.model = forces.build_force_model(config)
         f = np.asarray(config.modes.coordinate_frequencies())
@@ -525,13 +591,13 @@ class Simulator:
                 or config.drive.frequency != old.frequency):
             self._rephase_drive()
         self._config = config
-        self._build(config)
+        self._build(thermal.device_at(config, self.device_temperature))
         if self.pickoff is not None:  # the voltages set the amplifiers' gains
-            self.pickoff = electronics.PickOff(config, self, noisy=config.gyro.enabled)
+            self._make_pickoffs(config)
         if self.loop is not None:
-            self.loop.pickoff = self.pickoff
+            self.loop.pickoff = self._held_pickoff
         if self.sense is not None:  # the gains and the model's scale factor, state kept
-            self.sense = SenseChain(config, self, self._start_state, self.pickoff,
+            self.sense = SenseChain(config, self, self._start_state, self._held_pickoff,
                                     previous=self.sense)
         self._drive = self._drive_args()
         if self.status == Status.RUNNING:
@@ -709,8 +775,8 @@ class Simulator:
         if self.sample_index == 0:
             self._start_state = (self.q.copy(), self.v.copy())
             if self.sense is not None:
-                self.sense = SenseChain(self._config, self, self._start_state, self.pickoff,
-                                        calibration=self.calibration)
+                self.sense = SenseChain(self._config, self, self._start_state,
+                                        self._held_pickoff, calibration=self.calibration)
 
     def _set_state(self, q: np.ndarray, v: np.ndarray) -> None:
         q = np.asarray(q, dtype=np.float64)
@@ -730,7 +796,8 @@ class Simulator:
             raise
         if self.loop is not None and self.sample_index == 0:
             # The loops start in lock at the state (core.gyro.control.DriveLoop.start).
-            self._drive_phase = self.loop.start(self.q, self.v, self._rate_at_start())
+            self._drive_phase = self.loop.start(self.q, self.v, self._rate_at_start(),
+                                                self._start_omega())
             self._drive_t_ref = 0.0
             self._drive = self._drive_args()
 
@@ -779,6 +846,11 @@ class Simulator:
             stop = n_samples - done
             if self._events:
                 stop = min(stop, self._events[0][0] - self.sample_index)
+            if self._thermal_live:  # (T2) the die's temperature, every THERMAL_UPDATE_S
+                since = self.sample_index % self._thermal_window
+                if since == 0:
+                    self._follow_die()
+                stop = min(stop, self._thermal_window - since)
             if loop is not None:  # (C1) cut at the loop's updates
                 stop = min(stop, loop.window - self.sample_index % loop.window)
             if phase is not None and stop > 0:
@@ -821,7 +893,8 @@ class Simulator:
             demod, rate_output = _joined(t, sensed)
         return Samples(t=t, q=out_q, v=out_v, gap=gap, min_gap=min_gap, capacitance=cap,
                        drive_phase=phase, applied_rate=rate if self.gyro else None,
-                       control=rows, demod=demod, rate_output=rate_output)
+                       control=rows, demod=demod, rate_output=rate_output,
+                       die_temperature=self.die.advance_to(self.time_s))
 
     def _feed_loop(self, first: int, volts: np.ndarray, phase: np.ndarray) -> None:
         """Collect a stretch into the loop period; at its end, update the loop (C1, C2)."""
@@ -974,7 +1047,7 @@ class Simulator:
         self._channels(q, out)
         return Samples(t=t, q=q, v=v, gap=out.gap, min_gap=out.min_gap,
                        capacitance=out.capacitance, drive_phase=drive_phase,
-                       applied_rate=rate)
+                       applied_rate=rate, die_temperature=self.die.kelvin)
 
     def _rates(self, first: int, count: int, rate_out: np.ndarray) -> None:
         """Set ``rate_out`` to the angular rate (rad/s) at samples ``first ..`` on."""

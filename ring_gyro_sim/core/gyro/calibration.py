@@ -53,7 +53,19 @@ The factory procedure (K2)
     3 % off the locked one) and is averaged over :data:`FACTORY_AVERAGE_S`. The default
     gyroscope takes 1.6 simulated s; the open-loop sense readout, for its mode's time
     constant, about 40. A device is calibrated once per process (:func:`factory`, memoised
-    on the configuration that matters).
+    on the configuration that matters), at ``thermal.reference_temperature`` whatever the
+    run's ambient.
+
+Temperature compensation (K3)
+    ``b(T) = b + sum_i b_i dT^i``, ``S(T) = S (1 + sum_i s_i dT^i)``, ``dT = T - T_ref``,
+    ``T`` the die temperature sensor's reading (the die's temperature, every 10 ms: core.thermal)
+    and ``[b_1 .. b_k, s_1 .. s_k]`` = ``gyro.calibration.temperature_coefficients``
+    (``given``) or, ``factory``, fitted to a temperature series: the table (K2) again at each
+    die temperature of ``gyro.calibration.temperature_points`` (the device at a steady die
+    temperature, core.thermal T3-T6), and the least-squares polynomial through the
+    reference of the biases' and the relative scale factors' changes, of degree 1 for one
+    point and 2 for more (IEEE Std 1431's temperature tests fit a polynomial likewise).
+    What a parabola leaves is the compensation's residual.
 """
 
 from collections import OrderedDict
@@ -107,30 +119,56 @@ class Calibration:
     bias: float
     scale_factor: float
     unit: str
+    reference_temperature: float = 298.15
+    temperature_coefficients: Tuple[float, ...] = ()
 
-    def apply(self, readout: np.ndarray, quadrature: np.ndarray):
-        """Return ``(rate, quadrature)`` in rad/s of readouts (K1)."""
-        return readout / self.scale_factor - self.bias, quadrature / self.scale_factor
+    def at(self, die_temperature: Optional[float]) -> Tuple[float, float]:
+        """
+        Return ``(b, S)`` compensated at a die temperature, K (K3; None: the reference).
+
+        ``b + sum b_i dT^i`` and ``S (1 + sum s_i dT^i)``, ``dT = T - T_ref``, of the
+        coefficients ``[b_1 .. b_k, s_1 .. s_k]``.
+        """
+        coefficients = self.temperature_coefficients
+        if not coefficients or die_temperature is None:
+            return self.bias, self.scale_factor
+        d = die_temperature - self.reference_temperature
+        k = len(coefficients) // 2
+        powers = [d ** (i + 1) for i in range(k)]
+        bias = self.bias + sum(c * p for c, p in zip(coefficients[:k], powers))
+        scale = self.scale_factor * (1.0 + sum(c * p for c, p in zip(coefficients[k:], powers)))
+        return bias, scale
+
+    def apply(self, readout: np.ndarray, quadrature: np.ndarray,
+              die_temperature: Optional[float] = None):
+        """Return ``(rate, quadrature)`` in rad/s of readouts (K1, K3)."""
+        bias, scale = self.at(die_temperature)
+        return readout / scale - bias, quadrature / scale
 
     @classmethod
     def from_dict(cls, values: Dict[str, Any]) -> 'Calibration':
         """Return the calibration of :meth:`to_dict`'s values (a recording's)."""
         unit = str(values['scale_factor_unit'])
         return cls(str(values['source']), float(values['bias_rad_s']),
-                   float(values['scale_factor']), unit[:unit.index('/(rad/s)')])
+                   float(values['scale_factor']), unit[:unit.index('/(rad/s)')],
+                   float(values.get('reference_temperature_k', 298.15)),
+                   tuple(float(c) for c in values.get('temperature_coefficients', ())))
 
     def to_dict(self) -> Dict[str, Any]:
         """Return the calibration as plain values (for a recording and the diagnostics)."""
         return {'source': self.source, 'bias_rad_s': float(self.bias),
                 'scale_factor': float(self.scale_factor),
-                'scale_factor_unit': f'{self.unit}/(rad/s)'}
+                'scale_factor_unit': f'{self.unit}/(rad/s)',
+                'reference_temperature_k': float(self.reference_temperature),
+                'temperature_coefficients': [float(c) for c in self.temperature_coefficients]}
 
 
 def given(config: SimConfig) -> Calibration:
     """Return the calibration of ``gyro.calibration.bias`` and ``.scale_factor`` as set."""
     g = config.gyro
     return Calibration('given', float(g.calibration_bias), float(g.calibration_scale_factor),
-                       readout_unit(config))
+                       readout_unit(config), float(config.thermal.reference_temperature),
+                       tuple(g.calibration_temperature_coefficients))
 
 
 def for_config(config: SimConfig,
@@ -149,8 +187,8 @@ def _bench(config: SimConfig) -> SimConfig:
                 calibration_source='given', calibration_bias=0.0,
                 calibration_scale_factor=1.0)
     run = replace(config.run, shock_times=(), shock_peaks=(), shock_angles=(),
-                  rate_times=(0.0,), rate_values=(0.0,), record_path='',
-                  duration=0.0)
+                  rate_times=(0.0,), rate_values=(0.0,), temperature_times=(),
+                  temperature_values=(), record_path='', duration=0.0)
     drive = config.drive
     if drive.start_on == 'rest':  # the factory calibrates the running sensor
         drive = replace(drive, start_on='upper_branch')
@@ -189,30 +227,52 @@ def _bandwidths_hz(config: SimConfig, sim) -> list:
 
 
 def measure(bench: SimConfig, log: Optional[Callable[[str], None]] = None) -> Calibration:
-    """Run the table of (K2) on a bench configuration (``_bench``)."""
+    """Run the table of (K2) on a bench configuration (``_bench``), and its series (K3)."""
+    reference = bench.thermal.reference_temperature
     scale, zero = _table(bench, log)
     if not (math.isfinite(scale) and scale > 0.0 and math.isfinite(zero)):
         raise SimulationError(
             f'gyro.calibration.source: the factory rate table reads no rate on this device '
             f'(scale factor {scale:.3g} {readout_unit(bench)} per rad/s: is the drive on?); '
             f'use given or ideal')
-    return Calibration('factory', zero / scale, scale, readout_unit(bench))
+    bias = zero / scale
+    points = [float(t) for t in bench.gyro.calibration_temperature_points if t != reference]
+    coefficients: Tuple[float, ...] = ()
+    if points:
+        order = min(2, len(points))
+        rows, d_bias, d_scale = [], [], []
+        for kelvin in points:
+            at = replace(bench, run=replace(bench.run, temperature_times=(0.0,),
+                                            temperature_values=(kelvin,)))
+            s_t, z_t = _table(at, log)
+            d = kelvin - reference
+            rows.append([d ** (i + 1) for i in range(order)])
+            d_bias.append(z_t / s_t - bias)
+            d_scale.append(s_t / scale - 1.0)
+        a = np.array(rows)
+        b_fit = np.linalg.lstsq(a, np.array(d_bias), rcond=None)[0]
+        s_fit = np.linalg.lstsq(a, np.array(d_scale), rcond=None)[0]
+        coefficients = tuple(float(c) for c in b_fit) + tuple(float(c) for c in s_fit)
+    return Calibration('factory', bias, scale, readout_unit(bench), float(reference),
+                       coefficients)
 
 
 def _table(bench: SimConfig, log: Optional[Callable[[str], None]]) -> Tuple[float, float]:
-    """Return ``(S, r(0))`` of the three table rates (K2) on a bench."""
+    """Return ``(S, r(0))`` of the three table rates (K2) on a bench, at its die temperature."""
+    from ring_gyro_sim.core import thermal
     from ring_gyro_sim.core.gyro import operating_point
     from ring_gyro_sim.core.simulator import Simulator
     raw = Calibration('given', 0.0, 1.0, readout_unit(bench))
     readings = {}
     for rate in (0.0, FACTORY_RATE, -FACTORY_RATE):
         cfg = replace(bench, run=replace(bench.run, rate_values=(rate,)))
-        state = operating_point.start_state(cfg)
+        state = operating_point.start_state(thermal.start_state_device(cfg))
         sim = Simulator(cfg, state, calibration=raw)
         tau = 1.0 / (2.0 * math.pi * min(_bandwidths_hz(cfg, sim)))
         settle = max(FACTORY_SETTLE_TIME_CONSTANTS * tau, FACTORY_MIN_SETTLE_S)
         if rate == 0.0 and log is not None:
-            log(f'calibrating the device on a simulated rate table (0, +-10 deg/s, '
+            log(f'calibrating the device on a simulated rate table at '
+                f'{sim.device_temperature:.2f} K (0, +-10 deg/s, '
                 f'{3.0 * (settle + FACTORY_AVERAGE_S):.3g} simulated s)')
         per_block = cfg.run.block_samples
         blocks = int(math.ceil((settle + FACTORY_AVERAGE_S) * cfg.run.output_rate / per_block))

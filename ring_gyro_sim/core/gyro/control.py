@@ -276,7 +276,8 @@ class DriveLoop:
         q2 = self.config.modes.coordinate_quality_factors()[1]
         return abs(self.config.drive.amplitude) * q2 / (f2 * f2)
 
-    def start(self, q: np.ndarray, v: np.ndarray, rate: float) -> float:
+    def start(self, q: np.ndarray, v: np.ndarray, rate: float,
+              omega: Optional[float] = None) -> float:
         """
         Start the loops in lock at a state; return the NCO's phase at t = 0, rad.
 
@@ -286,9 +287,15 @@ class DriveLoop:
         set-point (when not given) at ``|c|``, the AGC's integrator at the resonant part
         ``F |sin(arg c)|`` of the open-loop force that held the state (its lag was
         ``arg c``), the rebalance force at the Coriolis force of ``rate``. A state without
-        drive motion keeps the linear set-point and starts at phase 0.
+        drive motion keeps the linear set-point and starts at phase 0. ``omega`` (rad/s):
+        the NCO's start frequency, its integrator holding it (default ``drive.frequency``;
+        a die away from the reference temperature moves the device, core.thermal).
         """
-        w = self.omega_c
+        if omega is not None:
+            self.pll_integral = min(max(omega - self.omega_c, -self.omega_range),
+                                    self.omega_range)
+            self.omega = self.omega_c + self.pll_integral
+        w = self.omega_c  # the start state is the drive orbit at drive.frequency
         c = complex(float(q[1]), -float(v[1]) / w)
         phase = 0.0
         force = float(abs(self.config.drive.amplitude))

@@ -701,6 +701,7 @@ class SenseElectronics:
         # the drive pick-off's amplitude its ratiometric readout is relative to, held with it
         self.calibration = None
         self.readout_reference_v = self.drive_pickoff_nominal_v
+        self.die_temperature: Optional[float] = None  # the die's sensor (K3; None: T_ref)
 
     def _bandwidth(self) -> float:
         """(E9): -3 dB frequency of the sense envelope's pole times the Butterworth, Hz."""
@@ -787,6 +788,7 @@ class SenseElectronics:
         self._next_index = previous._next_index
         self.flicker = previous.flicker
         self.readout_reference_v = previous.readout_reference_v
+        self.die_temperature = previous.die_temperature
 
     def rate_variance(self) -> float:
         """
@@ -909,7 +911,8 @@ class SenseElectronics:
             else:
                 rb = rebalance
             if held is not None:  # (K1) the forces are the readout
-                rate, quadrature = held.apply(rb[picks, 2], rb[picks, 3])
+                rate, quadrature = held.apply(rb[picks, 2], rb[picks, 3],
+                                              self.die_temperature)
             else:
                 rate = rb[picks, 0].copy()
                 quadrature = rb[picks, 1].copy()
@@ -917,7 +920,8 @@ class SenseElectronics:
             # (K1) the ratiometric readout against the drive pick-off's held amplitude
             rho = np.maximum(np.hypot(values[picks, 2], values[picks, 3])
                              / self.readout_reference_v, RHO_FLOOR)
-            rate, quadrature = held.apply(values[picks, 0] / rho, values[picks, 1] / rho)
+            rate, quadrature = held.apply(values[picks, 0] / rho, values[picks, 1] / rho,
+                                          self.die_temperature)
         elif self.has_scale_factor:
             rho = np.maximum(np.hypot(values[picks, 2], values[picks, 3])
                              / self.drive_pickoff_nominal_v, RHO_FLOOR)
