@@ -316,10 +316,20 @@ class DriveLoop:
                 stiffness, damping = self.config.modes.pair_matrices(2)
                 self.rb_integral[0] += damping[1, 0] * w * self.setpoint_m
                 self.rb_integral[1] += stiffness[1, 0] * self.setpoint_m
+            if self.config.gyro.sense_misalignment:
+                # The loop holds the sense mode at tan(2 delta) q2 (E1b): q2s = mu X sin(phi)
+                # needs S_c = mu C_ss w X more and S_s = mu (K_ss - w^2) X more
+                mu = math.tan(2.0 * math.radians(self.config.gyro.sense_misalignment))
+                m = self.config.modes.count
+                w_s = 2.0 * math.pi * self.config.modes.coordinate_frequencies()[m + 1]
+                c_ss = w_s / self.config.modes.coordinate_quality_factors()[m + 1]
+                self.rb_integral[0] += mu * c_ss * w * self.setpoint_m
+                self.rb_integral[1] += mu * (w_s * w_s - w * w) * self.setpoint_m
             self.rebalance_force[:] = self.rb_integral
             self.rebalance_rate = float(rate)
             scale = 2.0 * KAPPA_2 * w * self.setpoint_m
-            if 2 in self.config.modes.coupled_pairs() and scale > 0.0:
+            if (2 in self.config.modes.coupled_pairs() or self.config.gyro.sense_misalignment
+                    ) and scale > 0.0:
                 self.rebalance_rate = float(self.rb_integral[0] / scale)
                 self.rebalance_quadrature = float(self.rb_integral[1] / scale)
         return phase

@@ -305,6 +305,13 @@ def with_rate_response(config: SimConfig, state):
         # With force-to-rebalance the loop holds the sense mode at 0 from the start (its
         # force starts at the Coriolis force of the rate at t = 0: core.gyro.control, C6).
         _add_sense_response(config, x, v)
+    elif config.gyro.enabled and config.gyro.sense_misalignment:
+        # ... at 0 of what its misaligned amplifier reads (E1b): cos(2 delta) q2s -
+        # sin(2 delta) q2, so the sense mode sits at q2s = tan(2 delta) q2
+        m = config.modes.count
+        mu = math.tan(2.0 * math.radians(config.gyro.sense_misalignment))
+        x[m + 1] += mu * x[1]
+        v[m + 1] += mu * v[1]
     return x, v
 
 

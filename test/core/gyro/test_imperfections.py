@@ -150,3 +150,27 @@ def test_force_to_rebalance_reads_through_a_phase_error_as_a_rotation():
     print(f'rate {rate:.6e}, quadrature {quadrature:.6e} rad/s')
     assert rate == pytest.approx(TEN_DEG_S * math.cos(eps), rel=2e-3)
     assert abs(quadrature) == pytest.approx(TEN_DEG_S * math.sin(eps), rel=2e-2)
+
+
+def test_force_to_rebalance_holds_a_misaligned_sense_mode_where_its_amplifier_reads_0():
+    # (E1b) the rebalance loop nulls what the misaligned amplifier reads, cos(2 delta) q2s -
+    # sin(2 delta) q2: it holds q2s = tan(2 delta) q2, in phase with the drive, with a force
+    # tan(2 delta) C_ss w X in phase with the Coriolis force's: a bias of
+    # tan(2 delta) w_s / (2 kappa Q_s), as open loop. The run starts there (no transient).
+    delta = 0.1
+    ftr = {'gyro.enabled': True, 'control.drive_loop': 'closed', 'control.rebalance': True,
+           'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0,
+           'gyro.calibration.source': 'ideal', 'gyro.sense_misalignment': delta,
+           'scenario.rate_times': [0.0], 'scenario.rate_values': [0.0]}
+    config = build_config(ftr)
+    run = Run(config)
+    first = run.advance(config.run.block_samples).rate.rate
+    for _ in range(29):
+        last = run.advance(config.run.block_samples).rate.rate
+    w_s = 2.0 * math.pi * config.modes.coordinate_frequencies()[4]
+    q_s = config.modes.coordinate_quality_factors()[4]
+    expected = math.tan(2.0 * math.radians(delta)) * w_s / (2.0 * KAPPA * q_s)
+    print(f'bias {np.mean(last):.5e} rad/s (first 10 ms {np.mean(first):.5e}), '
+          f'closed form {expected:.5e}')
+    assert abs(np.mean(last)) == pytest.approx(expected, rel=0.02)
+    assert np.mean(first) == pytest.approx(np.mean(last), rel=1e-3)
