@@ -6,7 +6,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: venv run test test-all bench clean
+.PHONY: venv run test test-all bench bench-imperfect clean
 
 $(STAMP): requirements-ros.txt requirements-dev.txt setup.py package.xml
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +33,9 @@ test-all: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) benchmarks/bench_simulator.py
+
+bench-imperfect: $(STAMP)
+	$(PY) benchmarks/bench_imperfections.py
 
 clean:
 	rm -rf $(VENV) out

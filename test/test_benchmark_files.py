@@ -35,7 +35,7 @@ FILES = ('paper.yaml', 'nr3_companions.yaml', 'nr5_companions.yaml')
 
 def test_every_benchmark_file_is_tested():
     assert sorted(p.name for p in BENCH.glob('*.yaml')) == sorted(
-        FILES + ('gyro.yaml', 'gyro_closed.yaml'))
+        FILES + ('gyro.yaml', 'gyro_closed.yaml', 'gyro_imperfect.yaml'))
 
 
 def test_the_gyroscope_benchmark_file_runs_with_its_rate_output():
@@ -60,6 +60,18 @@ def test_the_closed_loop_benchmark_file_is_the_gyroscope_file_with_the_loops():
     summary = offline.run_offline(closed, duration_s=0.02, progress=False)
     assert summary.extra['rate_mean_rad_s'] == pytest.approx(math.radians(10.0), rel=0.01)
     assert summary.extra['pll_lost_lock'] is False
+
+
+def test_the_imperfect_benchmark_file_is_the_closed_loop_file_on_an_imperfect_ring():
+    # benchmarks/gyro_imperfect.yaml (issue 23): the same run, a coupled 2theta pair and the
+    # pick-off's errors; factory-calibrated, it reads 10 deg/s as the perfect ring does
+    closed = load_yaml(str(BENCH / 'gyro_closed.yaml'))
+    imperfect = load_yaml(str(BENCH / 'gyro_imperfect.yaml'))
+    assert imperfect.run == closed.run and imperfect.control == closed.control
+    assert imperfect.modes.coupled_pairs() == [2]
+    assert imperfect.gyro.calibration_source == 'factory'
+    summary = offline.run_offline(imperfect, duration_s=0.02, progress=False)
+    assert summary.extra['rate_mean_rad_s'] == pytest.approx(math.radians(10.0), rel=0.01)
 
 
 @pytest.mark.parametrize('name', FILES)

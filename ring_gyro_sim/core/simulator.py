@@ -988,9 +988,10 @@ class Simulator:
         """
         out = np.ascontiguousarray(z * self._noise_sigma[None, :])
         for c, s_, factor in self._noise_mix:
-            pair = z[:, [c, s_]] @ factor.T
-            out[:, c] = pair[:, 0]
-            out[:, s_] = pair[:, 1]
+            (f_cc, f_cs), (f_sc, f_ss) = factor.tolist()
+            z_c, z_s = z[:, c], z[:, s_]
+            out[:, c] = f_cc * z_c + f_cs * z_s
+            out[:, s_] = f_sc * z_c + f_ss * z_s
         return out
 
     def _unit_force_noise(self, count: int) -> Optional[np.ndarray]:
