@@ -278,17 +278,26 @@ def test_a_constant_rate_from_the_start_keeps_a_valid_scale_factor():
     # 100 deg/s from t = 0, open loop: the start state already holds the drive's drop under
     # the rate (the pair splits), so the drive pick-off's expected ratio is 1 at that rate.
     # Counting the drop twice gave (1 + x^2) / (1 + 2 x^2) = 0.566 and a false "scale factor
-    # collapsed" while the reading was within 0.2 %.
+    # collapsed" while the reading was within 0.2 %. The model's readout (ideal) reads at
+    # the operating point's own scale factor.
     rate = math.radians(100.0)
-    config = paper_config(gyro_values(**{'scenario.rate_values': [rate],
-                                         'gyro.temperature': 0.0,
-                                         'gyro.input_noise_density': 0.0}))
+    values = gyro_values(**{'scenario.rate_values': [rate], 'gyro.temperature': 0.0,
+                            'gyro.input_noise_density': 0.0})
+    config = paper_config({**values, 'gyro.calibration.source': 'ideal'})
     t, out, applied, run = run_blocks(config, 0.3)
     diag = run.diagnostics().values
     assert diag['drive_amplitude_ratio_expected'] == pytest.approx(1.0, abs=1e-3)
     assert diag['drive_amplitude_ratio'] == pytest.approx(1.0, abs=0.01)
     assert diag['scale_factor_valid'] is True and diag['rate_valid'] is True
     assert np.mean(out[t > 0.1]) == pytest.approx(rate, rel=0.005)
+    # The factory's calibration, made at +-10 deg/s on the undropped drive and relative to
+    # its pick-off amplitude at zero rate (K1), reads the ratio as one: the drive 4.3 times
+    # lower softens the sense mode less (E6b), 0.5 % of scale-factor nonlinearity.
+    t, out, applied, run = run_blocks(paper_config(values), 0.3)
+    diag = run.diagnostics().values
+    assert diag['scale_factor_valid'] is True and diag['rate_valid'] is True
+    assert np.mean(out[t > 0.1]) == pytest.approx(rate, rel=0.01)
+    assert np.mean(out[t > 0.1]) != pytest.approx(rate, rel=0.002)
 
 
 def test_the_rebalance_variance_is_the_loops_noise():

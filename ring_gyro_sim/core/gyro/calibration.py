@@ -45,16 +45,23 @@ The factory procedure (K2)
 
         S = (r(+W) - r(-W)) / (2 W),   b = r(0) / S                                  (K2)
 
-    Each rate is a run that starts on its drive orbit with the sense mode's response
-    (``operating_point.start_state``), settles for :data:`FACTORY_SETTLE_TIME_CONSTANTS`
-    time constants of the slowest of the rate path (``1 / (2 pi f_bw)``, E9: 1.3 s open loop
-    at the default Q, the loop's with force-to-rebalance) and, closed loop, the AGC and the
-    PLL (the AGC's 32 ms at 5 Hz: the start's drive force is that of the open-loop orbit,
-    3 % off the locked one) and is averaged over :data:`FACTORY_AVERAGE_S`. The default
-    gyroscope takes 1.6 simulated s; the open-loop sense readout, for its mode's time
-    constant, about 40. A device is calibrated once per process (:func:`factory`, memoised
-    on the configuration that matters), at ``thermal.reference_temperature`` whatever the
-    run's ambient.
+    Each rate is a run that starts on its drive orbit with the sense mode's steady response
+    to it (``operating_point.start_state``), settles for
+    :data:`FACTORY_SETTLE_TIME_CONSTANTS` time constants ``1 / (2 pi f)`` of the slowest of
+    the output filter, the rebalance loop and, closed loop, the AGC and the PLL (the AGC's
+    32 ms at 5 Hz: the start's drive force is that of the open-loop orbit, 3 % off the
+    locked one), at least :data:`FACTORY_MIN_SETTLE_S`, and is averaged over
+    :data:`FACTORY_AVERAGE_S`: 1.6 simulated s for the default gyroscope, 0.75 s for the open
+    loops of ``config/gyro.yaml``. The open-loop sense mode's own time constant (1.3 s at the
+    default Q) is not waited for: started in its steady response, that readout reads
+    10 deg/s at 0.3 s within 1e-4 of its value at 3 s, and wanders by 1e-4 over 8 s on its
+    own. A device is calibrated at ``thermal.reference_temperature`` whatever the run's
+    ambient, once: :func:`factory` keeps it in this process and, as a part keeps its
+    calibration in its memory, in a file (``$RING_GYRO_SIM_CACHE``, default
+    ``~/.cache/ring_gyro_sim``, ``calibration-<key>.json``; an empty variable keeps none),
+    keyed by the SHA-256 of the configuration that matters and of the source of
+    ``ring_gyro_sim.core``, so that a changed model measures again. A file that cannot be
+    read or written is ignored.
 
 Temperature compensation (K3)
     ``b(T) = b + sum_i b_i dT^i``, ``S(T) = S (1 + sum_i s_i dT^i)``, ``dT = T - T_ref``,
@@ -70,13 +77,18 @@ Temperature compensation (K3)
 
 from collections import OrderedDict
 from dataclasses import dataclass, replace
+import hashlib
+import json
 import math
+import os
+from pathlib import Path
+import tempfile
 import threading
 from typing import Any, Callable, Dict, Optional, Tuple
 
 import numpy as np
 from ring_gyro_sim.core.errors import SimulationError
-from ring_gyro_sim.core.params import SimConfig
+from ring_gyro_sim.core.params import build_config, SimConfig, to_flat
 
 __all__ = ['Calibration', 'FACTORY_AVERAGE_S', 'FACTORY_RATE', 'FACTORY_SETTLE_TIME_CONSTANTS',
            'factory', 'for_config', 'given', 'readout_unit']
@@ -112,6 +124,13 @@ class Calibration:
         ``S``, readout per rad/s (``unit``).
     unit : str
         Unit of the readout (``readout_unit``).
+    reference_temperature : float
+        K, the die temperature of ``bias`` and ``scale_factor``.
+    temperature_coefficients : tuple of float
+        ``[b_1 .. b_k, s_1 .. s_k]`` of the compensation (K3; empty: none).
+    readout_reference_v : float
+        The open-loop readout's drive pick-off amplitude at zero rate, V, trimmed with the
+        calibration (K1); 0: the run's operating point's, taken back to zero rate.
 
     """
 
@@ -121,6 +140,7 @@ class Calibration:
     unit: str
     reference_temperature: float = 298.15
     temperature_coefficients: Tuple[float, ...] = ()
+    readout_reference_v: float = 0.0
 
     def at(self, die_temperature: Optional[float]) -> Tuple[float, float]:
         """
@@ -152,7 +172,8 @@ class Calibration:
         return cls(str(values['source']), float(values['bias_rad_s']),
                    float(values['scale_factor']), unit[:unit.index('/(rad/s)')],
                    float(values.get('reference_temperature_k', 298.15)),
-                   tuple(float(c) for c in values.get('temperature_coefficients', ())))
+                   tuple(float(c) for c in values.get('temperature_coefficients', ())),
+                   float(values.get('readout_reference_v', 0.0)))
 
     def to_dict(self) -> Dict[str, Any]:
         """Return the calibration as plain values (for a recording and the diagnostics)."""
@@ -160,7 +181,8 @@ class Calibration:
                 'scale_factor': float(self.scale_factor),
                 'scale_factor_unit': f'{self.unit}/(rad/s)',
                 'reference_temperature_k': float(self.reference_temperature),
-                'temperature_coefficients': [float(c) for c in self.temperature_coefficients]}
+                'temperature_coefficients': [float(c) for c in self.temperature_coefficients],
+                'readout_reference_v': float(self.readout_reference_v)}
 
 
 def given(config: SimConfig) -> Calibration:
@@ -173,8 +195,15 @@ def given(config: SimConfig) -> Calibration:
 
 def for_config(config: SimConfig,
                log: Optional[Callable[[str], None]] = None) -> Optional[Calibration]:
-    """Return the calibration ``gyro.calibration.source`` asks for (None: ideal, or no gyro)."""
-    if not config.gyro.enabled or config.gyro.calibration_source == 'ideal':
+    """
+    Return the calibration ``gyro.calibration.source`` asks for (None: the model's readout).
+
+    None also without the gyroscope, and for ``factory`` when the drive is off at the start
+    (``drive.amplitude`` 0): there is no rate to measure on a table, the rate output is 0
+    until a drive starts (``scale_factor_valid`` false), and then the model's readout.
+    """
+    if (not config.gyro.enabled or config.gyro.calibration_source == 'ideal'
+            or (config.gyro.calibration_source == 'factory' and config.drive.amplitude == 0.0)):
         return None
     if config.gyro.calibration_source == 'given':
         return given(config)
@@ -186,9 +215,16 @@ def _bench(config: SimConfig) -> SimConfig:
     g = replace(config.gyro, temperature=0.0, input_noise_density=0.0, bias_instability=0.0,
                 calibration_source='given', calibration_bias=0.0,
                 calibration_scale_factor=1.0)
+    # what only cuts, paces or records a run is the defaults' (the table reads the same)
+    plain = build_config({}).run
+    block = max(plain.block_duration, config.run.output_period_ns * 1e-9)
     run = replace(config.run, shock_times=(), shock_peaks=(), shock_angles=(),
                   rate_times=(0.0,), rate_values=(0.0,), temperature_times=(),
-                  temperature_values=(), record_path='', duration=0.0)
+                  temperature_values=(), record_path='', duration=0.0, block_duration=block,
+                  real_time_factor=plain.real_time_factor, publish_clock=plain.publish_clock,
+                  record_topics=plain.record_topics, record_decimation=plain.record_decimation,
+                  record_compression=plain.record_compression,
+                  record_overwrite=plain.record_overwrite, input_horizon=plain.input_horizon)
     drive = config.drive
     if drive.start_on == 'rest':  # the factory calibrates the running sensor
         drive = replace(drive, start_on='upper_branch')
@@ -201,7 +237,7 @@ _MEMO_LOCK = threading.Lock()
 
 def factory(config: SimConfig, log: Optional[Callable[[str], None]] = None) -> Calibration:
     """
-    Return the factory calibration of the device of ``config`` (K2), memoised.
+    Return the factory calibration of the device of ``config`` (K2), memoised and stored.
 
     ``log`` is told when one is measured (it takes the simulated time of three table runs).
     """
@@ -210,7 +246,11 @@ def factory(config: SimConfig, log: Optional[Callable[[str], None]] = None) -> C
         if bench in _MEMO:
             _MEMO.move_to_end(bench)
             return _MEMO[bench]
-    calibration = measure(bench, log)
+    path = _stored_path(bench)
+    calibration = _load(path)
+    if calibration is None:
+        calibration = measure(bench, log)
+        _store(path, calibration)
     with _MEMO_LOCK:
         _MEMO[bench] = calibration
         while len(_MEMO) > FACTORY_MEMO_SIZE:
@@ -218,19 +258,81 @@ def factory(config: SimConfig, log: Optional[Callable[[str], None]] = None) -> C
     return calibration
 
 
-def _bandwidths_hz(config: SimConfig, sim) -> list:
-    """Return the rate path's bandwidth (E9) and, closed loop, the AGC's and the PLL's, Hz."""
-    out = [sim.sense.electronics.bandwidth_hz]
-    if config.control.closed:
-        out += [config.control.agc_bandwidth, config.control.pll_bandwidth]
+CACHE_ENV = 'RING_GYRO_SIM_CACHE'
+"""Environment variable naming the directory of stored calibrations (empty: none)."""
+_CODE_DIGEST: Optional[str] = None
+
+
+def _code_digest() -> str:
+    """Return the SHA-256 of the source of ``ring_gyro_sim.core`` (what a calibration ran)."""
+    global _CODE_DIGEST
+    if _CODE_DIGEST is None:
+        root = Path(__file__).resolve().parents[1]
+        h = hashlib.sha256()
+        for source in sorted(root.rglob('*.py')):
+            h.update(str(source.relative_to(root)).encode())
+            h.update(source.read_bytes())
+        _CODE_DIGEST = h.hexdigest()
+    return _CODE_DIGEST
+
+
+def _stored_path(bench: SimConfig) -> Optional[Path]:
+    """Return the file of a bench's stored calibration (None: storing is off)."""
+    directory = os.environ.get(CACHE_ENV)
+    if directory is None:
+        directory = str(Path.home() / '.cache' / 'ring_gyro_sim')
+    if not directory:
+        return None
+    text = json.dumps(to_flat(bench), sort_keys=True, default=list) + _code_digest()
+    key = hashlib.sha256(text.encode()).hexdigest()[:32]
+    return Path(directory) / f'calibration-{key}.json'
+
+
+def _load(path: Optional[Path]) -> Optional[Calibration]:
+    """Return a stored calibration, None when there is none (or it cannot be read)."""
+    if path is None:
+        return None
+    try:
+        return Calibration.from_dict(json.loads(path.read_text(encoding='utf-8')))
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def _store(path: Optional[Path], calibration: Calibration) -> None:
+    """Store a calibration (atomically: a reader sees the whole file or none); best effort."""
+    if path is None:
+        return
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix='.calibration-', suffix='.json')
+        with os.fdopen(fd, 'w', encoding='utf-8') as f:
+            json.dump(calibration.to_dict(), f)
+        os.replace(tmp, path)
+    except OSError:
+        pass
+
+
+def _bandwidths_hz(config: SimConfig) -> list:
+    """
+    Return the bandwidths (Hz) a table rate settles with: the output filter's and the loops'.
+
+    Not the open-loop sense mode's (E9: 0.12 Hz at the default Q): a table rate starts in
+    the sense mode's steady response to it (``operating_point.with_rate_response``).
+    """
+    c = config.control
+    out = [config.gyro.filter_bandwidth]
+    if c.rebalance:
+        out.append(c.rebalance_bandwidth)
+    if c.closed:
+        out += [c.agc_bandwidth, c.pll_bandwidth]
     return out
 
 
 def measure(bench: SimConfig, log: Optional[Callable[[str], None]] = None) -> Calibration:
     """Run the table of (K2) on a bench configuration (``_bench``), and its series (K3)."""
     reference = bench.thermal.reference_temperature
-    scale, zero = _table(bench, log)
-    if not (math.isfinite(scale) and scale > 0.0 and math.isfinite(zero)):
+    scale, zero, reference_v = _table(bench, log)
+    if not (math.isfinite(scale) and scale != 0.0 and math.isfinite(zero)):
         raise SimulationError(
             f'gyro.calibration.source: the factory rate table reads no rate on this device '
             f'(scale factor {scale:.3g} {readout_unit(bench)} per rad/s: is the drive on?); '
@@ -244,7 +346,7 @@ def measure(bench: SimConfig, log: Optional[Callable[[str], None]] = None) -> Ca
         for kelvin in points:
             at = replace(bench, run=replace(bench.run, temperature_times=(0.0,),
                                             temperature_values=(kelvin,)))
-            s_t, z_t = _table(at, log)
+            s_t, z_t, _ = _table(at, log, reference_v)
             d = kelvin - reference
             rows.append([d ** (i + 1) for i in range(order)])
             d_bias.append(z_t / s_t - bias)
@@ -254,21 +356,31 @@ def measure(bench: SimConfig, log: Optional[Callable[[str], None]] = None) -> Ca
         s_fit = np.linalg.lstsq(a, np.array(d_scale), rcond=None)[0]
         coefficients = tuple(float(c) for c in b_fit) + tuple(float(c) for c in s_fit)
     return Calibration('factory', bias, scale, readout_unit(bench), float(reference),
-                       coefficients)
+                       coefficients, reference_v)
 
 
-def _table(bench: SimConfig, log: Optional[Callable[[str], None]]) -> Tuple[float, float]:
-    """Return ``(S, r(0))`` of the three table rates (K2) on a bench, at its die temperature."""
+def _table(bench: SimConfig, log: Optional[Callable[[str], None]],
+           reference_v: float = 0.0) -> Tuple[float, float, float]:
+    """
+    Return ``(S, r(0), V_ref)`` of the three table rates (K2) on a bench, at its die temperature.
+
+    ``V_ref`` is the open-loop readout's drive pick-off amplitude (K1): ``reference_v`` when
+    given (the part's trim, held over the temperature series), else the one at rate 0, which
+    the runs at +-W keep (their operating points are lower: the pair's response to the rate).
+    """
     from ring_gyro_sim.core import thermal
     from ring_gyro_sim.core.gyro import operating_point
     from ring_gyro_sim.core.simulator import Simulator
-    raw = Calibration('given', 0.0, 1.0, readout_unit(bench))
     readings = {}
     for rate in (0.0, FACTORY_RATE, -FACTORY_RATE):
         cfg = replace(bench, run=replace(bench.run, rate_values=(rate,)))
         state = operating_point.start_state(thermal.start_state_device(cfg))
+        raw = Calibration('given', 0.0, 1.0, readout_unit(bench),
+                          readout_reference_v=reference_v)
         sim = Simulator(cfg, state, calibration=raw)
-        tau = 1.0 / (2.0 * math.pi * min(_bandwidths_hz(cfg, sim)))
+        if rate == 0.0 and not reference_v and not bench.control.rebalance:
+            reference_v = sim.sense.electronics.readout_reference_v
+        tau = 1.0 / (2.0 * math.pi * min(_bandwidths_hz(cfg)))
         settle = max(FACTORY_SETTLE_TIME_CONSTANTS * tau, FACTORY_MIN_SETTLE_S)
         if rate == 0.0 and log is not None:
             log(f'calibrating the device on a simulated rate table at '
@@ -284,4 +396,4 @@ def _table(bench: SimConfig, log: Optional[Callable[[str], None]]) -> Tuple[floa
         t, r = np.concatenate(times), np.concatenate(values)
         readings[rate] = float(np.mean(r[t > t[-1] - FACTORY_AVERAGE_S]))
     scale = (readings[FACTORY_RATE] - readings[-FACTORY_RATE]) / (2.0 * FACTORY_RATE)
-    return scale, readings[0.0]
+    return scale, readings[0.0], float(reference_v)

@@ -112,6 +112,15 @@ class SenseChain:
         if previous is not None:
             calibration = previous.electronics.calibration
         self.electronics.calibration = calibration
+        if calibration is not None and not el.rebalance:
+            # (K1) the ratiometric readout is relative to the drive pick-off's amplitude at
+            # zero rate: the one the calibration was made with, else the operating point's
+            # taken back to zero rate through the pair's linear response (E8), so that a run
+            # that starts under a rate reads it as one started at rest and then turned
+            el.readout_reference_v = (calibration.readout_reference_v
+                                      if calibration.readout_reference_v > 0.0
+                                      else el.drive_pickoff_nominal_v
+                                      * el.expected_drive_ratio(0.0))
         if previous is not None:
             self.electronics.continue_from(previous.electronics)
             self.validity.continue_from(previous.validity)

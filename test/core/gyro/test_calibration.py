@@ -125,3 +125,30 @@ def test_a_held_calibration_stays_put_when_the_sense_mode_changes():
           f'{ideal / TEN_DEG_S:.5f} of the rate')
     assert ideal == pytest.approx(TEN_DEG_S, rel=2e-3)
     assert held / TEN_DEG_S == pytest.approx(1.05, rel=5e-3)
+
+
+def test_a_factory_calibration_is_kept_in_a_file_and_read_back(tmp_path, monkeypatch):
+    # The part keeps its calibration: a second process reads the stored one instead of
+    # running the table again (three simulated runs); a damaged file is measured again;
+    # another device, or an empty RING_GYRO_SIM_CACHE, stores its own or none.
+    config = build_config(QUIET)
+    monkeypatch.setenv(calibration.CACHE_ENV, str(tmp_path))
+    monkeypatch.setattr(calibration, '_MEMO', type(calibration._MEMO)())
+    measured = calibration.factory(config)
+    files = list(tmp_path.glob('calibration-*.json'))
+    assert len(files) == 1
+
+    def no_table(*args, **kwargs):
+        raise AssertionError('measured again')
+    calibration._MEMO.clear()
+    monkeypatch.setattr(calibration, 'measure', no_table)
+    assert calibration.factory(config) == measured
+    calibration._MEMO.clear()
+    files[0].write_text('{"source": "factory", "bias_rad_s": ', encoding='utf-8')
+    with pytest.raises(AssertionError, match='measured again'):
+        calibration.factory(config)
+    other = build_config({**QUIET, 'drive.amplitude': 0.9 * config.drive.amplitude})
+    with pytest.raises(AssertionError, match='measured again'):
+        calibration.factory(other)
+    monkeypatch.setenv(calibration.CACHE_ENV, '')
+    assert calibration._stored_path(calibration._bench(config)) is None
