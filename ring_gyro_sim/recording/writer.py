@@ -47,6 +47,13 @@ The output file:
 - a write error (a full disk) is raised once, as a :class:`RecordingError` naming the file and
   the reason; the writer then stops writing, and :meth:`BagWriter.finish` only closes the
   file (what was written before stays readable like a killed recording).
+
+Memory: the summary needs one chunk index per chunk, so a writer grows with its file until
+:meth:`BagWriter.finish`, and by nothing else. mcap's ``Writer`` keeps each index as a
+``ChunkIndex`` object with a dict of the chunk's channels, ~1.5 kB for a chunk of 15 channels;
+here (:class:`_ChunkIndexRecords`) it is kept as the record the summary will hold, 77 bytes and
+10 per channel of the chunk (227 B for 15). What that makes per hour of recording is in
+doc/recording.md ("Memory").
 """
 
 import operator
@@ -56,6 +63,7 @@ import stat
 import threading
 
 from mcap import __version__ as mcap_version
+from mcap.data_stream import RecordBuilder
 from mcap.exceptions import UnsupportedCompressionError
 from mcap.writer import CompressionType, IndexType, Writer
 from rclpy.serialization import serialize_message
@@ -196,6 +204,59 @@ class _FileSink:
             pass
 
 
+class _RawRecords:
+    """Records already serialised, written as they are (the summary's chunk index group)."""
+
+    __slots__ = ('data',)
+
+    def __init__(self, data):
+        self.data = data
+
+    def write(self, builder):
+        builder.write(self.data)
+
+
+class _ChunkIndexRecords:
+    """
+    Stands in for the list of ``ChunkIndex`` objects of mcap's ``Writer``: keeps their records.
+
+    The writer appends the index of every chunk it writes and, on ``finish``, writes each item
+    of the list into the summary; here each index is serialised when it is appended and the
+    list yields one item that writes them all, byte for byte what mcap would have written.
+    """
+
+    def __init__(self):
+        self._data = bytearray()
+        self._count = 0
+
+    def append(self, index):
+        builder = RecordBuilder()
+        index.write(builder)
+        self._data += builder.end()
+        self._count += 1
+
+    def __len__(self):
+        return self._count
+
+    def __iter__(self):
+        if self._count:
+            yield _RawRecords(bytes(self._data))
+
+
+def _keep_chunk_indexes_compact(writer):
+    """
+    Make mcap's ``writer`` keep its chunk indexes as records (True if it could).
+
+    The list is a private attribute of ``mcap.writer.Writer``; should a version of mcap not
+    have it, the writer is left as it is (it then keeps its ``ChunkIndex`` objects).
+    """
+    name = '_Writer__chunk_indices'
+    if isinstance(getattr(writer, name, None), list) and not getattr(writer, name):
+        setattr(writer, name, _ChunkIndexRecords())
+        return True
+    return False
+
+
 class _NullSink:
     """Discards everything (to ask mcap whether a compression is available)."""
 
@@ -307,6 +368,7 @@ class BagWriter:
                 use_summary_offsets=True,
                 enable_crcs=True,
             )
+            _keep_chunk_indexes_compact(self._writer)
             self._writer.start(
                 profile='ros2', library=f'ring_gyro_sim/{__version__}; mcap-python/{mcap_version}')
         except OSError as exc:

@@ -15,14 +15,17 @@
 """Tests of ring_gyro_sim.recording.writer, read back with independent readers."""
 
 import collections
+import gc
 import math
 import pathlib
+import tracemalloc
 
 import mcap.reader
 import mcap_ros2.decoder
 import pytest
 import rclpy.serialization
 import recording_samples as samples
+from ring_gyro_sim.recording import writer as writer_module
 from ring_gyro_sim.recording.errors import OutputExistsError, RecordingError
 from ring_gyro_sim.recording.schemas import message_definition, type_description_hash
 from ring_gyro_sim.recording.writer import BagWriter
@@ -174,6 +177,59 @@ def test_small_chunks_split_the_data(tmp_path):
     _, summary = summary_of(path)
     assert summary.statistics.chunk_count > 10
     assert summary.statistics.message_count == 200
+
+
+CHUNK_INDEX_RECORD_BYTES = 77
+"""A chunk index record of a zstd chunk without its channels (MCAP specification)."""
+
+
+def write_chunks(bag, topics, chunks, first_ns=0):
+    """Write ``chunks`` chunks of 4 kB (chunk_size 4096) touching every topic of ``topics``."""
+    payload = bytes(range(256)) * 4
+    for k in range(chunks):
+        for i, topic in enumerate(topics):
+            bag.write(topic, payload if i < 4 else payload[:64], first_ns + k * 1000 + i)
+
+
+def test_a_chunk_keeps_only_its_index_record_in_memory(tmp_path):
+    # Item 18 of issue 22: a recording node grew with its file. What a writer keeps per chunk
+    # until finish() is the chunk's index for the summary: mcap's ChunkIndex objects took
+    # ~1.5 kB each for 15 channels, their records take 77 + 10 per channel bytes.
+    topics = [f'/ring_gyro/t{i}' for i in range(15)]
+    with BagWriter(tmp_path / 'long.mcap', chunk_size=4096, compression='none') as bag:
+        for topic in topics:
+            bag.add_topic(topic, 'std_msgs/msg/Float64')
+        write_chunks(bag, topics, 50)
+        gc.collect()
+        tracemalloc.start()
+        try:
+            before = tracemalloc.get_traced_memory()[0]
+            write_chunks(bag, topics, 2000, first_ns=10**9)
+            gc.collect()
+            kept = tracemalloc.get_traced_memory()[0] - before
+        finally:
+            tracemalloc.stop()
+    record = CHUNK_INDEX_RECORD_BYTES + 10 * len(topics)  # 227 B
+    _, summary = summary_of(tmp_path / 'long.mcap')
+    assert summary.statistics.chunk_count == len(summary.chunk_indexes) >= 2000
+    # bytearray over-allocation and the few objects of the chunk in progress: at most 1.3x.
+    assert kept / 2000 < 1.3 * record, f'{kept / 2000:.0f} B per chunk'
+
+
+@pytest.mark.parametrize('compression', ['zstd', 'none'])
+def test_the_compact_chunk_indexes_write_what_mcap_writes(tmp_path, monkeypatch, compression):
+    topics = [f'/ring_gyro/t{i}' for i in range(6)]
+    paths = [tmp_path / 'compact' / 'run.mcap', tmp_path / 'mcap' / 'run.mcap']
+    for path in paths:
+        if path.parent.name == 'mcap':
+            monkeypatch.setattr(writer_module, '_keep_chunk_indexes_compact', lambda w: False)
+        with BagWriter(path, chunk_size=4096, compression=compression) as bag:
+            for topic in topics:
+                bag.add_topic(topic, 'std_msgs/msg/Float64')
+            write_chunks(bag, topics, 30)
+    compact, plain = (p.read_bytes() for p in paths)
+    assert compact == plain
+    assert len(summary_of(paths[0])[1].chunk_indexes) >= 30
 
 
 def test_mcap_ros2_decodes_the_original_values(sample_bag):
