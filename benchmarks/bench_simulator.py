@@ -37,8 +37,14 @@ along x), ``nr3_companions.yaml`` (N_R = 3 with the sine companions, the shock a
 4. speed-up over scipy ``solve_ivp`` (DOP853, Python right-hand side) on the paper
    configuration at matched accuracy: the loosest rtol whose error against a tight DOP853
    reference is no larger than the simulator's;
-5. recording overhead (issue 5): the paper configuration through
-   :func:`ring_gyro_sim.offline.run_offline` with and without an MCAP file.
+5. recording overhead (issues 5 and 22): the default gyroscope (every parameter at its
+   default, config/default.yaml, with the demo's scenario: 10 deg/s and a 10 000 g shock at
+   0.5 s) and the paper configuration, each run offline as ``ring_gyro run`` runs it, with and
+   without an MCAP recording, the two alternating in one child process per tree; the ratio
+   recorded / unrecorded of each pair (wall and CPU time, from the first block to the
+   recording finalised), its median, the file's size per simulated second, with the
+   defaults and with ``record.decimation: 1`` (every 200 kHz sample). ``--only recording``
+   runs this section alone; with ``--baseline`` the older tree's runs alternate with these.
 
 Targets from the issues are printed next to the results; a missed target is reported with
 what limits it, never hidden. The machine's load average is printed with the numbers: on a
@@ -62,7 +68,6 @@ from typing import Any, Dict, List, Optional, Tuple
 import numba
 from numba import njit
 import numpy as np
-from ring_gyro_sim import offline
 from ring_gyro_sim.core import forces, kernels
 from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.gyro.operating_point import start_state
@@ -91,6 +96,20 @@ CASES = (
 TARGET_SPEEDUP = 200.0
 TARGET_RTF_RECORDING = 1.0
 """Issue 5: recording must not pull the paper configuration below real time."""
+TARGET_RECORDING_RATIO = 1.3
+"""Issue 22: a recorded run with the defaults costs at most 1.3 times an unrecorded one."""
+DEFAULT_SCENARIO = """\
+/**:
+  ros__parameters:
+    scenario:
+      shock_times: [0.5]
+      shock_peaks: [98066.5]
+      rate_times: [0.0]
+      rate_values: [0.17453292519943295]
+"""
+"""The default gyroscope of section 5: every parameter at its default, the demo's scenario."""
+RECORDING_VARIANTS = (('defaults', {}), ('decimation 1', {'record.decimation': 1}))
+"""Section 5 records each configuration with the defaults and with every 200 kHz sample."""
 
 REFERENCE_RTOL = 1e-10
 REFERENCE_ATOL = 1e-16
@@ -571,23 +590,150 @@ def bench_scipy(config: SimConfig, state, after_shock_s: float,
     return out
 
 
-def bench_recording(config: SimConfig, duration_s: float) -> Dict[str, Any]:
-    """Section 5: run_offline with and without an MCAP recording (issue 5)."""
-    log(f'recording: run_offline without output, {duration_s:g} s simulated')
-    plain = offline.run_offline(config, duration_s=duration_s, progress=False)
-    with tempfile.TemporaryDirectory(prefix='ring_gyro_bench_') as tmp:
-        path = os.path.join(tmp, 'bench.mcap')
-        log(f'recording: run_offline to {path}')
-        recorded = offline.run_offline(config, duration_s=duration_s, output=path,
-                                       progress=False)
-        size = os.path.getsize(path)
+# Run in a child process per tree (argv: tree, parameter file, JSON of parameter overrides,
+# duration, pairs): the run as ``ring_gyro run`` makes it (Run in its blocks, a diagnostics
+# snapshot every simulated second, the sink of offline.run_offline), without and with a
+# recording in turn; each run timed from its first block to the recording finalised.
+RECORDING_CODE = """
+import json, os, shutil, sys, tempfile, time
+tree, path, overrides, duration, pairs = sys.argv[1:6]
+sys.path.insert(0, tree)
+from ring_gyro_sim.core.params import build_config, to_flat
+from ring_gyro_sim.core.simulator import channel_names
+from ring_gyro_sim.paramfile import load_yaml
+from ring_gyro_sim.ros.recorder import RunRecorder
+from ring_gyro_sim.ros.sinks import RosSink
+from ring_gyro_sim.run import NullSink, Pacing, Run
+config = load_yaml(path)
+if json.loads(overrides):
+    config = build_config({**to_flat(config), **json.loads(overrides)})
+period = config.run.output_period_ns * 1e-9
+block = max(1, int(round(config.run.block_duration / period)))
+n_blocks = max(1, int(round(float(duration) / (block * period))))
+per_second = max(1, int(round(1.0 / (block * period))))
+names = channel_names(config)
+directory = tempfile.mkdtemp(prefix='ring_gyro_bench_')
+
+
+def once(record):
+    sink, out = NullSink(), None
+    if record:
+        out = os.path.join(directory, 'run.mcap')
+        sink = RosSink(names, '/ring_gyro', recorder=RunRecorder(
+            out, config, names, '/ring_gyro', publish_clock=config.run.publish_clock),
+            frame_id=config.gyro.frame_id)
+    run = Run(config, sink=sink)
+    w0, c0 = time.perf_counter(), time.process_time()
+    for k in range(n_blocks):
+        run.advance(block)
+        last = k == n_blocks - 1
+        if (k + 1) % per_second == 0 or last:
+            run.diagnostics(Pacing(target=0.0, achieved=0.0, average=0.0), finished=last)
+    status = str(run.sim.status)
+    run.close()
+    row = {'wall_s': time.perf_counter() - w0, 'cpu_s': time.process_time() - c0,
+           'sim_s': run.sim.time_s, 'status': status}
+    if out:
+        row['bytes'] = os.path.getsize(out)
+        os.remove(out)
+    return row
+
+
+once(False)  # the start state (memoised) and the kernels, not timed
+rows = []
+try:
+    for _ in range(int(pairs)):
+        rows.append({'plain': once(False), 'recorded': once(True)})
+finally:
+    shutil.rmtree(directory, ignore_errors=True)
+print(json.dumps({'pairs': rows, 'decimation': config.run.record_decimation}))
+"""
+
+
+def recording_pairs(tree: str, path: str, overrides: Dict[str, Any], duration_s: float,
+                    pairs: int) -> Optional[Dict[str, Any]]:
+    """Unrecorded and recorded runs in turn with the code of ``tree`` (child), medians."""
+    env = dict(os.environ, PYTHONPATH=tree)
+    result = subprocess.run([sys.executable, '-c', RECORDING_CODE, tree, path,
+                             json.dumps(overrides), repr(duration_s), str(pairs)], env=env,
+                            capture_output=True, text=True, check=False, timeout=3600)
+    if result.returncode != 0:
+        log(f'child process failed ({tree}): {result.stderr.strip()[-500:]}')
+        return None
+    out = json.loads(result.stdout.strip().splitlines()[-1])
+    rows = out['pairs']
+    plain = [r['plain'] for r in rows]
+    recorded = [r['recorded'] for r in rows]
+    sim_s = recorded[0]['sim_s']
     return {
-        'sim_s': plain.sim_time_s, 'rtf_plain': plain.real_time_factor,
-        'rtf_recorded': recorded.real_time_factor, 'wall_plain_s': plain.wall_time_s,
-        'wall_recorded_s': recorded.wall_time_s,
-        'overhead_ratio': recorded.wall_time_s / plain.wall_time_s,
-        'file_bytes': size, 'bytes_per_sim_s': size / recorded.sim_time_s,
-        'status': (plain.status, recorded.status)}
+        'pairs': rows, 'decimation': out['decimation'], 'sim_s': sim_s,
+        'ratio_wall': float(np.median([r['wall_s'] / p['wall_s']
+                                       for p, r in zip(plain, recorded)])),
+        'ratio_cpu': float(np.median([r['cpu_s'] / p['cpu_s']
+                                      for p, r in zip(plain, recorded)])),
+        'rtf_plain': sim_s / float(np.median([p['wall_s'] for p in plain])),
+        'rtf_recorded': sim_s / float(np.median([r['wall_s'] for r in recorded])),
+        'rtf_cpu_plain': sim_s / float(np.median([p['cpu_s'] for p in plain])),
+        'rtf_cpu_recorded': sim_s / float(np.median([r['cpu_s'] for r in recorded])),
+        'mb_per_sim_s': recorded[0]['bytes'] / 1e6 / sim_s,
+        'status': sorted({r['status'] for r in plain + recorded})}
+
+
+def bench_recording(duration_s: float, pairs: int,
+                    baseline: Optional[str]) -> List[Dict[str, Any]]:
+    """Section 5: runs with and without a recording (issues 5 and 22), ratios per pair."""
+    rows = []
+    with tempfile.TemporaryDirectory(prefix='ring_gyro_bench_') as tmp:
+        default = os.path.join(tmp, 'default_gyroscope.yaml')
+        with open(default, 'w', encoding='utf-8') as f:
+            f.write(DEFAULT_SCENARIO)
+        configs = (('the default gyroscope', default, TARGET_RECORDING_RATIO),
+                   ('paper configuration (paper.yaml)', os.path.join(HERE, 'paper.yaml'), None))
+        trees = [('new', REPO)] + ([('old', baseline)] if baseline else [])
+        for label, path, goal in configs:
+            for variant, overrides in RECORDING_VARIANTS:
+                found = {}
+                for tag, tree in trees:  # one tree after the other, both in this session
+                    log(f'recording: {label}, {variant}, {tag} tree, {pairs} pairs of '
+                        f'{duration_s:g} s simulated')
+                    got = recording_pairs(tree, path, overrides, duration_s, pairs)
+                    if got is not None:
+                        found[tag] = got
+                rows.append({'label': label, 'variant': variant, 'runs': found,
+                             'goal': goal if variant == 'defaults' else None,
+                             'load': os.getloadavg()})
+    return rows
+
+
+def print_recording(rows: List[Dict[str, Any]]) -> None:
+    """Print section 5."""
+    print('\n5. Recording (issues 5 and 22): a run as `ring_gyro run` makes it, without and '
+          'with an MCAP recording in turn in one process, timed to the file finalised; '
+          'recorded / unrecorded per pair, median')
+    print(f'  {"configuration":<34}{"record":<14}{"tree":<5}{"decim.":>7}{"MB/sim s":>9}'
+          f'{"rtf":>6}{"rec.":>6}{"x wall":>8}{"x cpu":>7}{"load":>6}  goal')
+    for row in rows:
+        for tag in ('new', 'old'):
+            run = row['runs'].get(tag)
+            if run is None:
+                continue
+            goal = ''
+            if row['goal'] is not None and tag == 'new':
+                worst = max(run['ratio_wall'], run['ratio_cpu'])
+                goal = (f'{"PASS" if worst <= row["goal"] else "MISS"} (target <= '
+                        f'{row["goal"]:g})')
+            print(f'  {row["label"]:<34}{row["variant"]:<14}{tag:<5}{run["decimation"]:>7}'
+                  f'{run["mb_per_sim_s"]:>9.2f}{run["rtf_plain"]:>6.2f}'
+                  f'{run["rtf_recorded"]:>6.2f}{run["ratio_wall"]:>8.2f}'
+                  f'{run["ratio_cpu"]:>7.2f}{row["load"][0]:>6.2f}  {goal}')
+            if run['status'] != ['running']:
+                print(f'    !! status {run["status"]} (not meaningful)')
+    paper = [row['runs']['new'] for row in rows
+             if row['label'].startswith('paper') and 'new' in row['runs']]
+    if paper:
+        rtf = min(run['rtf_recorded'] for run in paper)
+        print(f'  recording keeps the paper configuration at or above real time: '
+              f'{verdict(rtf, TARGET_RTF_RECORDING)}')
 
 
 def verdict(value: float, target: float) -> str:
@@ -611,8 +757,8 @@ def print_compile(c: Dict[str, Any]) -> None:
                   f's; cache hits {child["cache_hits"]}, misses {child["cache_misses"]})')
 
 
-def print_scipy(s: Dict[str, Any], rec: Dict[str, Any]) -> None:
-    """Print sections 4 and 5."""
+def print_scipy(s: Dict[str, Any]) -> None:
+    """Print section 4."""
     print(f'\n4. Speed-up over scipy solve_ivp DOP853 (Python RHS), paper configuration, drive '
           f'{"on" if s["drive_on"] else "off"}, 0..{s["window_s"] * 1e3:.1f} ms '
           f'({s["window_s"] * 1e3 - SHOCK_TIME_S * 1e3:.0f} ms after the shock), '
@@ -640,15 +786,6 @@ def print_scipy(s: Dict[str, Any], rec: Dict[str, Any]) -> None:
         print('  note: the error of the simulator is near that of the reference: the matched '
               'rtol is uncertain')
 
-    print(f'\n5. Recording (issue 5): run_offline on the paper configuration, {rec["sim_s"]:g} s '
-          'simulated')
-    print(f'  RTF without recording {rec["rtf_plain"]:.2f}, with MCAP {rec["rtf_recorded"]:.2f}; '
-          f'overhead ratio (wall with / without) {rec["overhead_ratio"]:.2f}')
-    print(f'  file {rec["file_bytes"]} bytes = {rec["bytes_per_sim_s"] / 1e6:.2f} MB per '
-          f'simulated second')
-    print(f'  recording keeps the paper configuration at or above real time: '
-          f'{verdict(rec["rtf_recorded"], TARGET_RTF_RECORDING)}')
-
 
 def print_report(r: Dict[str, Any]) -> None:
     """Print every number of a run (stdout)."""
@@ -667,6 +804,19 @@ def print_report(r: Dict[str, Any]) -> None:
     if c:
         print_compile(c)
 
+    if 'cases' in r:
+        print_cases(r)
+    if 'scipy' in r:
+        print_scipy(r['scipy'])
+    if 'recording' in r:
+        print_recording(r['recording'])
+    if r.get('baseline'):
+        print(f'  old = {r["baseline"]}')
+    print('=' * 99)
+
+
+def print_cases(r: Dict[str, Any]) -> None:
+    """Print sections 2 and 3."""
     print('\n2. Whole runs (integration + output channels at 200 kHz, Run in 10 ms blocks, '
           'nothing recorded), best of N; `ring_gyro run benchmarks/<file>` reproduces each')
     print(f'  {"case":<30}{"tree":<5}{"sim s":>6}{"wall s":>8}{"rtf":>7}{"cpu s":>8}'
@@ -687,8 +837,6 @@ def print_report(r: Dict[str, Any]) -> None:
             new, old = row['runs']['new'], row['runs']['old']
             print(f'    new / old: rtf_cpu x{new["rtf_cpu"] / old["rtf_cpu"]:.2f}, '
                   f'rtf x{new["rtf"] / old["rtf"]:.2f}')
-    if r.get('baseline'):
-        print(f'  old = {r["baseline"]}')
 
     p = r['peak']
     print('\n3. Limit: floating-point operations per simulated second against one core')
@@ -722,10 +870,6 @@ def print_report(r: Dict[str, Any]) -> None:
               f'11 stages at {st["stage_ns"]:.0f} + {st["step_ns"]:.0f} per step), outputs '
               f'{st["outputs_ns_per_sample"]:.0f}; strang {st["strang_ns_per_sample"]:.0f}')
 
-    if 'scipy' in r:
-        print_scipy(r['scipy'], r['recording'])
-    print('=' * 99)
-
 
 def main(argv: Optional[List[str]] = None) -> int:
     """Parse the arguments and run every section."""
@@ -734,9 +878,12 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument('--json', metavar='FILE', help='also write the numbers as JSON')
     parser.add_argument('--baseline', metavar='DIR',
                         help='an older checkout whose code runs the same files, side by side')
-    parser.add_argument('--only', choices=('cases', 'all'), default='all',
-                        help='cases: sections 2 and 3 only (no compile, scipy, recording)')
+    parser.add_argument('--only', choices=('cases', 'recording', 'all'), default='all',
+                        help='cases: sections 2 and 3 only (no compile, scipy, recording); '
+                             'recording: section 5 only')
     parser.add_argument('--repeats', type=int, default=3, help='runs per child process')
+    parser.add_argument('--pairs', type=int, default=5,
+                        help='unrecorded / recorded pairs per child process (section 5)')
     args = parser.parse_args(argv)
     quick = args.quick
     case_s = 0.05 if quick else 0.5
@@ -752,20 +899,22 @@ def main(argv: Optional[List[str]] = None) -> int:
     everything = args.only == 'all'
     if everything:
         r['compile'] = bench_compile(children=True)
-    r['cases'] = bench_cases(case_s, 1 if quick else args.repeats, 1 if quick else 2,
-                             args.baseline)
-    log('peak flops of one core (a small compiled loop)')
-    r['peak'] = bench_peak(2_000_000 if quick else 20_000_000)
-    log('stage costs: bm6 and strang, integration alone, and the output channels alone')
-    r['stages'] = {}
-    for name, _, _ in CASES:
-        config = load_yaml(os.path.join(HERE, name))
-        r['stages'][name] = stage_costs(config, start_state(config))
+    if args.only in ('cases', 'all'):
+        r['cases'] = bench_cases(case_s, 1 if quick else args.repeats, 1 if quick else 2,
+                                 args.baseline)
+        log('peak flops of one core (a small compiled loop)')
+        r['peak'] = bench_peak(2_000_000 if quick else 20_000_000)
+        log('stage costs: bm6 and strang, integration alone, and the output channels alone')
+        r['stages'] = {}
+        for name, _, _ in CASES:
+            config = load_yaml(os.path.join(HERE, name))
+            r['stages'][name] = stage_costs(config, start_state(config))
     if everything:
         paper = paper_config()
         paper_state = start_state(paper)
         r['scipy'] = bench_scipy(paper, paper_state, after_shock_s, repeats=3 if quick else 5)
-        r['recording'] = bench_recording(paper, record_s)
+    if args.only in ('recording', 'all'):
+        r['recording'] = bench_recording(record_s, 2 if quick else args.pairs, args.baseline)
     r['machine']['load_end'] = os.getloadavg()
     r['total_wall_s'] = time.perf_counter() - t_start
     log(f'done in {r["total_wall_s"]:.0f} s')
