@@ -103,26 +103,32 @@ def block_arrays(msg: Float64MultiArray) -> Tuple[List[str], np.ndarray]:
     return labels, data
 
 
-def output_blocks(samples, channel_names: Dict[str, List[str]]) -> Dict[str, Float64MultiArray]:
-    """Build the three block messages of a :class:`~ring_gyro_sim.core.simulator.Samples`."""
-    t = samples.t
+def output_blocks(samples, channel_names: Dict[str, List[str]],
+                  rows: slice = slice(None)) -> Dict[str, Float64MultiArray]:
+    """
+    Build the three block messages of a :class:`~ring_gyro_sim.core.simulator.Samples`.
+
+    ``rows`` selects the samples (rows) the messages hold: all of them by default; a
+    recording's decimated rows (``RunRecorder.kept_rows``) when nothing publishes the blocks.
+    """
+    t = samples.t[rows]
     return {
-        'modal_displacement': block_message([t, samples.q],
+        'modal_displacement': block_message([t, samples.q[rows]],
                                             ['t'] + channel_names['modal_displacement']),
-        'radial_gap': block_message([t, samples.gap, samples.min_gap],
+        'radial_gap': block_message([t, samples.gap[rows], samples.min_gap[rows]],
                                     ['t'] + channel_names['radial_gap']),
-        'sense_electrodes': block_message([t, samples.capacitance],
+        'sense_electrodes': block_message([t, samples.capacitance[rows]],
                                           ['t'] + channel_names['sense_electrodes']),
     }
 
 
-def demodulator_block(demod) -> Float64MultiArray:
-    """Build the ``~/demodulator`` block of a ``core.gyro.electronics.DemodSamples``."""
+def demodulator_block(demod, rows: slice = slice(None)) -> Float64MultiArray:
+    """Build the ``~/demodulator`` block of a ``core.gyro.electronics.DemodSamples`` (rows)."""
     values = np.asarray(demod.values, dtype=np.float64)
     if values.shape != (len(demod.t), len(DEMOD_CHANNELS)):
         raise ValueError(f'demodulator values have shape {values.shape}, expected '
                          f'({len(demod.t)}, {len(DEMOD_CHANNELS)})')
-    return block_message([demod.t, values], ('t',) + DEMOD_CHANNELS)
+    return block_message([demod.t[rows], values[rows]], ('t',) + DEMOD_CHANNELS)
 
 
 def control_block(control) -> Float64MultiArray:

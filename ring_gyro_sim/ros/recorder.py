@@ -537,16 +537,26 @@ class RunRecorder:
             failure, self._failure = self._failure, None
             raise failure
 
-    def _decimated(self, msg: Float64MultiArray, t_ns: int) -> Float64MultiArray:
-        """Keep the rows of a block whose global sample index is a multiple of N."""
-        rows, columns = msg.layout.dim[0].size, msg.layout.dim[1].size
+    def kept_rows(self, t_ns: int, rows: int) -> slice:
+        """
+        Return the rows a block of ``rows`` samples ending at ``t_ns`` keeps when decimated.
+
+        Those whose global sample index is a multiple of N (``record.decimation``); all of
+        them with N = 1.
+        """
+        if self.decimation == 1:
+            return slice(None)
         end_index, rest = divmod(t_ns, self.period_ns)
         if rest:
             raise ValueError(f'block end {t_ns} ns is not on the {self.period_ns} ns grid')
         first_index = end_index - rows + 1
-        skip = (-first_index) % self.decimation
+        return slice((-first_index) % self.decimation, None, self.decimation)
+
+    def _decimated(self, msg: Float64MultiArray, t_ns: int) -> Float64MultiArray:
+        """Keep the rows of a block whose global sample index is a multiple of N."""
+        rows, columns = msg.layout.dim[0].size, msg.layout.dim[1].size
         data = np.frombuffer(msg.data, dtype=np.float64).reshape(rows, columns)
-        kept = np.ascontiguousarray(data[skip::self.decimation])
+        kept = np.ascontiguousarray(data[self.kept_rows(t_ns, rows)])
         out = Float64MultiArray()
         out.layout.dim = [
             MultiArrayDimension(label=msg.layout.dim[0].label, size=len(kept),
@@ -557,13 +567,18 @@ class RunRecorder:
         out.data = array.array('d', kept.tobytes())
         return out
 
-    def outputs(self, blocks: Dict[str, object], t_ns: int) -> None:
-        """Record the block messages of one block, logged at its last sample time ``t_ns``."""
+    def outputs(self, blocks: Dict[str, object], t_ns: int, thinned: bool = False) -> None:
+        """
+        Record the block messages of one block, logged at its last sample time ``t_ns``.
+
+        ``thinned``: the messages hold only the rows :meth:`kept_rows` keeps already (built
+        so by ``RosSink`` when nothing publishes them); otherwise they are decimated here.
+        """
         self._advance(t_ns)
         for name, msg in blocks.items():
             if name not in self._topics:
                 continue
-            if self.decimation > 1 and name not in UNDECIMATED_BLOCK_TOPICS:
+            if self.decimation > 1 and not thinned and name not in UNDECIMATED_BLOCK_TOPICS:
                 msg = self._decimated(msg, t_ns)
             self._put(self._topics[name], msg, t_ns)
 

@@ -57,7 +57,11 @@ def diagnostics_names(fully_qualified_name: str):
 class NullRecorder:
     """Stands in for a :class:`~ring_gyro_sim.ros.recorder.RunRecorder` when not recording."""
 
-    def outputs(self, blocks, t_ns: int) -> None:
+    def kept_rows(self, t_ns: int, rows: int) -> slice:
+        """Return no row: nothing is recorded."""
+        return slice(0, 0)
+
+    def outputs(self, blocks, t_ns: int, thinned: bool = False) -> None:
         """Do nothing."""
 
     def clock(self, t_ns: int) -> None:
@@ -108,6 +112,9 @@ class Publishers:
     closed loop's ``control`` only when it has them) to its publisher.
     """
 
+    #: The block messages are published: :class:`RosSink` builds them with every sample.
+    publishes_blocks = True
+
     def __init__(self, blocks: Mapping[str, object], diagnostics, clock=None,
                  rate=None) -> None:
         self._blocks = dict(blocks)
@@ -139,6 +146,9 @@ class Publishers:
 
 class NullPublishers:
     """Stands in for :class:`Publishers` offline."""
+
+    #: Nothing is published: :class:`RosSink` builds the blocks with the recorded rows only.
+    publishes_blocks = False
 
     def blocks(self, msgs) -> None:
         """Do nothing."""
@@ -236,20 +246,30 @@ class RosSink(run_mod.Sink):
         return conversions.rate_messages(rate, self.frame_id, self._rate_covariance)
 
     def block(self, block) -> None:
-        """Convert a block to messages once; publish and record them, and ``/clock``."""
-        msgs = conversions.output_blocks(block.samples, self.channel_names)
+        """
+        Convert a block to messages once; publish and record them, and ``/clock``.
+
+        Published, the block messages hold every sample (the recorder decimates its copy);
+        offline they are built from the rows the recording keeps (``record.decimation``), so a
+        decimated recording does not pay for building every 200 kHz sample into a message.
+        """
+        thinned = not self.publishers.publishes_blocks
+        rows = (self.recorder.kept_rows(block.end_ns, len(block.samples.t)) if thinned
+                else slice(None))
+        msgs = conversions.output_blocks(block.samples, self.channel_names, rows)
         if block.rate is not None:
             rate = self.rate_messages(block.rate)
             self.publishers.rate(rate)
             self.recorder.rate(rate)
         if block.demod is not None:
-            msgs[conversions.DEMODULATOR_TOPIC] = conversions.demodulator_block(block.demod)
+            msgs[conversions.DEMODULATOR_TOPIC] = conversions.demodulator_block(block.demod,
+                                                                                rows)
         if block.control is not None:
             msgs[conversions.CONTROL_TOPIC] = conversions.control_block(block.control)
         self.publishers.blocks(msgs)
         clock = conversions.clock_message(block.end_ns)
         self.publishers.clock(clock)
-        self.recorder.outputs(msgs, block.end_ns)
+        self.recorder.outputs(msgs, block.end_ns, thinned=thinned)
         self.recorder.clock(block.end_ns)
 
     def diagnostics_message(self, diag):

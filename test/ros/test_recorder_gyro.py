@@ -48,7 +48,7 @@ from ring_gyro_sim.recording.writer import BagWriter
 from ring_gyro_sim.ros import conversions
 from ring_gyro_sim.ros import recorder as recorder_mod
 from ring_gyro_sim.ros.recorder import METADATA_NAME, RunRecorder
-from ring_gyro_sim.ros.sinks import RosSink
+from ring_gyro_sim.ros.sinks import Publishers, RosSink
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
 import yaml
@@ -84,12 +84,13 @@ def gyro_block(samples, k):
                          rate=rate, demod=DemodSamples(t=s.t, values=values * 1e-6))
 
 
-def record(path, samples, values=GYRO, inputs=(), rate_variance=0.0):
+def record(path, samples, values=GYRO, inputs=(), rate_variance=0.0, publishers=None):
     """Record the 4 synthetic blocks through a RosSink; ``inputs`` act before their block."""
     config = paper_config(values)
     names = Simulator(config).channel_names
     sink = RosSink(names, NS, recorder=RunRecorder(str(path), config, names, NS),
-                   frame_id=config.gyro.frame_id, rate_variance=rate_variance)
+                   publishers=publishers, frame_id=config.gyro.frame_id,
+                   rate_variance=rate_variance)
     pending = sorted(inputs, key=lambda e: e.at_ns)
     try:
         for k in range(BLOCKS):
@@ -240,6 +241,37 @@ def test_decimation_thins_the_demodulator_never_the_rate(tmp_path, samples, deci
     a, b = read_rate(full), read_rate(path)
     assert np.array_equal(a.t_ns, b.t_ns) and np.array_equal(a.rate, b.rate)
     assert len(b.t_ns) == BLOCKS * 10
+
+
+class _Publisher:
+    """Keeps what it is given to publish."""
+
+    def __init__(self):
+        self.messages = []
+
+    def publish(self, msg):
+        self.messages.append(msg)
+
+
+@pytest.mark.parametrize('decimation', [1, 7, 300])
+def test_published_blocks_hold_every_sample_and_record_as_offline(
+        tmp_path, samples, decimation):
+    # Offline nothing publishes the blocks: RosSink builds them from the recorded rows alone.
+    # Published, they hold every sample and the recorder decimates its copy. One recording.
+    values = {**GYRO, 'record.decimation': decimation}
+    offline = record(tmp_path / 'offline.mcap', samples, values)
+    blocks = {name: _Publisher() for name in conversions.OUTPUT_TOPICS + ('demodulator',)}
+    publishers = Publishers(blocks, _Publisher(), rate=_Publisher())
+    live = record(tmp_path / 'live.mcap', samples, values, publishers=publishers)
+    for name in conversions.OUTPUT_TOPICS + ('demodulator',):
+        a, b = read_block_topic(offline, name), read_block_topic(live, name)
+        assert a.labels == b.labels and a.end_ns == b.end_ns, name
+        assert np.array_equal(a.data, b.data), name
+        assert len(a.data) == BLOCKS * 200 // decimation  # the multiples of N in 1..800
+        published = [conversions.block_arrays(m)[1] for m in blocks[name].messages]
+        assert [len(x) for x in published] == [200] * BLOCKS
+    a, b = read_rate(offline), read_rate(live)
+    assert np.array_equal(a.t_ns, b.t_ns) and np.array_equal(a.rate, b.rate)
 
 
 def test_gyro_topics_only_in_a_gyroscope_run(tmp_path, samples):
