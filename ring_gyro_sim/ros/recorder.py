@@ -269,8 +269,9 @@ def git_revision() -> str:
     return out.stdout.strip() if out.returncode == 0 else 'unknown'
 
 
-#: Messages queued for the writer thread at most (3 per block: ~1 s of blocks at 100 Hz).
-WRITE_QUEUE_DEPTH = 300
+#: Batches queued for the writer thread at most: one batch per block, so 0.5 s of 10 ms blocks
+#: (at most 22 MB of the gyroscope's messages recorded at the full 200 kHz).
+WRITE_QUEUE_DEPTH = 50
 
 
 def _parameters_message(text: str) -> String:
@@ -355,11 +356,14 @@ class RunRecorder:
         # the message is built when it is written (100 000 pending samples stay a few MB).
         self._pending = []
         self._order = 0
-        # Serialising and zstd-compressing 25 MB per simulated second (200 kHz) costs about a
-        # quarter of the simulation itself; a writer thread does it while the (GIL-free)
-        # kernel runs, on the second core. The bounded queue keeps memory bounded.
+        # Serialising and compressing the messages is done by a writer thread while the
+        # (GIL-free) kernel runs, on the second core. The messages go to it in one batch per
+        # block (and per diagnostics snapshot, so that they go also when no block comes): a
+        # hand-over per message (15 per block for the gyroscope) woke the thread each time,
+        # and the main thread then waited for the GIL. The bounded queue keeps memory bounded.
         self._failure: Optional[BaseException] = None  # a write error not reported yet
         self._failed = False  # a write failed: nothing more is written
+        self._batch: list = []  # (topic, message, t_ns) for the writer thread, in order
         self._queue: 'queue.Queue' = queue.Queue(maxsize=WRITE_QUEUE_DEPTH)
         self._thread: Optional[threading.Thread] = None
         if threaded:
@@ -460,6 +464,7 @@ class RunRecorder:
             if not self.writer.closed and not self._failed:
                 self._start()
                 self._release(None)
+                self._hand_over()
         finally:
             if self._thread is not None:
                 self._queue.put(None)
@@ -478,7 +483,7 @@ class RunRecorder:
         return self._failed
 
     def _put(self, topic: str, msg, t_ns: int) -> None:
-        """Hand one message to the writer (thread), in the order of the calls."""
+        """Hand one message to the writer (thread, with the block's batch), in call order."""
         self._raise_failure()
         if self._failed:
             return
@@ -489,7 +494,13 @@ class RunRecorder:
                 self._failed = True
                 raise
             return
-        self._queue.put((topic, msg, t_ns))
+        self._batch.append((topic, msg, t_ns))
+
+    def _hand_over(self) -> None:
+        """Queue the messages gathered since the last hand-over for the writer thread."""
+        if self._batch:
+            batch, self._batch = self._batch, []
+            self._queue.put(batch)
 
     def _release(self, t_ns: Optional[int]) -> None:
         """Write the inputs held back that act at or before ``t_ns`` (None: all of them)."""
@@ -519,18 +530,19 @@ class RunRecorder:
         self._put(topic, msg, t_ns)
 
     def _drain(self) -> None:
-        """Writer thread: serialise, compress and write the queued messages in order."""
+        """Writer thread: serialise, compress and write the queued batches in order."""
         while True:
-            item = self._queue.get()
-            if item is None:
+            batch = self._queue.get()
+            if batch is None:
                 return
-            if self._failed:
-                continue  # keep draining so that producers never block forever
-            try:
-                self.writer.write(*item)
-            except BaseException as exc:  # reported to the caller's thread, once
-                self._failure = exc
-                self._failed = True
+            for item in batch:
+                if self._failed:
+                    break  # keep draining so that producers never block forever
+                try:
+                    self.writer.write(*item)
+                except BaseException as exc:  # reported to the caller's thread, once
+                    self._failure = exc
+                    self._failed = True
 
     def _raise_failure(self) -> None:
         if self._failure is not None:
@@ -581,6 +593,7 @@ class RunRecorder:
             if self.decimation > 1 and not thinned and name not in UNDECIMATED_BLOCK_TOPICS:
                 msg = self._decimated(msg, t_ns)
             self._put(self._topics[name], msg, t_ns)
+        self._hand_over()
 
     def rate(self, messages) -> None:
         """
@@ -596,10 +609,11 @@ class RunRecorder:
                 self._put(topic, msg, t_ns)
 
     def diagnostics(self, msg, t_ns: int) -> None:
-        """Record a /diagnostics message."""
+        """Record a /diagnostics message (and hand what waits over: also when no block comes)."""
         self._advance(t_ns)
         if '/diagnostics' in self._topics:
             self._put('/diagnostics', msg, t_ns)
+        self._hand_over()
 
     def clock(self, t_ns: int) -> None:
         """Record /clock at ``t_ns`` (only when the run publishes it)."""
