@@ -56,6 +56,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument('--from', dest='source', metavar='FILE.mcap',
                      help='re-simulate a recording from its parameters and inputs')
     run.add_argument('--duration', type=float, help='simulated time, s (overrides duration)')
+    run.add_argument('--decimation', type=int, metavar='N',
+                     help='record every N-th sample of the block topics (overrides '
+                          'record.decimation; with --from, 1 gives every sample again)')
     run.add_argument('--overwrite', action='store_true',
                      help='replace an existing recording (record.overwrite: true; never the '
                           'scenario or the source recording itself)')
@@ -227,11 +230,13 @@ def cmd_run(args) -> int:
     if args.source:
         check_output_path(args.output, [args.source])
         summary = offline.resimulate(args.source, args.output, progress=not args.no_progress,
-                                     overwrite=args.overwrite or None)
+                                     overwrite=args.overwrite or None,
+                                     decimation=args.decimation)
     else:
         if not args.scenario:
             raise RingGyroError('run: give a scenario file (or --from FILE.mcap)')
-        config = _load(args.scenario, args.node_name)
+        config = offline.with_record_decimation(_load(args.scenario, args.node_name),
+                                                args.decimation)
         output = args.output or config.run.record_path or None
         check_output_path(output, [args.scenario])
         summary = offline.run_offline(config, args.duration, output=output,

@@ -23,7 +23,9 @@ diagnostics keys about once per simulated second; with ``gyro.enabled`` also ``<
 ``<ns>/demodulator`` and the rates that acted on ``<ns>/angular_rate``; with
 ``control.drive_loop: closed`` the loops' updates on ``<ns>/control``). :func:`resimulate`
 re-runs a recording from its metadata and recorded inputs (angular rates included) and
-reproduces its outputs bit for bit.
+reproduces its outputs bit for bit, whatever the recording kept of them: with
+``decimation=1`` a recording of every N-th sample (``record.decimation``) gives every sample
+again.
 """
 
 from dataclasses import replace
@@ -35,7 +37,7 @@ import numpy as np
 
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.gyro.calibration import Calibration
-from ring_gyro_sim.core.params import build_config, SimConfig
+from ring_gyro_sim.core.params import build_config, SimConfig, to_flat
 from ring_gyro_sim.core.simulator import channel_names
 from ring_gyro_sim.paramfile import load_text
 from ring_gyro_sim.progress import Progress
@@ -49,11 +51,25 @@ from ring_gyro_sim.run import (AngularRate, BaseAcceleration, DriveAmplitude, Dr
                                RunSummary, Shock, Sink)
 
 __all__ = ['DIAGNOSTICS_PERIOD_NS', 'RunSummary', 'load_recording', 'recorded_calibration',
-           'resimulate',
-           'run_offline']
+           'resimulate', 'run_offline', 'with_record_decimation']
 
 DIAGNOSTICS_PERIOD_NS = 1_000_000_000
 """An offline recording gets a diagnostics snapshot every simulated second (and at the end)."""
+
+
+def with_record_decimation(config: SimConfig, decimation: Optional[int]) -> SimConfig:
+    """
+    Return ``config`` with ``record.decimation`` set to ``decimation`` (None: unchanged).
+
+    Raises
+    ------
+    ParameterError
+        If ``decimation`` is not a valid ``record.decimation`` (the message names it).
+
+    """
+    if decimation is None:
+        return config
+    return build_config({**to_flat(config), 'record.decimation': decimation})
 
 
 def run_offline(config: SimConfig, duration_s: Optional[float] = None,
@@ -195,9 +211,16 @@ def load_recording(path: str):
 
 
 def resimulate(path: str, output: Optional[str] = None, progress: bool = True,
-               overwrite: Optional[bool] = None) -> RunSummary:
-    """Re-run a recording from its parameters and inputs (outputs identical bit for bit)."""
+               overwrite: Optional[bool] = None,
+               decimation: Optional[int] = None) -> RunSummary:
+    """
+    Re-run a recording from its parameters and inputs (outputs identical bit for bit).
+
+    ``decimation``: ``record.decimation`` of ``output`` (default: the recording's own); 1
+    records every sample of the block topics, also from a recording that kept fewer.
+    """
     config, start, inputs, sizes, namespace = load_recording(path)
+    config = with_record_decimation(config, decimation)
     duration = sum(sizes) * config.run.output_period_ns * 1e-9
     return run_offline(config, duration, output=output, progress=progress,
                        namespace=namespace, start_state=start, inputs=inputs,

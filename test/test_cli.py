@@ -224,6 +224,31 @@ def test_from_recording_resimulates_bit_identically(recorded, tmp_path, capsys):
     assert_same_outputs(path, again)
 
 
+def test_decimation_option_and_every_sample_again_from_a_decimated_recording(
+        tmp_path, capsys):
+    from ring_gyro_sim.recording.reader import read_block_topic, read_metadata
+    path = scenario(tmp_path / 's.yaml', duration=0.03, record='{decimation: 1}')
+    thinned = tmp_path / 'thinned.mcap'
+    assert cli.main(['run', str(path), '-o', str(thinned), '--decimation', '7',
+                     '--no-progress']) == 0
+    assert read_metadata(thinned, 'ring_gyro_sim')['record_decimation'] == '7'
+    again, full = tmp_path / 'again.mcap', tmp_path / 'full.mcap'
+    assert cli.main(['run', '--from', str(thinned), '-o', str(again), '--no-progress']) == 0
+    assert cli.main(['run', '--from', str(thinned), '-o', str(full), '--decimation', '1',
+                     '--no-progress']) == 0
+    capsys.readouterr()
+    assert read_metadata(again, 'ring_gyro_sim')['record_decimation'] == '7'
+    assert_same_outputs(thinned, again)
+    for name in ('modal_displacement', 'radial_gap', 'sense_electrodes'):
+        kept, every = read_block_topic(thinned, name), read_block_topic(full, name)
+        assert every.end_ns == kept.end_ns
+        assert len(every.data) == 6000  # 30 ms at 200 kHz: every sample again
+        index = np.rint(every.data[:, 0] * 200_000).astype(int)
+        assert np.array_equal(kept.data, every.data[index % 7 == 0]), name  # bit for bit
+    assert cli.main(['run', str(path), '--decimation', '0', '--no-progress']) != 0
+    assert 'record.decimation' in capsys.readouterr().err
+
+
 def test_from_a_file_that_is_not_a_recording(tmp_path, capsys):
     path = scenario(tmp_path / 's.yaml')
     assert cli.main(['run', '--from', str(path), '--no-progress']) != 0

@@ -54,7 +54,7 @@ def test_run_prints_a_huge_held_state_in_a_few_characters(monkeypatch, capsys, t
         'record_path': ''})()})())
     args = argparse.Namespace(source=None, scenario=str(tmp_path / 'x.yaml'), output=None,
                               node_name='ring_gyro', duration=None, no_progress=True,
-                              json=False, overwrite=False)
+                              json=False, overwrite=False, decimation=None)
     assert cli.cmd_run(args) == 0
     out = capsys.readouterr().err  # the readable summary (stdout has the JSON)
     print(out)
