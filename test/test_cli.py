@@ -176,7 +176,7 @@ def test_duration_option_overrides_the_file(tmp_path, capsys):
 def recorded(tmp_path_factory):
     """``ring_gyro run s.yaml -o run.mcap --json`` (in process): (path, summary)."""
     work = tmp_path_factory.mktemp('cli')
-    path = scenario(work / 's.yaml', duration=0.03)
+    path = scenario(work / 's.yaml', duration=0.03, record='{decimation: 1}')  # every sample
     out = work / 'run.mcap'
     capture = _Capture()
     with capture:

@@ -33,9 +33,10 @@ import pytest
 from ring_gyro_sim import offline, progress, run
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.gyro.operating_point import start_state
-from ring_gyro_sim.core.params import paper_config, STANDARD_GRAVITY
+from ring_gyro_sim.core.params import build_config, paper_config, STANDARD_GRAVITY
 from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.paramfile import load_yaml
+from ring_gyro_sim.recording.reader import read_block_topic, read_rate
 from ring_gyro_sim.run import (BaseAcceleration, DriveAmplitude, DriveFrequency,
                                ParameterChange, Shock)
 from rosbags.highlevel import AnyReader
@@ -146,7 +147,7 @@ def test_10000g_from_rest_reaches_55_to_60_percent_of_the_gap():
 def shock_recording(tmp_path_factory):
     """Record a 25 ms run (10 000 g from rest) to MCAP; return (path, config, summary)."""
     path = tmp_path_factory.mktemp('offline') / 'shock.mcap'
-    config = shock_from_rest()
+    config = shock_from_rest(**{'record.decimation': 1})  # every sample
     summary = offline.run_offline(config, 0.025, output=str(path), progress=False)
     return path, config, summary
 
@@ -245,7 +246,8 @@ def test_resimulation_from_the_upper_branch_with_inputs(tmp_path):
 def test_parameter_changes_scheduled_ahead_apply_at_their_time(tmp_path):
     # The drive is switched on (5 m/s^2) at 8 ms and off again at 12 ms by run-time parameter
     # changes; q2 is exactly zero before 8 ms and rings after.
-    config = paper_config({'drive.amplitude': 0.0, 'drive.start_on': 'rest'})
+    config = paper_config({'drive.amplitude': 0.0, 'drive.start_on': 'rest',
+                           'record.decimation': 1})
     original = tmp_path / 'params.mcap'
     inputs = [ParameterChange({'drive.amplitude': 5.0}, at_ns=8_000_000),
               ParameterChange({'drive.amplitude': 0.0}, at_ns=12_000_000)]
@@ -435,3 +437,59 @@ def test_resimulation_with_angular_rates_is_bit_identical(tmp_path):
         m.angular_velocity.z for _, m in b[f'{NS}/rate']]
     assert all(np.array_equal(np.array(x.data), np.array(y.data)) for (_, x), (_, y) in
                zip(a[f'{NS}/demodulator'], b[f'{NS}/demodulator']))
+
+
+# ------------------------------------------------------------------ the default recording
+
+TEN_DEG_S = math.radians(10.0)
+
+
+@pytest.fixture(scope='module')
+def default_recording(tmp_path_factory):
+    """Record 0.3 s of the defaults (the gyroscope, its loops), 10 deg/s, 1000 g at 0.1 s."""
+    config = build_config({'scenario.rate_times': [0.0], 'scenario.rate_values': [TEN_DEG_S],
+                           'scenario.shock_times': [0.1],
+                           'scenario.shock_peaks': [1000 * STANDARD_GRAVITY]})
+    path = tmp_path_factory.mktemp('default') / 'default.mcap'
+    offline.run_offline(config, 0.3, output=str(path), progress=False)
+    return path, config
+
+
+def test_the_default_recording_is_small(default_recording):
+    # Issue 22 item 22: every 200 kHz sample of the four block topics made 44 MB per
+    # simulated second of the default gyroscope; the defaults keep ~0.35 MB of it.
+    path, config = default_recording
+    assert config.run.record_decimation == 200
+    assert path.stat().st_size < 1e6 * 0.3, f'{path.stat().st_size / 0.3e6:.2f} MB per s'
+
+
+def test_the_default_recording_keeps_rate_loops_inputs_and_diagnostics_whole(
+        default_recording):
+    path, config = default_recording
+    ms = 1_000_000
+    rate = read_rate(path)
+    assert np.array_equal(rate.t_ns, (np.arange(300) + 1) * ms)  # every 1 kHz sample
+    control = read_block_topic(path, 'control')
+    # every loop update (the first block's reports 9, the update at its end goes with the next)
+    assert np.array_equal(np.rint(control.data[:, 0] * 1e9), (np.arange(299) + 1) * ms)
+    ends = [(k + 1) * 10 * ms for k in range(30)]
+    for name in ('modal_displacement', 'radial_gap', 'sense_electrodes', 'demodulator'):
+        blocks = read_block_topic(path, name)
+        assert blocks.end_ns == ends, name  # every block message, with the kept rows
+        assert np.array_equal(np.rint(blocks.data[:, 0] * 1e9), (np.arange(300) + 1) * ms)
+    topics = decoded(path, [f'{NS}/shock', f'{NS}/angular_rate', '/diagnostics'])
+    assert [t for t, _ in topics[f'{NS}/shock']] == [100 * ms]
+    assert [t for t, _ in topics[f'{NS}/angular_rate']] == [0]
+    assert topics['/diagnostics']
+
+
+def test_the_default_recording_resimulates_bit_for_bit(default_recording, tmp_path):
+    path, _ = default_recording
+    again = tmp_path / 'again.mcap'
+    offline.resimulate(str(path), str(again), progress=False)
+    assert_same_outputs(path, again)
+    for name in ('demodulator', 'control'):
+        a, b = read_block_topic(path, name), read_block_topic(again, name)
+        assert a.end_ns == b.end_ns and np.array_equal(a.data, b.data), name
+    a, b = read_rate(path), read_rate(again)
+    assert np.array_equal(a.t_ns, b.t_ns) and np.array_equal(a.rate, b.rate)

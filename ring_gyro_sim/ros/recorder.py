@@ -58,11 +58,13 @@ Controls (parameters ``record.*``, read from the configuration):
     out of a run without ``control.drive_loop: closed``, as ``/clock`` is without
     ``publish_clock``, whatever the list says (one list serves every kind of run).
 ``record.decimation``
-    N >= 1: the block topics keep the samples whose global sample index is a multiple of N
-    (sample i is at t = i * output period, i = 1 for the first sample after the start), so
-    what is kept does not depend on how the run is cut into blocks; every block message is
-    still written, at the block's end time, with the same layout and fewer rows (possibly
-    none). This holds for ``demodulator`` too (a block topic, at every output sample).
+    N >= 1 (default 200: 1 kHz at the default 200 kHz output, the rate of ``rate`` and
+    ``control``; doc/recording.md says why): the block topics keep the samples whose global
+    sample index is a multiple of N (sample i is at t = i * output period, i = 1 for the first
+    sample after the start), so what is kept does not depend on how the run is cut into
+    blocks; every block message is still written, at the block's end time, with the same
+    layout and fewer rows (possibly none). This holds for ``demodulator`` too (a block topic,
+    at every output sample).
     ``control`` is not decimated (:data:`UNDECIMATED_BLOCK_TOPICS`): its rows are the loop
     updates, already at ``control.rate`` (1 kHz by default, every 200th output sample), not
     output samples; every update is kept, in every block message.

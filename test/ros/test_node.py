@@ -84,7 +84,8 @@ class Run:
 def run(ros, tmp_path_factory):
     workdir = tmp_path_factory.mktemp('node_run')
     record = workdir / 'run.mcap'
-    node = start_node(workdir, {**CONFIG, 'record.path': str(record)})
+    # every sample recorded: the recording's blocks are checked for contiguity
+    node = start_node(workdir, {**CONFIG, 'record.path': str(record), 'record.decimation': 1})
     with connected(node, Probe) as probe:
         yield Run(node, probe, (workdir / 'params.yaml').read_text(), record)
 

@@ -55,8 +55,10 @@ import yaml
 
 NS = '/ring_gyro'
 REPO_ROOT = pathlib.Path(__file__).resolve().parents[2]
-# 100 kHz output (10 us period) in blocks of 1 ms = 100 samples: small, fast recordings.
-FAST = {'drive.start_on': 'rest', 'output.rate': 100000.0, 'output.block_duration': 0.001}
+# 100 kHz output (10 us period) in blocks of 1 ms = 100 samples: small, fast recordings, of
+# every sample (the default record.decimation keeps one in 200).
+FAST = {'drive.start_on': 'rest', 'output.rate': 100000.0, 'output.block_duration': 0.001,
+        'record.decimation': 1}
 PERIOD_NS = 10_000
 #: The inputs a run without gyro.enabled records (~/angular_rate cannot act there).
 RESONATOR_INPUTS = [name for name in ALWAYS_RECORDED if name != 'angular_rate']

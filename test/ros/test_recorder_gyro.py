@@ -56,10 +56,10 @@ import yaml
 
 NS = '/ring_gyro'
 # 20 kHz output in 10 ms blocks (200 samples); rate output at 1 kHz: every 20th sample, 10 rate
-# samples per block.
+# samples per block; every sample recorded (the default record.decimation keeps one in 200).
 GYRO = {'drive.start_on': 'rest', 'modes.companions': True, 'gyro.enabled': True,
         'output.rate': 20000.0, 'output.block_duration': 0.01, 'gyro.output_rate': 1000.0,
-        'gyro.frame_id': 'gyro_link'}
+        'gyro.frame_id': 'gyro_link', 'record.decimation': 1}
 PERIOD_NS = 50_000
 RATIO = 20
 BLOCKS = 4
