@@ -21,6 +21,7 @@ Layouts follow rosbag2_storage (Jazzy, metadata version 9): ``qos.cpp``
 2-space indentation, sequences indented under their key, no trailing newline.
 """
 
+import functools
 import re
 
 import yaml
@@ -36,6 +37,12 @@ _RELIABILITY = {True: 'reliable', False: 'best_effort'}
 DURABILITIES = ('volatile', 'transient_local')
 
 _PLAIN = re.compile(r'[A-Za-z0-9_./][A-Za-z0-9_./+\-]*')
+
+
+@functools.lru_cache(maxsize=1024)
+def _plain(value: str) -> bool:
+    """Tell whether ``value`` can be written unquoted (it reads back as the same string)."""
+    return bool(_PLAIN.fullmatch(value)) and yaml.safe_load(value) == value
 
 
 def qos_profile(*, reliable: bool, durability: str, depth: int) -> dict:
@@ -106,7 +113,7 @@ def _scalar(value):
     if isinstance(value, int):
         return str(value)
     if isinstance(value, str):
-        if _PLAIN.fullmatch(value) and yaml.safe_load(value) == value:
+        if _plain(value):
             return value
         # JSON escapes are valid in YAML double-quoted scalars.
         return '"' + (value.replace('\\', '\\\\').replace('"', '\\"')
