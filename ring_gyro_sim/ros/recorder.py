@@ -96,6 +96,7 @@ which is what ``ros2 bag play`` offers again.
 
 import array
 import ctypes
+import functools
 import heapq
 import json
 import os
@@ -260,8 +261,14 @@ def keep_large_buffers_out_of_the_heap() -> bool:
 _heap_fixed: Optional[bool] = None
 
 
+@functools.lru_cache(maxsize=1)
 def git_revision() -> str:
-    """Git revision of the package source, or 'unknown' (installed without .git)."""
+    """
+    Git revision of the package source, or 'unknown' (installed without .git).
+
+    Asked of git once per process (a subprocess, ~10 ms): the code a process runs does not
+    change under it.
+    """
     here = os.path.dirname(os.path.abspath(__file__))
     try:
         out = subprocess.run(['git', '-C', here, 'rev-parse', 'HEAD'], capture_output=True,
