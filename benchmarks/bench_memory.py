@@ -16,13 +16,15 @@
 Memory of a long-running node: whether the RSS of ``ring_gyro_node`` stays flat.
 
 Starts a real ``ring_gyro_node`` in its own process, configured like ``config/demo.yaml``
-(drive on, upper branch, paced at ``real_time_factor`` 1, recording to a temporary file) but
-without an end (``duration: 0``), waits until it runs (its start-up log line) and a warm-up
-after that, then reads ``VmRSS`` from ``/proc/<pid>/status`` every ``--interval`` seconds for
-``--minutes``. It prints the least-squares slope of RSS against time (kB/s, kB as /proc gives
-them: 1024 bytes), the growth from the first to the last sample and the verdict against the
-target of issue 10: flat within 5 MB over 10 minutes, i.e. a slope below
-5 * 1024 kB / 600 s = 8.5 kB/s and a measured growth below 5 MB scaled to the run length.
+(drive on, upper branch, paced at ``real_time_factor`` 1, recording to a temporary file, by
+default every sample of the block topics: ``record.decimation`` 1, the recording that grows
+fastest) but without an end (``duration: 0``), waits until it runs (its start-up log line)
+and a warm-up after that, then reads ``VmRSS`` from ``/proc/<pid>/status`` every
+``--interval`` seconds for ``--minutes``. It prints the least-squares slope of RSS against
+time (kB/s, kB as /proc gives them: 1024 bytes), the growth from the first to the last sample
+and the verdict against the target of issue 10: flat within 5 MB over 10 minutes, i.e. a
+slope below 5 * 1024 kB / 600 s = 8.5 kB/s and a measured growth below 5 MB scaled to the run
+length.
 
 The node gets a ROS domain of its own (random 200-214) and
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, as the node tests do, so that it neither
@@ -76,6 +78,7 @@ ring_gyro:
       block_duration: 0.01
     record:
       path: '{record}'
+      decimation: {decimation}
     scenario:
       shock_times: [0.5]
       shock_peaks: [98066.5]
@@ -180,7 +183,7 @@ class _Log:
 
 def measure(minutes: float = 10.0, warmup_s: float = 60.0, interval_s: float = 5.0,
             output_rate: float = 200000.0, record: bool = True, verbose: bool = True,
-            domain_id: Optional[int] = None) -> MemoryResult:
+            domain_id: Optional[int] = None, decimation: int = 1) -> MemoryResult:
     """
     Run a node and sample its RSS; see the module docstring.
 
@@ -201,6 +204,8 @@ def measure(minutes: float = 10.0, warmup_s: float = 60.0, interval_s: float = 5
         Print each sample on stderr.
     domain_id : int, optional
         ROS domain of the node (default: random 200-214).
+    decimation : int
+        ``record.decimation`` of the recording (default 1: every sample).
 
     Returns
     -------
@@ -214,7 +219,7 @@ def measure(minutes: float = 10.0, warmup_s: float = 60.0, interval_s: float = 5
         params = pathlib.Path(tmp) / 'params.yaml'
         params.write_text(PARAMS.format(
             rate=float(output_rate), record=str(pathlib.Path(tmp) / 'run.mcap') if record
-            else ''))
+            else '', decimation=int(decimation)))
         proc = subprocess.Popen(node_command(str(params)), env=node_env(domain_id),
                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         log = _Log(proc.stderr)
@@ -275,10 +280,12 @@ def main(argv: Optional[List[str]] = None) -> int:
     p.add_argument('--output-rate', type=float, default=200000.0,
                    help='output.rate of the node, Hz (default 200000, as demo.yaml)')
     p.add_argument('--no-record', action='store_true', help='do not record')
+    p.add_argument('--decimation', type=int, default=1,
+                   help='record.decimation of the recording (default 1: every sample)')
     p.add_argument('--json', action='store_true', help='also print the result as JSON')
     args = p.parse_args(argv)
     result = measure(args.minutes, args.warmup, args.interval, args.output_rate,
-                     record=not args.no_record)
+                     record=not args.no_record, decimation=args.decimation)
     print(result.verdict())
     if args.json:
         print(json.dumps({**asdict(result), 'duration_s': result.duration_s,
