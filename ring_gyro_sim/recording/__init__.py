@@ -27,8 +27,10 @@ Modules (import from them directly, nothing is re-exported here):
 - ``recover``: :func:`~ring_gyro_sim.recording.recover.recover` (``ring_gyro recover``), a
   complete copy of a killed recording that every MCAP reader opens;
 - ``schemas``: full ``ros2msg`` message definitions and type description hashes;
+- ``cdr``: the CDR of the block messages and of ``~/rate``'s Imu packed from their numbers
+  (what an offline recording writes, as rclpy serialises them);
 - ``errors``: :class:`~ring_gyro_sim.recording.errors.RecordingError` and its subclasses
   ``OutputExistsError``, ``OutputBusyError``.
 """
 
-__all__ = ['errors', 'reader', 'schemas', 'writer']
+__all__ = ['cdr', 'errors', 'reader', 'schemas', 'writer']

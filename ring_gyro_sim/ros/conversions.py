@@ -52,6 +52,7 @@ import numpy as np
 from ring_gyro_sim.core.gyro.control import CONTROL_CHANNELS
 from ring_gyro_sim.core.gyro.electronics import DEMOD_CHANNELS
 from ring_gyro_sim.core.gyro.validity import NOT_MEASURED_VARIANCE
+from ring_gyro_sim.recording import cdr
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
@@ -95,6 +96,11 @@ def block_message(columns: Sequence[np.ndarray], labels: Sequence[str]) -> Float
     return msg
 
 
+def block_cdr(columns: Sequence[np.ndarray], labels: Sequence[str]) -> bytes:
+    """Return the CDR of :func:`block_message` of the same columns, without the message."""
+    return cdr.float64_multiarray(np.column_stack(columns), labels)
+
+
 def block_arrays(msg: Float64MultiArray) -> Tuple[List[str], np.ndarray]:
     """Labels and the (K, C) array of a block message (inverse of :func:`block_message`)."""
     labels = msg.layout.dim[1].label.split(',')
@@ -103,35 +109,37 @@ def block_arrays(msg: Float64MultiArray) -> Tuple[List[str], np.ndarray]:
     return labels, data
 
 
-def output_blocks(samples, channel_names: Dict[str, List[str]],
-                  rows: slice = slice(None)) -> Dict[str, Float64MultiArray]:
+def output_blocks(samples, channel_names: Dict[str, List[str]], rows: slice = slice(None),
+                  build=block_message) -> Dict[str, Float64MultiArray]:
     """
     Build the three block messages of a :class:`~ring_gyro_sim.core.simulator.Samples`.
 
     ``rows`` selects the samples (rows) the messages hold: all of them by default; a
     recording's decimated rows (``RunRecorder.kept_rows``) when nothing publishes the blocks.
+    ``build``: :func:`block_message` (messages) or :func:`block_cdr` (their CDR, to record).
     """
     t = samples.t[rows]
     return {
-        'modal_displacement': block_message([t, samples.q[rows]],
-                                            ['t'] + channel_names['modal_displacement']),
-        'radial_gap': block_message([t, samples.gap[rows], samples.min_gap[rows]],
-                                    ['t'] + channel_names['radial_gap']),
-        'sense_electrodes': block_message([t, samples.capacitance[rows]],
-                                          ['t'] + channel_names['sense_electrodes']),
+        'modal_displacement': build([t, samples.q[rows]],
+                                    ['t'] + channel_names['modal_displacement']),
+        'radial_gap': build([t, samples.gap[rows], samples.min_gap[rows]],
+                            ['t'] + channel_names['radial_gap']),
+        'sense_electrodes': build([t, samples.capacitance[rows]],
+                                  ['t'] + channel_names['sense_electrodes']),
     }
 
 
-def demodulator_block(demod, rows: slice = slice(None)) -> Float64MultiArray:
+def demodulator_block(demod, rows: slice = slice(None),
+                      build=block_message) -> Float64MultiArray:
     """Build the ``~/demodulator`` block of a ``core.gyro.electronics.DemodSamples`` (rows)."""
     values = np.asarray(demod.values, dtype=np.float64)
     if values.shape != (len(demod.t), len(DEMOD_CHANNELS)):
         raise ValueError(f'demodulator values have shape {values.shape}, expected '
                          f'({len(demod.t)}, {len(DEMOD_CHANNELS)})')
-    return block_message([demod.t[rows], values[rows]], ('t',) + DEMOD_CHANNELS)
+    return build([demod.t[rows], values[rows]], ('t',) + DEMOD_CHANNELS)
 
 
-def control_block(control) -> Float64MultiArray:
+def control_block(control, build=block_message) -> Float64MultiArray:
     """
     Build the ``~/control`` block of a ``core.gyro.control.ControlSamples``.
 
@@ -143,7 +151,7 @@ def control_block(control) -> Float64MultiArray:
     if values.shape != (len(control.t), len(CONTROL_CHANNELS)):
         raise ValueError(f'control values have shape {values.shape}, expected '
                          f'({len(control.t)}, {len(CONTROL_CHANNELS)})')
-    return block_message([control.t, values], ('t',) + CONTROL_CHANNELS)
+    return build([control.t, values], ('t',) + CONTROL_CHANNELS)
 
 
 #: Covariance element 0 of an estimate the message does not carry (sensor_msgs/Imu comments).
@@ -207,6 +215,28 @@ def rate_messages(rate, frame_id: str,
         return [(t_ns, imu_message(t_ns, z, frame_id, covariance))
                 for t_ns, z in zip(times, values)]
     return [(t_ns, imu_message(t_ns, z, frame_id, rate_covariance(v)))
+            for t_ns, z, v in zip(times, values, np.asarray(rate.variance).tolist())]
+
+
+def imu_stream(frame_id: str, covariance: Optional[np.ndarray] = None) -> cdr.ImuStream:
+    """Return the packer of :func:`imu_message`'s CDR for any stamp and rate (no message)."""
+    return cdr.ImuStream(frame_id, (0.0, 0.0, 0.0, 1.0), _NOT_ESTIMATED_COVARIANCE, (0.0, 0.0),
+                         np.zeros(9) if covariance is None else covariance, (0.0, 0.0, 0.0),
+                         _NOT_ESTIMATED_COVARIANCE)
+
+
+def rate_cdr(rate, stream: cdr.ImuStream) -> List[Tuple[int, bytes]]:
+    """
+    Return ``[(t_ns, CDR)]`` of :func:`rate_messages` from an :func:`imu_stream`.
+
+    As there, each message carries its sample's own variance when the samples have one
+    (``RateSamples.variance``), else the stream's covariance.
+    """
+    times = sample_times_ns(rate.t)
+    values = np.asarray(rate.rate).tolist()
+    if getattr(rate, 'variance', None) is None:
+        return [(t_ns, stream.message(t_ns, z)) for t_ns, z in zip(times, values)]
+    return [(t_ns, stream.message(t_ns, z, rate_covariance(v)))
             for t_ns, z, v in zip(times, values, np.asarray(rate.variance).tolist())]
 
 

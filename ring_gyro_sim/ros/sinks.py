@@ -197,6 +197,7 @@ class RosSink(run_mod.Sink):
         self.publishers = publishers if publishers is not None else NullPublishers()
         self.stamp_ns = stamp_ns
         self.frame_id = frame_id
+        self._imu_stream = None  # ((frame_id, rate_variance), cdr.ImuStream) of rate_cdr
         self.rate_variance = rate_variance
         self.status_name, self.hardware_id = diagnostics_names(fully_qualified_name)
 
@@ -245,27 +246,39 @@ class RosSink(run_mod.Sink):
         """Return ``[(t_ns, Imu)]`` of a block's rate samples (``~/rate``)."""
         return conversions.rate_messages(rate, self.frame_id, self._rate_covariance)
 
+    def rate_cdr(self, rate):
+        """Return ``[(t_ns, CDR)]`` of :meth:`rate_messages`, packed without the messages."""
+        key = (self.frame_id, self._rate_variance)
+        if self._imu_stream is None or self._imu_stream[0] != key:
+            self._imu_stream = key, conversions.imu_stream(self.frame_id, self._rate_covariance)
+        return conversions.rate_cdr(rate, self._imu_stream[1])
+
     def block(self, block) -> None:
         """
         Convert a block to messages once; publish and record them, and ``/clock``.
 
         Published, the block messages hold every sample (the recorder decimates its copy);
-        offline they are built from the rows the recording keeps (``record.decimation``), so a
-        decimated recording does not pay for building every 200 kHz sample into a message.
+        offline nothing needs the message objects: the block topics and ``~/rate`` go to the
+        recorder as their CDR, packed from the rows the recording keeps
+        (``record.decimation``), so a recording does not pay for building every 200 kHz sample
+        into a message, nor for rclpy's conversion of the messages back to CDR.
         """
         thinned = not self.publishers.publishes_blocks
-        rows = (self.recorder.kept_rows(block.end_ns, len(block.samples.t)) if thinned
-                else slice(None))
-        msgs = conversions.output_blocks(block.samples, self.channel_names, rows)
+        if thinned:
+            rows = self.recorder.kept_rows(block.end_ns, len(block.samples.t))
+            build = conversions.block_cdr
+        else:
+            rows, build = slice(None), conversions.block_message
+        msgs = conversions.output_blocks(block.samples, self.channel_names, rows, build)
         if block.rate is not None:
-            rate = self.rate_messages(block.rate)
+            rate = self.rate_cdr(block.rate) if thinned else self.rate_messages(block.rate)
             self.publishers.rate(rate)
             self.recorder.rate(rate)
         if block.demod is not None:
             msgs[conversions.DEMODULATOR_TOPIC] = conversions.demodulator_block(block.demod,
-                                                                                rows)
+                                                                                rows, build)
         if block.control is not None:
-            msgs[conversions.CONTROL_TOPIC] = conversions.control_block(block.control)
+            msgs[conversions.CONTROL_TOPIC] = conversions.control_block(block.control, build)
         self.publishers.blocks(msgs)
         clock = conversions.clock_message(block.end_ns)
         self.publishers.clock(clock)
