@@ -94,7 +94,6 @@ QoS: each topic is recorded with the profile the node uses live (:mod:`ring_gyro
 which is what ``ros2 bag play`` offers again.
 """
 
-import array
 import ctypes
 import functools
 import heapq
@@ -111,12 +110,13 @@ import numpy as np
 from ring_gyro_sim import __version__
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.params import SimConfig, to_flat
+from ring_gyro_sim.recording import cdr
 from ring_gyro_sim.recording.errors import OutputExistsError, RecordingError
 from ring_gyro_sim.recording.reader import RUN_METADATA_NAME
 from ring_gyro_sim.recording.writer import BagWriter
 from ring_gyro_sim.ros import conversions
 from ring_gyro_sim.ros.qos import recorded_qos, TOPIC_QOS
-from std_msgs.msg import Empty, Float64MultiArray, MultiArrayDimension, String
+from std_msgs.msg import Empty, Float64MultiArray, String
 import yaml
 
 METADATA_NAME = RUN_METADATA_NAME
@@ -573,20 +573,18 @@ class RunRecorder:
         first_index = end_index - rows + 1
         return slice((-first_index) % self.decimation, None, self.decimation)
 
-    def _decimated(self, msg: Float64MultiArray, t_ns: int) -> Float64MultiArray:
-        """Keep the rows of a block whose global sample index is a multiple of N."""
+    def _decimated(self, msg: Float64MultiArray, t_ns: int) -> bytes:
+        """
+        Return the CDR of the block's rows whose global sample index is a multiple of N.
+
+        Packed from the kept rows (``recording.cdr``), not built as a message for rclpy to
+        serialise; the layout is the block's own (its labels as one string, ``data_offset``
+        0 as every block has).
+        """
         rows, columns = msg.layout.dim[0].size, msg.layout.dim[1].size
         data = np.frombuffer(msg.data, dtype=np.float64).reshape(rows, columns)
-        kept = np.ascontiguousarray(data[self.kept_rows(t_ns, rows)])
-        out = Float64MultiArray()
-        out.layout.dim = [
-            MultiArrayDimension(label=msg.layout.dim[0].label, size=len(kept),
-                                stride=len(kept) * columns),
-            MultiArrayDimension(label=msg.layout.dim[1].label, size=columns, stride=columns),
-        ]
-        out.layout.data_offset = msg.layout.data_offset
-        out.data = array.array('d', kept.tobytes())
-        return out
+        return cdr.float64_multiarray(data[self.kept_rows(t_ns, rows)],
+                                      [msg.layout.dim[1].label], msg.layout.dim[0].label)
 
     def outputs(self, blocks: Dict[str, object], t_ns: int, thinned: bool = False) -> None:
         """
