@@ -384,7 +384,8 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               'electronics, ~/rate and ~/demodulator; needs modes.companions (the sense mode '
               'is the sin 2theta companion)'),
     ParamSpec('gyro.frame_id', 'gyro.frame_id', 'str', 'ring_gyro', '-',
-              'header.frame_id of ~/rate (REP-105: the sensor frame, z along the ring axis)'),
+              'header.frame_id of ~/rate and of the recorded ~/angular_rate (REP-105: the '
+              'sensor frame, z along the ring axis)'),
     ParamSpec('gyro.output_rate', 'gyro.output_rate', 'float', 1000.0, 'Hz',
               'rate samples per second on ~/rate (output.rate must be a whole multiple)',
               **_POSITIVE),

@@ -29,7 +29,8 @@ What a recording holds (doc/interface.md, "Recording (MCAP)"):
   ``<ns>/rate`` (sensor_msgs/Imu, one message per rate sample, log time = its sample time =
   its header stamp, so ``ring_gyro replay`` publishes them at their rate), the block topic
   ``<ns>/demodulator`` (as the other block topics), and the rotation input
-  ``<ns>/angular_rate`` (Vector3Stamped, stamped and logged at the time it acted);
+  ``<ns>/angular_rate`` (Vector3Stamped, stamped and logged at the time it acted, in the
+  sensor frame: ``header.frame_id`` = ``gyro.frame_id``, as ``~/rate``);
 * with ``control.drive_loop: closed`` (and only then): the block topic ``<ns>/control``, the
   loops' updates of each block (one row per update, ``t`` and
   ``core.gyro.control.CONTROL_CHANNELS``), logged at the block's end as the other block topics;
@@ -652,7 +653,7 @@ class RunRecorder:
             raise RecordingError(f'{str(self.path)!r}: an angular rate acted in a run without '
                                  f'gyro.enabled (not recorded)')
         self._input(conversions.ANGULAR_RATE_TOPIC, at_ns, conversions.angular_rate_message,
-                    at_ns, z, x, y)
+                    at_ns, z, x, y, self.config.gyro.frame_id)
 
     def drive(self, at_ns: int, amplitude: Optional[float] = None,
               frequency_hz: Optional[float] = None) -> None:

@@ -228,6 +228,16 @@ def test_rates_that_acted_are_recorded_in_log_time_order(tmp_path, samples):
         assert msg.header.frame_id == 'gyro_link'
 
 
+def test_recorded_angular_rates_carry_the_sensor_frame(tmp_path, samples):
+    """The recorded truth is a rate about z of the sensor frame: it names that frame."""
+    acted = [run_mod.AngularRate(z=0.174533, at_ns=1_234_567)]
+    path = record(tmp_path / 'frame.mcap', samples, inputs=acted)
+    ((_, msg),) = mcap_decoded(path, f'{NS}/angular_rate')
+    assert msg.header.frame_id == 'gyro_link'  # gyro.frame_id, as ~/rate
+    ((_, imu), *_) = mcap_decoded(path, f'{NS}/rate')
+    assert imu.header.frame_id == msg.header.frame_id
+
+
 @pytest.mark.parametrize('decimation', [7, 300])
 def test_decimation_thins_the_demodulator_never_the_rate(tmp_path, samples, decimation):
     full = record(tmp_path / 'full.mcap', samples)
