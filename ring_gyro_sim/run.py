@@ -45,21 +45,26 @@ When inputs act (``apply``)
 Reset
     :class:`Reset` puts the ring at rest and discards everything pending: shocks not over,
     base-acceleration samples (so a later profile may start at any stamp), drive and parameter
-    changes scheduled ahead, and the scheduled ``scenario.*`` shocks still to come.
+    changes scheduled ahead, and the scheduled ``scenario.*`` shocks still to come. Not the
+    angular rate: it is the motion of the case, not a state of the ring, so its profile (the
+    scheduled knots and the streamed rates still to come) acts on after a reset.
 
 Recording order
     The sink sees every accepted input when it acts, in simulation-time order, before the
     block that contains its time (:meth:`Sink.input`), so a recording is written in log-time
     order even for inputs accepted long before they act; an input discarded by a reset is
-    never recorded. Inputs are the inputs as they acted: their ``at_ns`` is the acting time.
+    never recorded, and so is an angular rate replaced before it acted (a rate replaces the
+    profile after its time: the streamed rates and scheduled knots stamped later than it).
+    Inputs are the inputs as they acted: their ``at_ns`` is the acting time.
 """
 
+import collections
 from dataclasses import asdict, dataclass, field, replace
 import heapq
 import json
 import math
 import time
-from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
+from typing import Any, Callable, Deque, Dict, List, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
@@ -499,6 +504,9 @@ class Run:
         self._clock = clock
         self._wall0: Optional[float] = None
         self._to_sink: List[Tuple[int, int, Input]] = []  # heap of (acting ns, seq, input)
+        # The angular rates (streamed and scheduled knots) that have not acted yet, in
+        # (acting ns, seq) order: a rate replaces those after its time, as in the profile.
+        self._rates_to_sink: Deque[Tuple[int, int, AngularRate]] = collections.deque()
         self._seq = 0
         self._shock_ends: List[int] = []  # heap of end times of accepted shocks, ns
         self._shocks_this_block = 0
@@ -542,7 +550,8 @@ class Run:
     def pending_inputs(self) -> int:
         """Return the number of accepted inputs stamped after the current simulation time."""
         now = self.sim.time_ns
-        return sum(1 for t_ns, _, _ in self._to_sink if t_ns > now)
+        return (sum(1 for t_ns, _, _ in self._to_sink if t_ns > now)
+                + sum(1 for t_ns, _, _ in self._rates_to_sink if t_ns > now))
 
     # ------------------------------------------------------------------ inputs
     def apply(self, event: Input) -> int:
@@ -581,6 +590,11 @@ class Run:
         elif isinstance(event, AngularRate):
             at_ns = self.acting_time(event.at_ns)
             sim.set_rate(at_ns, float(event.z))
+            # The profile dropped its knots after at_ns: the rates that held them never act,
+            # so they are never recorded (a recording holds the inputs as they acted).
+            pending = self._rates_to_sink
+            while pending and pending[-1][0] > at_ns:
+                pending.pop()
         elif isinstance(event, AmbientTemperature):
             kelvin = float(event.kelvin)
             low, high = TEMPERATURE_RANGE_K
@@ -685,11 +699,19 @@ class Run:
 
     def _accepted(self, event: Input) -> None:
         self.accepted[event.topic] = self.accepted.get(event.topic, 0) + 1
-        heapq.heappush(self._to_sink, (int(event.at_ns), self._seq, event))
+        if isinstance(event, AngularRate):
+            self._rates_to_sink.append((int(event.at_ns), self._seq, event))  # in time order
+        else:
+            heapq.heappush(self._to_sink, (int(event.at_ns), self._seq, event))
         self._seq += 1
 
     def _discard_pending(self) -> None:
-        """Forget what a reset discarded (the Simulator dropped it too)."""
+        """
+        Forget what a reset discarded (the Simulator dropped it too).
+
+        Not the angular rates: the sensor frame keeps turning (``Simulator.reset``), so the
+        rates still to come act after the reset and are recorded when they do.
+        """
         now = self.sim.time_ns
         self._flush_inputs(now)
         self._to_sink = []
@@ -699,8 +721,14 @@ class Run:
                                      if self.stats.before_shock is not None else None)
 
     def _flush_inputs(self, up_to_ns: int) -> None:
-        while self._to_sink and self._to_sink[0][0] <= up_to_ns:
-            _, _, event = heapq.heappop(self._to_sink)
+        heap, rates = self._to_sink, self._rates_to_sink
+        while True:
+            if heap and heap[0][0] <= up_to_ns and (not rates or heap[0][:2] < rates[0][:2]):
+                _, _, event = heapq.heappop(heap)
+            elif rates and rates[0][0] <= up_to_ns:
+                _, _, event = rates.popleft()
+            else:
+                return
             self.sink.input(event)
 
     def count_rejected(self, topic: str, kind: str = 'invalid') -> None:

@@ -439,6 +439,45 @@ def test_resimulation_with_angular_rates_is_bit_identical(tmp_path):
                zip(a[f'{NS}/demodulator'], b[f'{NS}/demodulator']))
 
 
+def test_rates_replaced_or_kept_over_a_reset_resimulate_bit_for_bit(tmp_path):
+    """
+    The recording holds the rates as they acted, so --from reproduces a live run's arrivals.
+
+    As a node receives them, before the first block: a rate for 25 ms, then one for 15 ms that
+    replaces it (and the scheduled knot at 30 ms); before the second: a rate for 35 ms, then a
+    reset, which does not stop the case turning. The 25 ms rate and the 30 ms knot never
+    acted: recorded, --from applied them and diverged (as --from of a live node did).
+    """
+    from ring_gyro_sim.ros.recorder import RunRecorder
+    from ring_gyro_sim.ros.sinks import RosSink
+    config = paper_config({**GYRO, 'scenario.rate_times': [0.0, 0.03],
+                           'scenario.rate_values': [0.0, 0.2]})
+    original = tmp_path / 'live.mcap'
+    names = Simulator(config).channel_names
+    sink = RosSink(names, NS, recorder=RunRecorder(str(original), config, names, NS),
+                   frame_id=config.gyro.frame_id)
+    live = run.Run(config, sink=sink)
+    arrivals = [[run.AngularRate(z=0.5, at_ns=25_000_000),
+                 run.AngularRate(z=0.1, at_ns=15_000_000)],
+                [run.AngularRate(z=-0.3, at_ns=35_000_000), run.Reset()]]
+    try:
+        for k in range(5):
+            for event in arrivals[k] if k < len(arrivals) else ():
+                live.apply(event)
+            live.advance(200)
+    finally:
+        live.close()
+    recorded = decoded(original, [f'{NS}/angular_rate'])[f'{NS}/angular_rate']
+    assert [(t, m.vector.z) for t, m in recorded] == [
+        (0, 0.0), (15_000_000, 0.1), (35_000_000, -0.3)]
+    again = tmp_path / 'again.mcap'
+    offline.resimulate(str(original), str(again), progress=False)
+    assert_same_outputs(original, again)
+    a, b = decoded(original, GYRO_TOPICS), decoded(again, GYRO_TOPICS)
+    assert [m.angular_velocity.z for _, m in a[f'{NS}/rate']] == [
+        m.angular_velocity.z for _, m in b[f'{NS}/rate']]
+
+
 # ------------------------------------------------------------------ the default recording
 
 TEN_DEG_S = math.radians(10.0)

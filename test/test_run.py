@@ -26,10 +26,13 @@ import pytest
 from ring_gyro_sim import run as run_mod
 from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.params import paper_config, STANDARD_GRAVITY
-from ring_gyro_sim.run import (BaseAcceleration, DriveAmplitude, ParameterChange, Reset, Run,
-                               Shock, Sink)
+from ring_gyro_sim.run import (AngularRate, BaseAcceleration, DriveAmplitude, ParameterChange,
+                               Reset, Run, Shock, Sink)
 
 REST = {'drive.amplitude': 0.0, 'drive.start_on': 'rest'}
+GYRO = {'drive.start_on': 'rest', 'modes.companions': True, 'gyro.enabled': True,
+        'output.rate': 20000.0}
+GYRO_BLOCK = 200  # samples of one 10 ms block at 20 kHz
 BLOCK = 2000  # samples of one 10 ms block at 200 kHz
 PEAK = 2000 * STANDARD_GRAVITY
 
@@ -209,3 +212,40 @@ def test_shock_refusal_says_when_every_shock_would_be_refused():
     assert run.accepted['shock'] == run_mod.MAX_SHOCKS_PER_BLOCK
     run.advance(BLOCK)
     assert run.shock_refusal() is None
+
+
+def acted_rates(sink):
+    """Return the (at_ns, z) of the angular rates the sink was given, in order."""
+    return [(c[1], c[2].z) for c in sink.calls if c[0] == 'input'
+            and isinstance(c[2], AngularRate)]
+
+
+def test_a_rate_replaced_before_it_acts_never_reaches_the_sink():
+    # A rate stamped ahead, then one stamped before it: the second replaces the first (and the
+    # scheduled knot at 30 ms) in the profile, so neither ever acts and neither is recorded.
+    sink = Collect()
+    run = Run(paper_config({**GYRO, 'scenario.rate_times': [0.0, 0.03],
+                            'scenario.rate_values': [0.0, 0.2]}), sink=sink)
+    run.apply(AngularRate(z=0.5, at_ns=25_000_000))
+    run.apply(AngularRate(z=0.1, at_ns=15_000_000))
+    assert run.pending_inputs == 1
+    applied = []
+    for _ in range(4):
+        block = run.advance(GYRO_BLOCK)
+        applied.append(block.samples.applied_rate)
+    assert acted_rates(sink) == [(0, 0.0), (15_000_000, 0.1)]
+    assert np.all(np.concatenate(applied)[300:] == 0.1)  # what acted from 15 ms on
+
+
+def test_a_reset_keeps_the_rates_pending_and_records_them_when_they_act():
+    # The rate profile is the motion of the case: a reset does not discard it (Simulator.reset)
+    # and a rate accepted before a reset acts after it, so it is recorded when it acts.
+    sink = Collect()
+    run = Run(paper_config(GYRO), sink=sink)
+    run.advance(GYRO_BLOCK)
+    run.apply(AngularRate(z=0.3, at_ns=25_000_000))
+    run.apply(Reset())
+    assert run.pending_inputs == 1
+    rates = np.concatenate([run.advance(GYRO_BLOCK).samples.applied_rate for _ in range(3)])
+    assert rates[-1] == 0.3
+    assert acted_rates(sink) == [(25_000_000, 0.3)]
