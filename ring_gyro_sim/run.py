@@ -36,8 +36,13 @@ When inputs act (``apply``)
     A stamp more than ``inputs.horizon`` ahead of the simulation time is refused, so that one
     message stamped in 2038 cannot lock a topic or hold a constant force for decades. At most
     :data:`MAX_PENDING_SHOCKS` shocks that have not ended and
-    :data:`MAX_PENDING_BASE_ACCELERATION` future base-acceleration samples are held, and at
-    most :data:`MAX_SHOCKS_PER_BLOCK` shocks are accepted between two blocks. Drive,
+    :data:`MAX_PENDING_BASE_ACCELERATION` future base-acceleration samples and
+    :data:`MAX_PENDING_RATES` angular rates are held, and at most :data:`MAX_SHOCKS_PER_BLOCK`
+    shocks are accepted between two blocks. A rate stamped before one already held replaces
+    it (and everything held after it), so it is always taken; one stamped after them all is
+    refused once the limit is reached. Each rate costs a bisection of the profile, whatever
+    is held (``core.rate_profile``), so a flood costs the run a bounded time per message and
+    every message is accepted or refused and counted. Drive,
     reset and parameter changes act at the current simulation time. A refused input changes
     nothing, is counted per topic (``rejected_<topic>`` on the diagnostics) and raises
     :class:`~ring_gyro_sim.core.errors.InputError` (or ``ParameterError``) with the reason.
@@ -79,7 +84,7 @@ from ring_gyro_sim.core.simulator import channel_names, Samples, Simulator, Stat
 
 __all__ = ['AmbientTemperature', 'AngularRate', 'BaseAcceleration', 'Block', 'Diagnostics',
            'DriveAmplitude', 'DriveFrequency', 'FINISHED',
-           'Input', 'MAX_PENDING_BASE_ACCELERATION', 'MAX_PENDING_SHOCKS',
+           'Input', 'MAX_PENDING_BASE_ACCELERATION', 'MAX_PENDING_RATES', 'MAX_PENDING_SHOCKS',
            'MAX_SHOCKS_PER_BLOCK', 'NullSink',
            'PARAMETER_REFUSAL_KINDS',
            'Pacing', 'ParameterChange', 'Reset', 'Run', 'RunStats', 'RunSummary', 'Shock',
@@ -92,6 +97,13 @@ MAX_SHOCKS_PER_BLOCK = 10
 a 10 000 /s flood must not buy unbounded work per block, nor vanish uncounted)."""
 MAX_PENDING_BASE_ACCELERATION = 100_000
 """Base-acceleration samples stamped in the future; beyond this one is refused."""
+MAX_PENDING_RATES = 1000
+"""
+Angular rates accepted that have not acted yet; beyond this a rate stamped after them all is
+refused. A step profile streamed 1 s ahead at the 1 kHz of ``~/rate``: more ahead than that
+belongs in ``scenario.rate_*``. Each holds two knots of the profile, which the simulator reads
+once per block.
+"""
 SUMMARY_WINDOW_S = 0.01
 """Window (s) of the final amplitudes and of the q2 amplitude before the first shock."""
 FINISHED = 'finished'
@@ -589,10 +601,13 @@ class Run:
             event = replace(event, z=0.0)
         elif isinstance(event, AngularRate):
             at_ns = self.acting_time(event.at_ns)
+            pending = self._rates_to_sink
+            if len(pending) >= MAX_PENDING_RATES and pending[-1][0] <= at_ns:
+                raise InputError(f'{MAX_PENDING_RATES} angular rates are already pending '
+                                 f'(stamped ahead, none after this one)')
             sim.set_rate(at_ns, float(event.z))
             # The profile dropped its knots after at_ns: the rates that held them never act,
             # so they are never recorded (a recording holds the inputs as they acted).
-            pending = self._rates_to_sink
             while pending and pending[-1][0] > at_ns:
                 pending.pop()
         elif isinstance(event, AmbientTemperature):
@@ -809,7 +824,8 @@ class Run:
         ``rejected_parameter_changes`` and ``rejected_parameter_<kind>`` (kinds of
         :data:`PARAMETER_REFUSAL_KINDS`), ``rejected_angular_rate``, ``lost_inputs`` (messages
         the middleware reports lost), ``pending_shocks``, ``pending_inputs``, ``accepted_shocks``,
-        ``drive_amplitude``, ``drive_frequency_hz``, ``withheld_nonfinite_blocks``.
+        ``accepted_angular_rate``, ``drive_amplitude``, ``drive_frequency_hz``,
+        ``withheld_nonfinite_blocks``.
         """
         sim = self.sim
         stats = self.stats
@@ -843,6 +859,7 @@ class Run:
         values['pending_shocks'] = self.pending_shocks
         values['pending_inputs'] = self.pending_inputs
         values['accepted_shocks'] = self.accepted['shock']
+        values['accepted_angular_rate'] = self.accepted['angular_rate']
         drive = sim.config.drive
         values['drive_amplitude'] = drive.amplitude
         values['drive_frequency_hz'] = drive.frequency

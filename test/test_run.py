@@ -20,6 +20,7 @@ diagnostics keys, and the bounded cost of pending inputs.
 """
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -249,3 +250,43 @@ def test_a_reset_keeps_the_rates_pending_and_records_them_when_they_act():
     rates = np.concatenate([run.advance(GYRO_BLOCK).samples.applied_rate for _ in range(3)])
     assert rates[-1] == 0.3
     assert acted_rates(sink) == [(25_000_000, 0.3)]
+
+
+def test_pending_rates_are_bounded_refused_with_the_reason_and_replaceable(monkeypatch):
+    monkeypatch.setattr(run_mod, 'MAX_PENDING_RATES', 3, raising=False)
+    run = Run(paper_config(GYRO))
+    for k in range(3):
+        run.apply(AngularRate(z=0.1, at_ns=(k + 1) * 1_000_000))
+    with pytest.raises(InputError, match='3 angular rates are already pending'):
+        run.apply(AngularRate(z=0.1, at_ns=5_000_000))
+    assert run.rejected['angular_rate'] == 1 and run.pending_inputs == 3
+    # One stamped before the last held replaces it (and all after it): always taken.
+    run.apply(AngularRate(z=0.2, at_ns=2_500_000))
+    assert run.pending_inputs == 3 and run.accepted['angular_rate'] == 4
+    run.advance(GYRO_BLOCK)  # every one acted: room again
+    run.apply(AngularRate(z=0.3, at_ns=15_000_000))
+    assert run.diagnostics().values['accepted_angular_rate'] == 5
+
+
+def test_the_cost_of_a_rate_does_not_grow_with_the_rates_pending(monkeypatch):
+    # A flood of rates stamped ahead (issue 22: 49 us each with 1 000 pending, 245 us with
+    # 8 000, the profile read whole for every one) must cost each message a bounded time.
+    monkeypatch.setattr(run_mod, 'MAX_PENDING_RATES', 8000, raising=False)
+
+    def cost(pending):
+        run = Run(paper_config(GYRO))
+        last = 100_000_000 + (pending - 1) * 10_000
+        for k in range(pending):
+            run.apply(AngularRate(z=0.1 * (k % 3), at_ns=100_000_000 + k * 10_000))
+        best = math.inf
+        for _ in range(5):  # the best of 5: the host's load only ever adds
+            t0 = time.perf_counter()
+            for _ in range(100):
+                last -= 1  # replaces the last one held: as many stay pending
+                run.apply(AngularRate(z=0.2, at_ns=last))
+            best = min(best, (time.perf_counter() - t0) / 100)
+        assert run.pending_inputs == pending
+        return best
+    few, many = cost(10), cost(8000)
+    print(f'\n{few * 1e6:.1f} us per rate with 10 pending, {many * 1e6:.1f} us with 8 000')
+    assert many < 2.0 * few + 10e-6

@@ -58,15 +58,32 @@ class RateProfile:
         return bool(self._t)
 
     def step(self, at_ns: int, rate: float) -> None:
-        """Step the rate to ``rate`` (rad/s) at ``at_ns``; the knots after it are dropped."""
+        """
+        Step the rate to ``rate`` (rad/s) at ``at_ns``; the knots after it are dropped.
+
+        Its cost does not grow with the knots ahead: a bisection and the knots dropped (each
+        knot is dropped once), never a pass over them all.
+        """
         at_ns = int(at_ns)
-        before = float(self.at(np.array([at_ns]))[0])
+        before = self._value_at(at_ns)
         keep = bisect.bisect_right(self._t, at_ns)
         del self._t[keep:]
         del self._w[keep:]
         self._t += [at_ns, at_ns]
         self._w += [before, float(rate)]
         self.version += 1
+
+    def _value_at(self, t_ns: int) -> float:
+        """Return the rate (rad/s) at one time ``t_ns`` (ns), as :meth:`at` computes it."""
+        times, rates = self._t, self._w
+        k = bisect.bisect_right(times, t_ns) - 1  # the value after a step at t
+        if k < 0:
+            return 0.0
+        if k >= len(times) - 1:
+            return rates[-1]
+        dt = float(times[k + 1] - times[k])
+        frac = (t_ns - times[k]) / dt if dt > 0 else 0.0
+        return rates[k] + (rates[k + 1] - rates[k]) * frac
 
     def stretch(self, t_start: float, t_end: float) -> Tuple[np.ndarray, np.ndarray]:
         """

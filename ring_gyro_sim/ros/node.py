@@ -76,6 +76,11 @@ QoS
     raw (the middleware's reliable receive, tens of us each; doc/performance.md, "The node under
     a shock flood"), and the node keeps its pace through them (``test/ros/test_node.py``, the
     flood test).
+    ``~/angular_rate`` has no such shortcut (a rate stamped before those held is always taken,
+    so a refusal depends on each stamp), but each rate costs the run a bisection of the
+    profile whatever is held (``run.MAX_PENDING_RATES``): 5 000 rates per second stamped ahead
+    leave the node paced and every one accepted or refused and counted
+    (``test/ros/test_node_gyro.py``, the rate flood test).
     ``/diagnostics`` and ``/clock``: reliable, keep last 10. The gyroscope (``gyro.enabled``;
     the publishers exist only then): ``~/demodulator`` as the block topics, ``~/rate``
     (sensor_msgs/Imu, one message per rate sample, published with its block) reliable, keep
