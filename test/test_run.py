@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 from ring_gyro_sim import run as run_mod
 from ring_gyro_sim.core.errors import InputError, ParameterError
-from ring_gyro_sim.core.params import paper_config, STANDARD_GRAVITY
+from ring_gyro_sim.core.params import build_config, paper_config, STANDARD_GRAVITY
 from ring_gyro_sim.run import (AngularRate, BaseAcceleration, DriveAmplitude, ParameterChange,
                                Reset, Run, Shock, Sink)
 
@@ -290,3 +290,21 @@ def test_the_cost_of_a_rate_does_not_grow_with_the_rates_pending(monkeypatch):
     few, many = cost(10), cost(8000)
     print(f'\n{few * 1e6:.1f} us per rate with 10 pending, {many * 1e6:.1f} us with 8 000')
     assert many < 2.0 * few + 10e-6
+
+
+def test_rates_beyond_the_range_of_the_model_are_refused_with_the_reason():
+    # Issue 22, item 11: 1e6 and 1e308 rad/s were accepted and ended in contact or failure.
+    run = Run(paper_config(GYRO))
+    for rate in (1e6, -1e308, 703.72):
+        with pytest.raises(InputError, match=r'angular_rate\.z: .* beyond the range of the '
+                           r'model, \|Omega\| <= 703\.7 rad/s'):
+            run.apply(AngularRate(z=rate))
+    assert run.rejected['angular_rate'] == 3 and run.pending_inputs == 0
+    limit = run.config.max_input_rate()
+    assert limit == pytest.approx(0.01 * 2 * math.pi * 11200.0)  # 703.7 rad/s, 40 320 deg/s
+    run.apply(AngularRate(z=-limit))  # the range itself is taken
+    block = run.advance(GYRO_BLOCK)
+    assert run.running and block.samples.applied_rate[-1] == -limit
+    with pytest.raises(ParameterError, match=r'scenario\.rate_values: 1e\+06 rad/s is beyond'):
+        build_config({'scenario.rate_times': [0.0], 'scenario.rate_values': [1e6]})
+

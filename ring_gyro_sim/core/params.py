@@ -52,6 +52,14 @@ Physical limits (see each row's ``range_note``)
       :data:`MAX_BLOCK_BYTES` of block messages per block: see :data:`MAX_BLOCK_BYTES`.
     * times (``duration``, ``scenario.shock_times``, ``inputs.horizon``) <=
       :data:`MAX_TIME_S`: ROS stamps (``builtin_interfaces/Time.sec``) are int32.
+    * the angular rate of the sensor frame (``scenario.rate_values``, ``~/angular_rate``):
+      |Omega| <= :data:`MAX_RATE_FRACTION` of the lowest coordinate's angular frequency
+      (:meth:`SimConfig.max_input_rate`; 703.7 rad/s = 40 320 deg/s on the default device),
+      the range in which the model of the rotating ring holds (:data:`MAX_RATE_FRACTION`).
+      It is the model's range, not the sensor's: the rate output's full scale
+      (``gyro.range``, reserved for the saturation of ``~/rate``) is a property of the
+      electronics, hundreds to thousands of deg/s, and a rate between the two is simulated
+      while the output saturates.
 
 Defaults are **the gyroscope**: the studied device of the paper (section 3.1, Table 1),
 N_R = 3, N_T = 10, with the calibrated outer voltage and drive (``doc/calibration.md``), its sine
@@ -110,6 +118,20 @@ RECORD_COMPRESSIONS = ('zstd', 'lz4', 'none')
 
 MAX_MODES = 20
 """Largest Ritz order N_R the kernels support."""
+MAX_RATE_FRACTION = 0.01
+"""
+Largest angular rate of the sensor frame, as a fraction of the lowest coordinate's angular
+frequency (:meth:`SimConfig.max_input_rate`).
+
+The rotating-frame terms (``core/structure.py``, G1-G6: gyroscopic, centrifugal,
+angular-acceleration) are exact for the inextensible ring of the model, but the model leaves
+out what grows with ``(Omega / omega)^2``: the hoop tension of a spinning ring stiffens its
+bending modes by about ``n^2 (n^2 - 1) / (n^2 + 1) (Omega / omega_n)^2`` of their stiffness,
+and the modal truncation ignores the extension the centrifugal load causes. At 1 % of the
+lowest mode these stay below 3e-4 of a mode's stiffness. Far beyond, the equations are those of
+no physical ring: 1e6 rad/s drives the default device into contact within 30 us, which no
+``~/reset`` undoes while the rate is in force.
+"""
 MAX_TIME_S = float(2 ** 31 - 1)
 """Latest simulation time, s: ``builtin_interfaces/Time.sec`` is int32 (68 years)."""
 MAX_OUTPUT_RATE_HZ = 1e7
@@ -354,7 +376,10 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               **_TIME),
     ParamSpec('scenario.rate_values', 'run.rate_values', 'float_list', [], 'rad/s',
               'angular rate about z (REP-103: counter-clockwise seen from +z) at each knot '
-              '(same length as scenario.rate_times); needs gyro.enabled'),
+              '(same length as scenario.rate_times); needs gyro.enabled',
+              range_note='|Omega| at most 1 % of the angular frequency of the lowest mode '
+              '(703.7 rad/s on the default device): the range of the model, not of the '
+              'sensor'),
     ParamSpec('scenario.temperature_times', 'run.temperature_times', 'float_list', [], 's',
               'knots of the ambient temperature (non-decreasing; a repeated time is a step); '
               'linear between knots, the first value before the first and the last after the '
@@ -1016,6 +1041,10 @@ class SimConfig:
         if self.run.rate_values and not self.gyro.enabled:
             raise _fail('scenario.rate_values', 'a rate acts on the gyroscope: needs '
                         'gyro.enabled: true')
+        for rate in self.run.rate_values:
+            refusal = self.rate_range_refusal('scenario.rate_values', rate)
+            if refusal is not None:
+                raise ParameterError(refusal)
         if self.gyro.enabled:
             if self.modes.count < 2:
                 raise _fail('gyro.enabled', 'needs at least 2 modes (the 2theta pair)')
@@ -1142,6 +1171,26 @@ class SimConfig:
         return 2.0 * math.pi * self.a_eps * (
             self.outer_radius * e.outer_voltage ** 2
             + self.inner_radius * e.inner_voltage ** 2) / e.gap ** 2
+
+    def max_input_rate(self) -> float:
+        """
+        Return the largest |angular rate| of the sensor frame the model takes, rad/s.
+
+        :data:`MAX_RATE_FRACTION` of the lowest coordinate's angular frequency: 703.7 rad/s
+        (40 320 deg/s) on the default device (1theta at 11.2 kHz).
+        """
+        return MAX_RATE_FRACTION * 2.0 * math.pi * min(self.modes.coordinate_frequencies())
+
+    def rate_range_refusal(self, name: str, rate: float) -> Optional[str]:
+        """Return why the angular rate ``rate`` (rad/s) is refused, naming ``name`` (None: ok)."""
+        limit = self.max_input_rate()
+        if abs(rate) <= limit:
+            return None
+        f_min = min(self.modes.coordinate_frequencies())
+        return (f'{name}: {rate:.6g} rad/s is beyond the range of the model, |Omega| <= '
+                f'{limit:.4g} rad/s ({math.degrees(limit):.0f} deg/s: '
+                f'{100 * MAX_RATE_FRACTION:g} % of the lowest mode, 2 pi {f_min:g} Hz; beyond '
+                f'it the hoop stiffening the model leaves out matters)')
 
     def voltage_limits(self) -> Tuple[float, float]:
         """

@@ -674,13 +674,17 @@ class Simulator:
         Step the angular rate of the sensor frame to ``rate`` (rad/s about z) at ``at_ns``.
 
         The rate holds from then on; knots of the profile after ``at_ns`` are discarded (a
-        streamed value takes over from the scheduled profile).
+        streamed value takes over from the scheduled profile). A rate beyond the model's
+        range (``SimConfig.max_input_rate``) is refused.
         """
         if not self.gyro:
             raise InputError('angular_rate: needs gyro.enabled (the rotation acts on the '
                              'gyroscope only)')
         if not math.isfinite(rate):
             raise InputError(f'angular_rate.z: must be finite, got {rate!r}')
+        refusal = self._config.rate_range_refusal('angular_rate.z', rate)
+        if refusal is not None:
+            raise InputError(refusal)
         at_ns = int(at_ns)
         if at_ns < self.time_ns:
             raise InputError(f'angular_rate: time {at_ns * 1e-9:.9f} s is in the past '
