@@ -48,11 +48,16 @@ When inputs act (``apply``)
     :class:`~ring_gyro_sim.core.errors.InputError` (or ``ParameterError``) with the reason.
 
 Reset
-    :class:`Reset` puts the ring at rest and discards everything pending: shocks not over,
-    base-acceleration samples (so a later profile may start at any stamp), drive and parameter
-    changes scheduled ahead, and the scheduled ``scenario.*`` shocks still to come. Not the
-    angular rate: it is the motion of the case, not a state of the ring, so its profile (the
-    scheduled knots and the streamed rates still to come) acts on after a reset.
+    :class:`Reset` puts the ring at rest, clears a contact or a failure and discards
+    everything pending: shocks not over, base-acceleration samples (so a later profile may
+    start at any stamp), drive and parameter changes scheduled ahead, and the scheduled
+    ``scenario.*`` shocks still to come. Not the angular rate: it is the motion of the case,
+    not a state of the ring, so its profile (the scheduled knots and the streamed rates still
+    to come) acts on after a reset. A reset cannot help while what drove the ring into
+    contact is still in force (a drive too strong, the inputs that arrived after it): a
+    contact or failure within :data:`RELAPSE_S` of a reset is a relapse, and its message
+    (:meth:`Run.failure_text`: the diagnostics, the node's log and its next ``~/reset``
+    answer) names what is in force instead of promising that a reset recovers.
 
 Recording order
     The sink sees every accepted input when it acts, in simulation-time order, before the
@@ -104,6 +109,8 @@ refused. A step profile streamed 1 s ahead at the 1 kHz of ``~/rate``: more ahea
 belongs in ``scenario.rate_*``. Each holds two knots of the profile, which the simulator reads
 once per block.
 """
+RELAPSE_S = 0.1
+"""A contact or failure within this simulated time (s) of a reset is a relapse (module doc)."""
 SUMMARY_WINDOW_S = 0.01
 """Window (s) of the final amplitudes and of the q2 amplitude before the first shock."""
 FINISHED = 'finished'
@@ -523,6 +530,7 @@ class Run:
         self._shock_ends: List[int] = []  # heap of end times of accepted shocks, ns
         self._shocks_this_block = 0
         self._future_profile: List[int] = []  # heap of future base-acceleration stamps, ns
+        self._reset_ns: Optional[int] = None  # the last reset, ns
         for at_ns, x, y in config.run.scheduled_shocks():
             # The Simulator scheduled these itself; recorded on ~/shock as if they had arrived.
             self._accept_shock(Shock(x=x, y=y, at_ns=at_ns))
@@ -630,6 +638,7 @@ class Run:
                 raise InputError('reset: acts at the current simulation time only')
             sim.reset()
             self._discard_pending()
+            self._reset_ns = at_ns
         elif isinstance(event, ParameterChange):
             at_ns = self._now_only(event.at_ns)
             sim.update_parameters(event.changes, at_ns=at_ns)
@@ -885,7 +894,7 @@ class Run:
                                 f'{gyro.get("drive_amplitude_ratio", math.nan):.3g} of its '
                                 f'operating point)')
         if not self.running:
-            level, message = 'ERROR', f'{sim.status}: {sim.message} (~/reset recovers)'
+            level, message = 'ERROR', self.failure_text()
         elif gyro_warning:
             level, message = 'WARN', gyro_warning
         elif pacing.lag_warn:
@@ -896,6 +905,60 @@ class Run:
         diag = Diagnostics(t_ns=sim.time_ns, level=level, message=message, values=values)
         self.sink.diagnostics(diag)
         return diag
+
+    def relapse(self) -> Optional[str]:
+        """
+        Return why a reset does not help, if the ring is in contact again right after one.
+
+        None while running, or when the contact or failure came more than :data:`RELAPSE_S`
+        after the last reset (or with no reset before it).
+        """
+        sim = self.sim
+        if self.running or self._reset_ns is None or not math.isfinite(sim.contact_time_s):
+            return None
+        after_s = sim.contact_time_s - self._reset_ns * 1e-9
+        if not 0.0 <= after_s <= RELAPSE_S:
+            return None
+        return (f'again {after_s * 1e3:.3g} ms after the reset at t = '
+                f'{self._reset_ns * 1e-9:.6f} s: a reset does not help while what drives the '
+                f'ring there is in force ({self.in_force()})')
+
+    def in_force(self) -> str:
+        """Return the inputs in force now that can drive the ring, in words."""
+        sim = self.sim
+        config = sim.config
+        parts = []
+        if sim.gyro:
+            rate = float(sim.rates_at(np.array([sim.time_ns], dtype=np.int64))[0])
+            parts.append(f'angular rate {rate:.6g} rad/s')
+        if sim.loop is not None:
+            parts.append(f'closed-loop drive, set-point {sim.loop.setpoint_m * 1e6:.4g} um')
+        elif config.drive.amplitude != 0.0:
+            parts.append(f'drive {config.drive.amplitude:.6g} m/s^2 at '
+                         f'{config.drive.frequency:.6g} Hz')
+        e = config.electrodes
+        parts.append(f'electrodes.outer_voltage {e.outer_voltage:g} V'
+                     + (f', electrodes.inner_voltage {e.inner_voltage:g} V'
+                        if e.inner_voltage else ''))
+        if self._shock_ends:
+            parts.append(f'{len(self._shock_ends)} shocks not over')
+        if self._future_profile:
+            parts.append(f'{len(self._future_profile)} base-acceleration samples ahead')
+        return ', '.join(parts)
+
+    def failure_text(self) -> str:
+        """
+        Return the contact or failure in words, and what a reset will do about it.
+
+        ``'<status>: <where and when> (~/reset recovers)'``, or after a relapse
+        (:meth:`relapse`) what is in force instead of the promise; '' while running.
+        """
+        if self.running:
+            return ''
+        sim = self.sim
+        relapse = self.relapse()
+        return (f'{sim.status}: {sim.message}; {relapse}' if relapse is not None
+                else f'{sim.status}: {sim.message} (~/reset recovers)')
 
     def wall_time_s(self) -> float:
         """Return the wall time since the first block, s."""

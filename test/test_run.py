@@ -308,3 +308,24 @@ def test_rates_beyond_the_range_of_the_model_are_refused_with_the_reason():
     with pytest.raises(ParameterError, match=r'scenario\.rate_values: 1e\+06 rad/s is beyond'):
         build_config({'scenario.rate_times': [0.0], 'scenario.rate_values': [1e6]})
 
+
+def test_a_contact_right_after_a_reset_names_what_is_in_force():
+    # A reset that cannot help says why: the drive that put the ring into contact is still in
+    # force when the reset acts, and the ring is back in contact 10 us later.
+    run = rest_run()
+    run.apply(DriveAmplitude(1e5))
+    run.advance(BLOCK)
+    first = run.diagnostics()
+    assert first.level == 'ERROR' and first.message.endswith('(~/reset recovers)')
+    run.apply(Reset())
+    run.advance(BLOCK)
+    text = run.diagnostics().message
+    assert 'after the reset at t = 0.010000 s: a reset does not help' in text, text
+    assert 'drive 100000 m/s^2 at 15798.6 Hz' in text and '~/reset recovers' not in text
+    assert run.failure_text() == text
+    # Without the drive a reset recovers for good (the control).
+    run.apply(DriveAmplitude(0.0))
+    run.apply(Reset())
+    for _ in range(20):
+        run.advance(BLOCK)
+    assert run.running and run.failure_text() == '' and run.relapse() is None

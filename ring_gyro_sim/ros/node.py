@@ -94,7 +94,9 @@ Diagnostics (about 1 Hz)
     qualified node name>``, stamped with the node's clock (ROS time; the simulation time only
     with ``use_sim_time``). OK while running, WARN when more than ``LAG_WARN_S`` of wall time
     behind, ERROR in contact / pull-in (the message gives time and place; the node stays up and
-    ``~/reset`` recovers). The keys are those of :meth:`ring_gyro_sim.run.Run.diagnostics`.
+    ``~/reset`` recovers, unless the contact came right after a reset: then the message, the
+    log and the next ``~/reset`` answer name what is in force, ``Run.failure_text``). The keys
+    are those of :meth:`ring_gyro_sim.run.Run.diagnostics`.
 """
 
 # Google import order, as ament_flake8 checks it; ruff's default isort order differs.
@@ -355,7 +357,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         block = self.run.advance(n)
         if not self.run.running and not self._contact_logged:
             self._contact_logged = True
-            self.get_logger().error(f'{self.run.sim.message} (call ~/reset to recover)')
+            self.get_logger().error(self.run.failure_text())
             self._publish_diagnostics()
         if block is None:  # never published; the Simulator should prevent it
             self.get_logger().error(
@@ -428,10 +430,13 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response):
         t_ns = self.run.time_ns
+        relapse = self.run.relapse()
         self.run.apply(run_mod.Reset())
         self._contact_logged = False
         response.success = True
         response.message = f'ring at rest at simulation time {t_ns * 1e-9:.9f} s'
+        if relapse is not None:  # the reset does what it can: say why it may not last
+            response.message += f'; the contact it clears came {relapse}'
         self.get_logger().info(response.message)
         return response
 
