@@ -329,3 +329,25 @@ def test_a_contact_right_after_a_reset_names_what_is_in_force():
     for _ in range(20):
         run.advance(BLOCK)
     assert run.running and run.failure_text() == '' and run.relapse() is None
+
+
+def test_accelerations_beyond_the_physical_bound_are_refused_with_the_reason():
+    # Issue 22, item 8: a 1.7e308 shock held the ring at 3e292 m with non-finite gaps, and
+    # every block after it was withheld. Beyond 10^6 g an input is refused.
+    run = rest_run()
+    bound = 9.80665e6
+    for event in (Shock(x=1.7e308), Shock(x=0.8 * bound, y=0.8 * bound),
+                  BaseAcceleration(x=-2.0 * bound, at_ns=1000), DriveAmplitude(1e9)):
+        with pytest.raises(InputError, match=r'beyond the physical bound of 9\.80665e\+06 '
+                                             r'm/s\^2'):
+            run.apply(event)
+    assert sum(run.rejected.values()) == 4 and run.pending_shocks == 0
+    run.apply(Shock(x=bound))  # the bound itself: contact, with finite numbers
+    blocks = [run.advance(BLOCK) for _ in range(3)]
+    assert all(b is not None and np.all(np.isfinite(b.samples.q)) for b in blocks)
+    assert not run.running and np.max(np.abs(run.sim.q)) < 2.0 * 10e-6
+    for name, value in (('scenario.shock_peaks', [1.7e308]), ('drive.amplitude', -1e8),
+                        ('control.drive_limit', 1e8)):
+        flat = {name: value, 'scenario.shock_times': [0.0] if 'shock' in name else []}
+        with pytest.raises(ParameterError, match=rf'{name}: must be .*10\^6 g'):
+            build_config(flat)

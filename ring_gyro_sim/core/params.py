@@ -52,6 +52,9 @@ Physical limits (see each row's ``range_note``)
       :data:`MAX_BLOCK_BYTES` of block messages per block: see :data:`MAX_BLOCK_BYTES`.
     * times (``duration``, ``scenario.shock_times``, ``inputs.horizon``) <=
       :data:`MAX_TIME_S`: ROS stamps (``builtin_interfaces/Time.sec``) are int32.
+    * accelerations (shock peaks, base-acceleration samples, the drive force per unit mass and
+      its limit): at most :data:`MAX_ACCELERATION` (10^6 g), beyond any shock a ring
+      survives and within what the arithmetic of a contact holds.
     * the angular rate of the sensor frame (``scenario.rate_values``, ``~/angular_rate``):
       |Omega| <= :data:`MAX_RATE_FRACTION` of the lowest coordinate's angular frequency
       (:meth:`SimConfig.max_input_rate`; 703.7 rad/s = 40 320 deg/s on the default device),
@@ -118,6 +121,18 @@ RECORD_COMPRESSIONS = ('zstd', 'lz4', 'none')
 
 MAX_MODES = 20
 """Largest Ritz order N_R the kernels support."""
+MAX_ACCELERATION = 1e6 * STANDARD_GRAVITY
+"""
+Largest base acceleration or drive force per unit modal mass, m/s^2 (10^6 g): a shock's
+peak (``~/shock``, ``scenario.shock_peaks``: the magnitude of x and y), a
+``~/base_acceleration`` sample, ``drive.amplitude`` and ``~/drive/amplitude``,
+``control.drive_limit``.
+
+A tenth of it already closes the default device's gap (10^5 g: contact within the pulse), no
+MEMS die survives it and no shock machine makes it; up to it the ring that touches is held
+within 2 d_g of rest, so contact stays a defined state with finite numbers. Far beyond it the
+arithmetic overflows (1.7e308 m/s^2: a held displacement of 3e292 m and non-finite gaps).
+"""
 MAX_RATE_FRACTION = 0.01
 """
 Largest angular rate of the sensor frame, as a fraction of the lowest coordinate's angular
@@ -225,6 +240,10 @@ _POSITIVE = {'minimum': 0.0, 'open_minimum': True}
 _NON_NEGATIVE = {'minimum': 0.0}
 _TIME = {'minimum': 0.0, 'maximum': MAX_TIME_S,
          'range_note': 'ROS stamps (builtin_interfaces/Time.sec) are int32'}
+_ACCELERATION_NOTE = ('10^6 g: beyond any shock a ring survives (10^5 g closes the default '
+                      'gap); far beyond it the arithmetic of a contact overflows')
+_ACCELERATION = {'minimum': -MAX_ACCELERATION, 'maximum': MAX_ACCELERATION,
+                 'range_note': _ACCELERATION_NOTE}
 _VOLTAGE_NOTE = ('K_c (eq. 26) of both voltages below m omega^2 of every coordinate: the static '
                  'pull-in voltage of the ring with its frequencies taken as mechanical, '
                  '215.6 V for the default device')
@@ -313,7 +332,8 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               'half-sine shock duration T_s (0 = one tenth of the 2theta period)',
               **_NON_NEGATIVE, read_only=False),
     ParamSpec('drive.amplitude', 'drive.amplitude', 'float', DEFAULT_DRIVE_AMPLITUDE, 'm/s^2',
-              'harmonic drive on the 2theta mode per unit modal mass (A_e)', read_only=False),
+              'harmonic drive on the 2theta mode per unit modal mass (A_e)', **_ACCELERATION,
+              read_only=False),
     ParamSpec('drive.frequency', 'drive.frequency', 'float', DEFAULT_DRIVE_FREQUENCY, 'Hz',
               'drive frequency', **_NON_NEGATIVE, read_only=False),
     ParamSpec('drive.start_on', 'drive.start_on', 'str', 'upper_branch', '-',
@@ -366,7 +386,7 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
     ParamSpec('scenario.shock_times', 'run.shock_times', 'float_list', [], 's',
               'simulation times of scheduled x shocks', **_TIME),
     ParamSpec('scenario.shock_peaks', 'run.shock_peaks', 'float_list', [], 'm/s^2',
-              'peak base accelerations of the scheduled shocks (same length)'),
+              'peak base accelerations of the scheduled shocks (same length)', **_ACCELERATION),
     ParamSpec('scenario.shock_angles', 'run.shock_angles', 'float_list', [], 'deg',
               'direction of each scheduled shock, from x towards y (empty = all along x; '
               'else the same length as scenario.shock_times)'),
@@ -499,7 +519,8 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               'the linear response to drive.amplitude from rest)', **_NON_NEGATIVE),
     ParamSpec('control.drive_limit', 'control.drive_limit', 'float', 1.0, 'm/s^2',
               'largest drive force amplitude the AGC may command (the DAC range)',
-              **_POSITIVE),
+              minimum=0.0, open_minimum=True, maximum=MAX_ACCELERATION,
+              range_note=_ACCELERATION_NOTE),
     ParamSpec('control.rebalance', 'control.rebalance', 'bool', True, '-',
               'force-to-rebalance: a loop nulls the sense mode q2s and ~/rate is read from '
               'its force; needs control.drive_loop: closed and gyro.enabled'),

@@ -62,7 +62,8 @@ from ring_gyro_sim.core import forces, kernels, noise, structure, thermal
 from ring_gyro_sim.core.errors import InputError, SimulationError
 from ring_gyro_sim.core.gyro import calibration as gyro_calibration, control, electronics
 from ring_gyro_sim.core.gyro.channel import SenseChain
-from ring_gyro_sim.core.params import BOLTZMANN, build_config, EPSILON_0, SimConfig, to_flat
+from ring_gyro_sim.core.params import (BOLTZMANN, build_config, EPSILON_0, MAX_ACCELERATION,
+                                       SimConfig, to_flat)
 from ring_gyro_sim.core.rate_profile import RateProfile
 
 THERMAL_UPDATE_S = 0.01
@@ -186,6 +187,15 @@ def _joined(t: np.ndarray, parts) -> Tuple[electronics.DemodSamples, electronics
     return (electronics.DemodSamples(t=t, values=np.concatenate(demod)),
             electronics.RateSamples(t=column('t'), rate=column('rate'),
                                     quadrature=column('quadrature'), variance=variance))
+
+
+def _check_acceleration(name: str, x: float, y: float = 0.0) -> None:
+    """Refuse an in-plane acceleration (m/s^2) beyond ``core.params.MAX_ACCELERATION``."""
+    magnitude = math.hypot(x, y)
+    if magnitude > MAX_ACCELERATION:
+        raise InputError(f'{name}: {magnitude:.6g} m/s^2 is beyond the physical bound of '
+                         f'{MAX_ACCELERATION:.6g} m/s^2 (10^6 g: no ring survives such a shock; '
+                         f'far beyond it the arithmetic of a contact overflows)')
 
 
 def _kernel_status(status: int) -> Status:
@@ -642,6 +652,7 @@ class Simulator:
         for name, val in (('shock.x', peak_x), ('shock.y', peak_y)):
             if not math.isfinite(val):
                 raise InputError(f'{name}: must be finite, got {val!r}')
+        _check_acceleration('shock', peak_x, peak_y)
         if peak_y != 0.0 and self._y_index < 0:
             raise InputError('shock.y: needs modes.companions (q1s) to act on')
         if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0.0):
@@ -658,6 +669,7 @@ class Simulator:
         for name, val in (('base_acceleration.x', ax), ('base_acceleration.y', ay)):
             if not math.isfinite(val):
                 raise InputError(f'{name}: must be finite, got {val!r}')
+        _check_acceleration('base_acceleration', ax, ay)
         if ay != 0.0 and self._y_index < 0:
             raise InputError('base_acceleration.y: needs modes.companions (q1s) to act on')
         if at_ns < self.time_ns:
@@ -696,6 +708,8 @@ class Simulator:
         """Change the drive amplitude (m/s^2) and/or frequency (Hz) at a sample time."""
         if amplitude is not None and not math.isfinite(amplitude):
             raise InputError(f'drive.amplitude: must be finite, got {amplitude!r}')
+        if amplitude is not None:
+            _check_acceleration('drive.amplitude', amplitude)
         if frequency_hz is not None and not (math.isfinite(frequency_hz)
                                              and frequency_hz >= 0.0):
             raise InputError(f'drive.frequency: must be finite and >= 0, got {frequency_hz!r}')

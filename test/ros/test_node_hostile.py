@@ -131,3 +131,19 @@ def test_diagnostics_header_is_the_node_clock(hostile):
         probe.destroy_subscription(sub)
     # ROS time without use_sim_time is the system clock (the simulation time is seconds).
     assert abs(stamps[-1] * 1e-9 - time.time()) < 30.0
+
+
+def test_a_shock_beyond_the_physical_bound_is_refused_with_its_reason(hostile):
+    # Issue 22, item 8: a 1.7e308 ~/shock held the ring at 3e292 m with non-finite gaps and the
+    # node withheld every block after it (1.6-2.0 s holes in the stream and the recording).
+    node, probe = hostile
+    keys = ('rejected_shock', 'accepted_shocks', 'status')
+    before = counters(probe, 0.0, keys)
+    probe.shock(1.7e308)
+    wall = time.monotonic()
+    probe.spin_for(1.5)
+    after = counters(probe, wall, keys)
+    assert after['rejected_shock'] == str(int(before['rejected_shock']) + 1)
+    assert after['accepted_shocks'] == before['accepted_shocks']
+    assert after['status'] == 'running'
+    assert 'beyond the physical bound of 9.80665e+06 m/s^2' in node.output()
