@@ -351,3 +351,23 @@ def test_accelerations_beyond_the_physical_bound_are_refused_with_the_reason():
         flat = {name: value, 'scenario.shock_times': [0.0] if 'shock' in name else []}
         with pytest.raises(ParameterError, match=rf'{name}: must be .*10\^6 g'):
             build_config(flat)
+
+
+def test_the_closed_loop_refuses_an_unbiased_pick_off_at_start_and_at_run_time():
+    # Issue 22, item 8: electrodes.outer_voltage 0 with the closed loop divided by zero in the
+    # loops (drive_amplitude_m = inf, status still running) and every block was withheld.
+    closed = {'drive.start_on': 'rest', 'output.rate': 20000.0}
+    reason = (r'electrodes\.outer_voltage: must not be 0 with control\.drive_loop: closed: the '
+              r'loops read the drive through the pick-off')
+    with pytest.raises(ParameterError, match=reason):
+        build_config({**closed, 'electrodes.outer_voltage': 0.0})
+    run = Run(build_config(closed))
+    run.advance(GYRO_BLOCK)
+    with pytest.raises(ParameterError, match=reason):
+        run.apply(ParameterChange({'electrodes.outer_voltage': 0.0}))
+    assert run.rejected['events/parameters'] == 1
+    assert run.config.electrodes.outer_voltage == 78.0
+    block = run.advance(GYRO_BLOCK)
+    assert run.running and np.all(np.isfinite(block.control.values))
+    # A pick-off biased on its own reads the drive without V_o (the control).
+    build_config({**closed, 'electrodes.outer_voltage': 0.0, 'gyro.bias_voltage': 5.0})

@@ -1107,6 +1107,12 @@ class SimConfig:
         if c.rebalance and not self.gyro.enabled:
             raise _fail('control.rebalance', 'needs gyro.enabled: true (the rebalance force '
                         'acts on the sense mode q2s)')
+        if not (self.gyro.bias_voltage or self.electrodes.outer_voltage):
+            raise _fail('electrodes.outer_voltage', 'must not be 0 with control.drive_loop: '
+                        'closed: the loops read the drive through the pick-off, whose gain is '
+                        'the bias voltage (gyro.bias_voltage, 0 = electrodes.outer_voltage), and '
+                        'at 0 V they would divide by zero (bias the pick-off with '
+                        'gyro.bias_voltage to run without V_o)')
 
     def _check_voltages(self) -> None:
         # K_c (eq. 26) below m omega^2 of every coordinate: static pull-in with mechanical
