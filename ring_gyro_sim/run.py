@@ -519,7 +519,6 @@ class Run:
         self.lost: Dict[str, int] = {}
         self.parameter_refusals: Dict[str, int] = {k: 0 for k in PARAMETER_REFUSAL_KINDS}
         self.blocks = 0
-        self.withheld_blocks = 0
         self._clock = clock
         self._wall0: Optional[float] = None
         self._to_sink: List[Tuple[int, int, Input]] = []  # heap of (acting ns, seq, input)
@@ -771,16 +770,13 @@ class Run:
         self.lost[topic] = self.lost.get(topic, 0) + int(count)
 
     # ------------------------------------------------------------------ advancing
-    def advance(self, n_samples: int) -> Optional[Block]:
+    def advance(self, n_samples: int) -> Block:
         """
         Advance by ``n_samples`` output periods and hand the block to the sink.
 
-        Returns
-        -------
-        Block or None
-            None when the block held a non-finite value (withheld, counted; the Simulator
-            should never produce one).
-
+        Every value of the block is finite: a non-finite one is a failure of the run, which
+        the Simulator reports (``Status.FAILED``) and holds with finite values, so that the
+        stream and the recording never have a hole.
         """
         if self._wall0 is None:
             self._wall0 = self._clock()
@@ -795,15 +791,6 @@ class Run:
         while self._future_profile and self._future_profile[0] <= end_ns:
             heapq.heappop(self._future_profile)
         rate, demod = samples.rate_output, samples.demod
-        channels = [samples.q, samples.gap, samples.min_gap, samples.capacitance]
-        if samples.control is not None:
-            channels.append(samples.control)
-        if not all(np.all(np.isfinite(a)) for a in channels) or (
-                rate is not None and not (np.all(np.isfinite(rate.rate))
-                                          and np.all(np.isfinite(rate.quadrature))
-                                          and np.all(np.isfinite(demod.values)))):
-            self.withheld_blocks += 1
-            return None
         self.stats.add(samples, sim.sample_index)
         if rate is not None and self.rate_stats is not None:
             at = np.clip(np.searchsorted(samples.t, rate.t), 0, max(0, len(samples) - 1))
@@ -834,7 +821,7 @@ class Run:
         :data:`PARAMETER_REFUSAL_KINDS`), ``rejected_angular_rate``, ``lost_inputs`` (messages
         the middleware reports lost), ``pending_shocks``, ``pending_inputs``, ``accepted_shocks``,
         ``accepted_angular_rate``, ``drive_amplitude``, ``drive_frequency_hz``,
-        ``withheld_nonfinite_blocks``.
+        ``nonfinite_failures`` (``Simulator.nonfinite_failures``).
         """
         sim = self.sim
         stats = self.stats
@@ -872,7 +859,7 @@ class Run:
         drive = sim.config.drive
         values['drive_amplitude'] = drive.amplitude
         values['drive_frequency_hz'] = drive.frequency
-        values['withheld_nonfinite_blocks'] = self.withheld_blocks
+        values['nonfinite_failures'] = sim.nonfinite_failures
         values['die_temperature_k'] = float(sim.die.kelvin)
         values['ambient_temperature_k'] = float(sim.die.ambient.at(sim.time_s))
         gyro_warning = ''

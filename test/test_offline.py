@@ -478,6 +478,37 @@ def test_rates_replaced_or_kept_over_a_reset_resimulate_bit_for_bit(tmp_path):
         m.angular_velocity.z for _, m in b[f'{NS}/rate']]
 
 
+def test_a_failed_run_records_every_block_and_resimulates_bit_for_bit(tmp_path):
+    """
+    A run that fails on a non-finite value records every block, and --from reproduces it.
+
+    Issue 22, item 8: the blocks after a non-finite value were withheld, so the recording had
+    holes, and --from then failed ('reset: acts at the current simulation time only') or
+    simulated a shorter run. Here the closed loops overflow at their first update (a denormal
+    bias, 1e-320 V) and again after a reset at 50 ms.
+    """
+    from ring_gyro_sim.core.params import build_config
+    from ring_gyro_sim.recording.reader import block_sample_counts
+    config = build_config({'drive.start_on': 'rest', 'output.rate': 20000.0,
+                           'electrodes.outer_voltage': 1e-320})
+    original = tmp_path / 'failed.mcap'
+    summary = offline.run_offline(config, 0.1, output=str(original), progress=False,
+                                  inputs=[run.Reset(at_ns=50_000_000)])
+    assert summary.status == 'failed' and summary.message.startswith('non-finite loop state')
+    assert block_sample_counts(str(original)) == [200] * 10  # every block, no hole
+    again = tmp_path / 'again.mcap'
+    offline.resimulate(str(original), str(again), progress=False)
+    assert_same_outputs(original, again)
+    topics = GYRO_TOPICS + [f'{NS}/control', '/diagnostics']
+    a, b = decoded(original, topics), decoded(again, topics)
+    for topic in (f'{NS}/rate', f'{NS}/control', f'{NS}/demodulator'):
+        assert [t for t, _ in a[topic]] == [t for t, _ in b[topic]], topic
+    assert [m.angular_velocity.z for _, m in a[f'{NS}/rate']] == [
+        m.angular_velocity.z for _, m in b[f'{NS}/rate']]
+    last = {kv.key: kv.value for kv in a['/diagnostics'][-1][1].status[0].values}
+    assert last['status'] == 'failed' and last['nonfinite_failures'] == '2'
+
+
 # ------------------------------------------------------------------ the default recording
 
 TEN_DEG_S = math.radians(10.0)

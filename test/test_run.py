@@ -25,6 +25,7 @@ import time
 import numpy as np
 import pytest
 from ring_gyro_sim import run as run_mod
+from ring_gyro_sim.core import simulator
 from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.params import build_config, paper_config, STANDARD_GRAVITY
 from ring_gyro_sim.run import (AngularRate, BaseAcceleration, DriveAmplitude, ParameterChange,
@@ -371,3 +372,52 @@ def test_the_closed_loop_refuses_an_unbiased_pick_off_at_start_and_at_run_time()
     assert run.running and np.all(np.isfinite(block.control.values))
     # A pick-off biased on its own reads the drive without V_o (the control).
     build_config({**closed, 'electrodes.outer_voltage': 0.0, 'gyro.bias_voltage': 5.0})
+
+
+def all_finite(block):
+    """Tell whether every value of a block is finite (samples and the electronics)."""
+    s = block.samples
+    arrays = [s.q, s.v, s.gap, s.min_gap, s.capacitance]
+    arrays += [a for a in (s.control, s.drive_phase, s.applied_rate) if a is not None]
+    if block.rate is not None:
+        arrays += [block.rate.rate, block.rate.quadrature, block.demod.values]
+    if block.control is not None:
+        arrays.append(block.control.values)
+    return all(np.all(np.isfinite(a)) for a in arrays)
+
+
+def test_a_non_finite_value_is_a_failure_and_every_block_goes_out(monkeypatch):
+    # Issue 22, item 8: the 1.7e308 shock (let through here: its bound is the first line of
+    # defence) held the ring at 3e292 m with non-finite gaps, and the run withheld every block
+    # from then on. Now the run fails at once, holds the ring at rest and goes on.
+    monkeypatch.setattr(simulator, 'MAX_ACCELERATION', math.inf)
+    sink = Collect()
+    run = rest_run(sink)
+    run.advance(BLOCK)
+    run.apply(Shock(x=1.7e308, at_ns=12_345_678))
+    blocks = [run.advance(BLOCK) for _ in range(4)]
+    assert all(b is not None and all_finite(b) for b in blocks)
+    assert run.sim.status == 'failed' and run.sim.nonfinite_failures == 1
+    assert run.sim.message.startswith('non-finite') and 't = 0.01234' in run.sim.message
+    diag = run.diagnostics()
+    assert diag.level == 'ERROR' and diag.values['nonfinite_failures'] == 1
+    assert np.all(blocks[0].samples.q[2 * BLOCK // 10:] == 0.0)  # held at rest from then on
+    assert np.all(blocks[-1].samples.min_gap == 10e-6)
+    ends = [c[1] for c in sink.calls if c[0] == 'block']
+    assert ends == [(k + 1) * 10_000_000 for k in range(5)]  # no hole
+    run.apply(Reset())
+    run.apply(Shock(x=PEAK))
+    block = run.advance(BLOCK)
+    assert run.running and np.max(np.abs(block.samples.q)) > 1e-7
+
+
+def test_loops_that_overflow_fail_the_run_with_finite_outputs():
+    # A denormal bias (1e-320 V, not 0: refused) makes the loops' measured amplitude overflow
+    # at their first update (1 ms): the closed-loop gyroscope's every output stays finite.
+    run = Run(build_config({'drive.start_on': 'rest', 'output.rate': 20000.0,
+                            'electrodes.outer_voltage': 1e-320}))
+    blocks = [run.advance(GYRO_BLOCK) for _ in range(3)]
+    assert all(b is not None and all_finite(b) for b in blocks)
+    assert run.sim.status == 'failed' and 'non-finite loop state' in run.sim.message
+    assert run.sim.contact_time_s == pytest.approx(1.05e-3)
+    assert len(blocks[-1].rate.rate) == 10 and len(blocks[-1].control) == 10

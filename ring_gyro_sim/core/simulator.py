@@ -48,6 +48,21 @@ the time and the angle, and from then on holds the ring where it touched (veloci
 while time still advances, as a pulled-in ring sticks. :meth:`Simulator.reset` recovers. No
 output is ever NaN. :class:`Status` is a ``str`` enum: ``Status.RUNNING == 'running'`` and
 ``str(Status.CONTACT) == 'contact'``, so recorded and printed statuses are the plain words.
+
+Failure
+-------
+The inputs are bounded so that the state stays finite (``core.params``: accelerations,
+angular rates, voltages), but whatever produces a non-finite value anyway is a defined
+failure, never a hole in the outputs: the kernel's own check (a non-finite state), a check of
+what the electronics read in every stretch (the pick-off volts, the drive phase, the loops'
+state) and one of every output of a call (:meth:`Simulator._finite`, one sum per array when
+all is well). From the first such sample the status is :attr:`Status.FAILED`, with a message
+naming what was not finite and when; the ring is held at rest (its channels those of rest),
+the loops start again from their initial state if theirs was not finite, a sense chain that
+produced a non-finite value is built again, and the electronics' outputs of that call hold
+their last finite values. Calls go on with finite samples; :meth:`Simulator.reset` recovers.
+The outcome depends only on the state, so a re-simulation reproduces it bit for bit;
+:attr:`Simulator.nonfinite_failures` counts the failures.
 """
 
 import bisect
@@ -166,7 +181,7 @@ class Status(str, enum.Enum):
     CONTACT = 'contact'
     """A gap closed or the Taylor series left its range: the ring is held where it touched."""
     FAILED = 'failed'
-    """The state became non-finite (a numerical failure): the ring is held at rest."""
+    """A value became non-finite (a numerical failure): the ring is held at rest."""
 
     def __str__(self) -> str:
         """Return the value (``'running'``), not ``'Status.RUNNING'``."""
@@ -196,6 +211,30 @@ def _check_acceleration(name: str, x: float, y: float = 0.0) -> None:
         raise InputError(f'{name}: {magnitude:.6g} m/s^2 is beyond the physical bound of '
                          f'{MAX_ACCELERATION:.6g} m/s^2 (10^6 g: no ring survives such a shock; '
                          f'far beyond it the arithmetic of a contact overflows)')
+
+
+def _first_nonfinite(*arrays: Optional[np.ndarray]) -> Optional[int]:
+    """Return the first row with a non-finite value in any of ``arrays`` (None: all finite)."""
+    for a in arrays:
+        if a is not None and not math.isfinite(a.sum()):
+            break  # (or a sum of finite values overflowed: checked below)
+    else:
+        return None  # the usual case: one pass over each array
+    first = None
+    for a in (a for a in arrays if a is not None and a.size):
+        ok = np.isfinite(a.reshape(a.shape[0], -1)).all(axis=1)
+        if not ok.all():
+            row = int(np.argmin(ok))
+            first = row if first is None else min(first, row)
+    return first
+
+
+def _hold_last(arr: np.ndarray, first: int) -> None:
+    """Hold the rows of ``arr`` from ``first`` at its last finite row before (0 if none)."""
+    if first >= arr.shape[0]:
+        return
+    finite = np.flatnonzero(np.isfinite(arr[:first].reshape(first, -1)).all(axis=1))
+    arr[first:] = arr[finite[-1]] if finite.size else 0.0
 
 
 def _kernel_status(status: int) -> Status:
@@ -339,6 +378,8 @@ class Simulator:
                                                 self._start_omega())
         self._drive = self._drive_args()
         self.steps_taken = 0
+        self.nonfinite_failures = 0
+        """Times the run failed on a non-finite value (:attr:`Status.FAILED`; module doc)."""
         for at_ns, peak_x, peak_y in config.run.scheduled_shocks():
             self.shock(peak_x, peak_y, at_ns=at_ns)
         if start_state is not None:
@@ -895,8 +936,29 @@ class Simulator:
                 self.pickoff.clean_volts(channels.capacitance[part], out=volts[part])
                 if pickoff_noise is not None:
                     volts[part] += pickoff_noise[part]
+                row = None
                 if loop is not None:
-                    rows[part] = loop.row()
+                    row = loop.row()  # the loops' state, constant over the stretch
+                    rows[part] = row
+                # What the electronics read must be finite (module doc, "Failure"): one sum of
+                # the volts, of the loops' row and of the drive's scalars, a few us a stretch.
+                d = self._drive
+                bad = None
+                if not (math.isfinite(volts[part].sum()) and math.isfinite(d.omega + d.phase)
+                        and (row is None or math.isfinite(row.sum()))):
+                    read = {'pick-off volts': volts[part], 'drive phase': phase[part],
+                            'loop state': None if rows is None else rows[part]}
+                    bad = _first_nonfinite(*read.values())
+                if bad is not None:
+                    held = slice(done + bad, done + stop)
+                    self._fail(float(t[done + bad]), ' and '.join(
+                        name for name, arr in read.items()
+                        if arr is not None and _first_nonfinite(arr) is not None))
+                    self._hold_at_rest(t, held, out_q, out_v, channels, phase, rows)
+                    self.pickoff.clean_volts(channels.capacitance[held], out=volts[held])
+                    if pickoff_noise is not None:
+                        volts[held] += pickoff_noise[held]
+                if loop is not None:
                     self._feed_loop(first, volts[part], phase[part])
                 if self.sense is not None:
                     sensed.append(self.sense.process(first, t[part], volts[part], phase[part],
@@ -904,15 +966,101 @@ class Simulator:
             done += stop
         self._run_due_events()
         if channels is None:
-            return self._samples(t, out_q, out_v, phase if self.gyro else None, rate)
+            return self._finite(self._samples(t, out_q, out_v, phase if self.gyro else None,
+                                              rate))
         gap, min_gap, cap = channels
         demod = rate_output = None
         if self.sense is not None:
             demod, rate_output = _joined(t, sensed)
-        return Samples(t=t, q=out_q, v=out_v, gap=gap, min_gap=min_gap, capacitance=cap,
-                       drive_phase=phase, applied_rate=rate if self.gyro else None,
-                       control=rows, demod=demod, rate_output=rate_output,
-                       die_temperature=self.die.advance_to(self.time_s))
+        return self._finite(Samples(t=t, q=out_q, v=out_v, gap=gap, min_gap=min_gap,
+                                    capacitance=cap, drive_phase=phase,
+                                    applied_rate=rate if self.gyro else None, control=rows,
+                                    demod=demod, rate_output=rate_output,
+                                    die_temperature=self.die.advance_to(self.time_s)))
+
+    # ------------------------------------------------------------------ failure
+    def _fail(self, t_s: float, what: str) -> None:
+        """
+        Fail the run on a non-finite ``what`` at ``t_s`` (s): the ring held at rest from then.
+
+        The loops start again from their initial state at rest, with the drive's phase
+        reference at ``t_s``, if their own state is not finite; ``~/reset`` recovers.
+        """
+        before = f', after {self.status}: {self.message}' if self.status != Status.RUNNING else ''
+        self.status = Status.FAILED
+        self.contact_time_s = t_s
+        self.contact_theta_rad = math.nan
+        self.message = f'non-finite {what} (numerical failure), t = {t_s:.9f} s{before}'
+        self.nonfinite_failures += 1
+        self.q[:] = 0.0
+        self.v[:] = 0.0
+        self._acc[:] = 0.0
+        if self.loop is not None and not (self.loop.finite() and math.isfinite(self._drive_phase)
+                                          and math.isfinite(self._drive_t_ref)):
+            self._drive_phase = self.loop.restart(self.q, self.v, self._rate_at_start(),
+                                                  self._start_omega())
+            self._drive_t_ref = t_s
+            self._drive = self._drive_args()
+
+    def _hold_at_rest(self, t: np.ndarray, held: slice, out_q: np.ndarray, out_v: np.ndarray,
+                      channels: kernels.Channels, phase: Optional[np.ndarray],
+                      rows: Optional[np.ndarray]) -> None:
+        """Overwrite the samples ``held`` of a call with those of the ring held by a failure."""
+        out_q[held] = self.q
+        out_v[held] = 0.0
+        self._channels(out_q[held], kernels.Channels(*(c[held] for c in channels)))
+        if phase is not None:
+            d = self._drive
+            np.add(d.omega * (t[held] - d.t_ref), d.phase, out=phase[held])
+        if rows is not None:
+            rows[held] = self.loop.row()
+
+    def _finite(self, s: Samples) -> Samples:
+        """
+        Return ``s`` with every value finite: a non-finite one fails the run (module doc).
+
+        From the first sample with a non-finite value on, the ring is held at rest (its
+        channels those of rest), and the electronics' outputs (loop rows, demodulator, rate)
+        hold their last finite values (0 if none in the call); a sense chain that produced a
+        non-finite value is built again at the start state, so the next call is finite.
+        """
+        # What goes out (the velocities do not; the kernel keeps them finite with q).
+        sample_arrays = (s.q, s.gap, s.min_gap, s.capacitance, s.drive_phase, s.applied_rate,
+                         s.control, None if s.demod is None else s.demod.values)
+        rate = s.rate_output
+        rate_arrays = () if rate is None else (rate.rate, rate.quadrature)
+        bad = _first_nonfinite(*sample_arrays)
+        bad_rate = _first_nonfinite(*rate_arrays) if rate_arrays else None
+        if bad is None and bad_rate is None:
+            return s
+        sense_failed = bad_rate is not None or (
+            s.demod is not None and _first_nonfinite(s.demod.values) is not None)
+        n = len(s)
+        first = n if bad is None else bad
+        if bad_rate is not None:  # the rate's samples lie on the output grid
+            first = min(first, int(np.searchsorted(s.t, rate.t[bad_rate] - 0.5 * self.period_s)))
+        first = min(first, n - 1)
+        what = [name for name, arr in zip(
+            ('coordinate', 'radial gap', 'smallest gap', 'capacitance', 'drive phase',
+             'angular rate', 'loop row', 'demodulator'), sample_arrays)
+            if arr is not None and _first_nonfinite(arr) is not None]
+        if bad_rate is not None:
+            what.append('rate output')
+        if self.status != Status.FAILED or self.contact_time_s > s.t[first]:
+            self._fail(float(s.t[first]), ' and '.join(what))
+        held = slice(first, n)
+        channels = kernels.Channels(gap=s.gap, min_gap=s.min_gap, capacitance=s.capacitance)
+        self._hold_at_rest(s.t, held, s.q, s.v, channels, s.drive_phase, None)
+        for arr in (s.applied_rate, s.control, None if s.demod is None else s.demod.values):
+            if arr is not None:
+                _hold_last(arr, first)
+        if rate is not None:
+            from_rate = int(np.searchsorted(rate.t, s.t[first] - 0.5 * self.period_s))
+            for arr in rate_arrays:
+                _hold_last(arr, from_rate)
+        if self.sense is not None and sense_failed:
+            self.sense = SenseChain(self._config, self, self._start_state, self.pickoff)
+        return s
 
     def _feed_loop(self, first: int, volts: np.ndarray, phase: np.ndarray) -> None:
         """Collect a stretch into the loop period; at its end, update the loop (C1, C2)."""
@@ -983,6 +1131,8 @@ class Simulator:
 
     def _enter_contact(self, status: int, theta: float, t: float) -> None:
         self.status = _kernel_status(status)
+        if self.status == Status.FAILED:
+            self.nonfinite_failures += 1
         self.contact_time_s = t
         self.contact_theta_rad = theta
         self.message = f'{kernels.describe_status(status, theta)}, t = {t:.9f} s'

@@ -353,16 +353,12 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
                 self._log_reject('shock', self.run.shock_refusal() or 'a flood')
 
     def _step(self, n: int) -> None:
-        """Advance one block (the sink publishes and records it)."""
-        block = self.run.advance(n)
+        """Advance one block (the sink publishes and records it); report a contact at once."""
+        self.run.advance(n)
         if not self.run.running and not self._contact_logged:
             self._contact_logged = True
             self.get_logger().error(self.run.failure_text())
             self._publish_diagnostics()
-        if block is None:  # never published; the Simulator should prevent it
-            self.get_logger().error(
-                f'non-finite output at t = {self.run.time_ns * 1e-9:.9f} s withheld',
-                throttle_duration_sec=REJECT_LOG_PERIOD_S)
 
     def _finish(self, why: str) -> None:
         """End the run: final diagnostics and summary; main() then closes the recording."""

@@ -26,11 +26,14 @@ that the publisher exists only with the closed loop.
 # isort: off
 import signal
 
+from diagnostic_msgs.msg import DiagnosticStatus
 from node_harness import connected, NodeProcess, params_yaml, Probe, REPO_ROOT
 import numpy as np
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from ring_gyro_sim.core.gyro.control import CONTROL_CHANNELS
-from ring_gyro_sim.recording.reader import decode, read_block_topic, read_messages
+from ring_gyro_sim.offline import resimulate
+from ring_gyro_sim.recording.reader import (block_sample_counts, decode, read_block_topic,
+                                            read_messages)
 from ring_gyro_sim.ros import conversions
 from std_msgs.msg import Float64MultiArray
 # isort: on
@@ -107,3 +110,46 @@ def test_closed_loop_node_publishes_and_records_control(ros, tmp_path):
     values = {kv.key: kv.value for kv in last.status[0].values}
     assert values['pll_locked'] == 'True' and values['pll_lost_lock'] == 'False'
     assert abs(float(values['pll_frequency_hz']) - DRIVE_HZ) < 1.0
+
+
+def test_a_failure_is_published_at_once_and_leaves_no_hole(ros, tmp_path):
+    # Issue 22, item 8: a non-finite value made the node withhold every block after it (holes
+    # in the stream and the recording; --from then failed). Here a bias of 1e-320 V set at run
+    # time (0 V is refused; a params file cannot hold a subnormal number, ros2 param set can)
+    # makes the closed loops' measured amplitude overflow at their next update: the run fails,
+    # says so on /diagnostics with the block it failed in, and every block still goes out.
+    path = tmp_path / 'failed.mcap'
+    params = tmp_path / 'params.yaml'
+    params.write_text(params_yaml({'drive.start_on': 'rest', 'output.rate': 20000.0,
+                                   'duration': 0.0, 'record.path': str(path)}, device={}),
+                      encoding='utf-8')
+    node = NodeProcess(params, tmp_path)
+    with connected(node, Probe) as probe:
+        (result,) = probe.remote_set(('electrodes.outer_voltage', 1e-320))
+        assert result.successful, result.reason
+        probe.spin_until(lambda: any(st.level == DiagnosticStatus.ERROR
+                                     for _, st, _ in probe.diagnostics), 20.0,
+                         'an ERROR on /diagnostics')
+        errors = len(probe.blocks['modal_displacement'])
+        probe.spin_until(lambda: len(probe.blocks['modal_displacement']) >= errors + 20, 20.0,
+                         '20 blocks after the failure')
+        node.signal(signal.SIGINT)
+        assert node.wait(30.0) == 0, node.output()[-3000:]
+    message = next(st.message for _, st, _ in probe.diagnostics
+                   if st.level == DiagnosticStatus.ERROR)
+    print(f'\n{message}')
+    assert message.startswith('failed: non-finite loop state (numerical failure), t = ')
+    for block in probe.blocks['modal_displacement']:
+        assert np.all(np.isfinite(block.data))
+    sizes = block_sample_counts(str(path))
+    assert set(sizes) == {200}  # every block from the start: no hole
+    (change,) = [m.log_time_ns for m in read_messages(path, f'{NS}/events/parameters')]
+    # Published with the block it failed in (the loops update every 1 ms), not a second later.
+    errors = [m.log_time_ns for m in read_messages(path, '/diagnostics')
+              if decode(m).status[0].level == DiagnosticStatus.ERROR]
+    assert change < errors[0] <= change + 20_000_000
+    again = tmp_path / 'again.mcap'
+    resimulate(str(path), str(again), progress=False)
+    for topic in ('modal_displacement', 'control', 'demodulator'):
+        node_blocks, resimulated = (read_block_topic(p, topic) for p in (path, again))
+        assert np.array_equal(node_blocks.data, resimulated.data), topic

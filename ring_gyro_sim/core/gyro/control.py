@@ -248,9 +248,19 @@ class DriveLoop:
         self._setpoint_given = c.agc_setpoint > 0.0
         if not self._setpoint_given:
             self.setpoint_m = self.linear_amplitude()
-        # state
+        self._initial_state()
+        self._locking = 0        # periods in a row within half the threshold (C4)
+        self._qualifying = 0     # periods in a row with a qualified drive (C8b)
+        self.lost_lock_at_s: Optional[float] = None
+        self.relocked_at_s: Optional[float] = None
+        self.unlocked_since_s: Optional[float] = None
+        self.unlocked_periods = 0
+        self.updates = 0
+
+    def _initial_state(self) -> None:
+        """Set the loops' state (integrators, commands, measurements) as at construction."""
         self.pll_integral = 0.0          # rad/s
-        self.agc_integral = float(abs(config.drive.amplitude))  # m/s^2
+        self.agc_integral = float(abs(self.config.drive.amplitude))  # m/s^2
         self.rb_integral = np.zeros(2)   # (S_c, S_s), m/s^2
         self._coef = np.empty((3, 2))  # the C2 fit of a period: (cos, sin, 1) x (sense, drive)
         self.omega = self.omega_c
@@ -262,13 +272,6 @@ class DriveLoop:
         self.rebalance_quadrature = 0.0
         self.locked = True
         self.rebalance_on = self.rebalance
-        self._locking = 0        # periods in a row within half the threshold (C4)
-        self._qualifying = 0     # periods in a row with a qualified drive (C8b)
-        self.lost_lock_at_s: Optional[float] = None
-        self.relocked_at_s: Optional[float] = None
-        self.unlocked_since_s: Optional[float] = None
-        self.unlocked_periods = 0
-        self.updates = 0
 
     def linear_amplitude(self) -> float:
         """Return the drive mode's linear response to ``drive.amplitude`` at resonance, m."""
@@ -333,6 +336,23 @@ class DriveLoop:
                 self.rebalance_rate = float(self.rb_integral[0] / scale)
                 self.rebalance_quadrature = float(self.rb_integral[1] / scale)
         return phase
+
+    def restart(self, q: np.ndarray, v: np.ndarray, rate: float,
+                omega: Optional[float] = None) -> float:
+        """
+        Start the loops again from their initial state at a state (after a failure).
+
+        As :meth:`start` on a new loop, but the lock detector's history is kept. Returns the
+        NCO's phase at the state, rad.
+        """
+        self._initial_state()
+        return self.start(q, v, rate, omega)
+
+    def finite(self) -> bool:
+        """Tell whether the loops' state is all finite numbers: outputs (C9) and integrators."""
+        return bool(np.all(np.isfinite(self.row()))
+                    and math.isfinite(self.pll_integral) and math.isfinite(self.agc_integral)
+                    and np.all(np.isfinite(self.rb_integral)))
 
     def commands(self) -> Tuple[float, float, float, float]:
         """Return ``(omega, F, B, beta)``: NCO (rad/s), drive force and rebalance force/lag."""
