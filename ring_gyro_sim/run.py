@@ -770,9 +770,13 @@ class Run:
         self.lost[topic] = self.lost.get(topic, 0) + int(count)
 
     # ------------------------------------------------------------------ advancing
-    def advance(self, n_samples: int) -> Block:
+    def advance(self, n_samples: int,
+                between: Optional[Callable[[], None]] = None) -> Block:
         """
         Advance by ``n_samples`` output periods and hand the block to the sink.
+
+        ``between`` is called while the block is computed, after every stretch
+        (``Simulator.advance_samples``; the node sends the ``~/rate`` messages that are due).
 
         Every value of the block is finite: a non-finite one is a failure of the run, which
         the Simulator reports (``Status.FAILED``) and holds with finite values, so that the
@@ -783,7 +787,7 @@ class Run:
         sim = self.sim
         first = sim.sample_index
         self._shocks_this_block = 0
-        samples = sim.advance_samples(int(n_samples))
+        samples = sim.advance_samples(int(n_samples), between)
         end_ns = sim.time_ns
         self._flush_inputs(end_ns)
         while self._shock_ends and self._shock_ends[0] <= end_ns:

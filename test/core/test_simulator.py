@@ -23,7 +23,7 @@ import pytest
 from ring_gyro_sim.core import forces, kernels
 from ring_gyro_sim.core.errors import InputError
 from ring_gyro_sim.core.kernels.forcing import _stage_rotations
-from ring_gyro_sim.core.params import paper_config, STANDARD_GRAVITY
+from ring_gyro_sim.core.params import build_config, paper_config, STANDARD_GRAVITY
 from ring_gyro_sim.core.simulator import _kernel_status, Simulator, Status
 from scipy.integrate import solve_ivp
 
@@ -192,6 +192,23 @@ def test_uneven_chunks_and_inputs_between_samples_are_invariant():
     b.set_drive(amplitude=0.05, frequency_hz=15790.0, at_ns=2_000_003)
     out_b = b.advance(0.01).q
     assert np.array_equal(out_a, out_b)
+
+
+def test_a_caller_runs_between_the_stretches_of_a_call_which_changes_no_sample():
+    # The node sends ~/rate between the stretches of a block (between=): closed loop, one per
+    # loop update (1 ms at control.rate 1 kHz).
+    config = build_config({'drive.start_on': 'rest', 'output.rate': 20000.0,
+                           'scenario.rate_times': [0.0], 'scenario.rate_values': [0.5]})
+    plain, watched = Simulator(config), Simulator(config)
+    calls = []
+    for _ in range(3):
+        a = plain.advance_samples(200)
+        b = watched.advance_samples(200, between=lambda: calls.append(watched.sample_index))
+        for name in ('q', 'gap', 'capacitance', 'control'):
+            assert np.array_equal(getattr(a, name), getattr(b, name)), name
+        assert np.array_equal(a.demod.values, b.demod.values)
+        assert np.array_equal(a.rate_output.rate, b.rate_output.rate)
+    assert calls == list(range(20, 601, 20))
 
 
 def test_symmetric_electrodes_keep_q2_exactly_zero():
