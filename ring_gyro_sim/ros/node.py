@@ -31,7 +31,15 @@ Pacing
     at most ``TICK_BUDGET_S`` of wall time, so inputs and services are served between blocks
     even when running as fast as possible; before each block the input messages waiting in the
     queues are taken (the executor alone takes one per subscription per wait, which starves
-    inputs while the node lags). ``duration`` > 0 ends the run after that much simulated time;
+    inputs while the node lags). With the gyroscope, ``~/rate`` is paced
+    (``ros/rate_pacer.py``): its messages go out at their sample times, ``RATE_LATENCY_BLOCKS``
+    (2) blocks of simulated time after them, a pair at a time, so that a best-effort
+    subscriber (``qos_profile_sensor_data``, keep last 5) that keeps up gets every one: the
+    node sends those due at every tick, after every stretch of a block it computes (every loop
+    update closed loop) and, between ticks, sleeps until the next pair is due (no executor
+    turn, no thread; never past the time the next block is due, nor for more than 80 % of a
+    tick, so inputs and services wait no longer than before). ``duration`` > 0 ends the run
+    after that much simulated time;
     SIGINT or SIGTERM end it at the next block boundary. Either way: final diagnostics, a
     summary in the log (peak |q1|, smallest gap, q2 amplitude before the first shock and over
     the last 10 ms), the recording finalised, exit code 0. A signal before that, during
@@ -83,8 +91,8 @@ QoS
     (``test/ros/test_node_gyro.py``, the rate flood test).
     ``/diagnostics`` and ``/clock``: reliable, keep last 10. The gyroscope (``gyro.enabled``;
     the publishers exist only then): ``~/demodulator`` as the block topics, ``~/rate``
-    (sensor_msgs/Imu, one message per rate sample, published with its block) reliable, keep
-    last 500; ``~/angular_rate`` reliable, keep last 1000. The closed loop
+    (sensor_msgs/Imu, one message per rate sample, paced: above) reliable, keep last 500;
+    ``~/angular_rate`` reliable, keep last 1000. The closed loop
     (``control.drive_loop: closed``; the publisher exists only then): ``~/control``, the
     loops' updates (one row per update, at ``control.rate``), as the block topics
     (:mod:`ring_gyro_sim.ros.qos`).
@@ -123,6 +131,7 @@ from ring_gyro_sim.core.errors import InputError, ParameterError, RingGyroError
 from ring_gyro_sim.paramfile import check_node_arguments
 from ring_gyro_sim.recording.errors import RecordingError
 from ring_gyro_sim.ros import conversions, EARLY_SIGNALS, parameters, qos
+from ring_gyro_sim.ros.rate_pacer import GROUP, RatePacer
 from ring_gyro_sim.ros.recorder import RunRecorder
 from ring_gyro_sim.ros.sinks import Publishers, RosSink
 from ring_gyro_sim.ros.throttle import ThrottledWarnings
@@ -140,6 +149,13 @@ SPIN_TIMEOUT_S = 0.1
 LAG_WARN_S = 0.5
 """Wall seconds behind the real-time target from which /diagnostics says WARN."""
 REJECT_LOG_PERIOD_S = 5.0
+RATE_LATENCY_BLOCKS = 2
+"""``~/rate`` goes out this many blocks of simulated time after its samples (module doc)."""
+RATE_DRAIN_S = 1.0
+"""Longest the node sends the ``~/rate`` messages still held, paced, at the end of a run, s
+(two blocks and what ``rate_pacer.MAX_LATE_S`` lets fall behind: at most 0.27 s at the
+defaults, drained at ``rate_pacer.CATCH_UP`` times the rate; then the rest at once). Flushed
+at once, 100-130 of them were lost to a reliable subscriber as the node exited."""
 _NUMBER = re.compile(r'[-+]?\d[\d.]*(e[-+]?\d+)?')
 
 
@@ -149,6 +165,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
     def __init__(self, node_name: str = 'ring_gyro', **kwargs) -> None:
         super().__init__(node_name, **kwargs)
         self.run: Optional[run_mod.Run] = None
+        self.rate_pacer: Optional[RatePacer] = None
         self.stop_requested: Optional[str] = None
         self.done = False
         self.result: Optional[str] = None
@@ -172,12 +189,13 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         self.block_pubs = {name: self.create_publisher(Float64MultiArray, f'~/{name}',
                                                        qos.BLOCK_QOS)
                            for name in conversions.OUTPUT_TOPICS}
-        rate_pub = None
         if config.gyro.enabled:
             name = conversions.DEMODULATOR_TOPIC
             self.block_pubs[name] = self.create_publisher(Float64MultiArray, f'~/{name}',
                                                           qos.BLOCK_QOS)
-            rate_pub = self.create_publisher(Imu, f'~/{conversions.RATE_TOPIC}', qos.RATE_QOS)
+            self.rate_pacer = RatePacer(
+                self.create_publisher(Imu, f'~/{conversions.RATE_TOPIC}', qos.RATE_QOS),
+                self._rate_due_s, self._rate_spacing_s)
         if config.control.closed:
             name = conversions.CONTROL_TOPIC
             self.block_pubs[name] = self.create_publisher(Float64MultiArray, f'~/{name}',
@@ -197,7 +215,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
                 raise ParameterError(f'record.path: {exc}') from None
         self.sink = RosSink(names, fqn, recorder=recorder,
                             publishers=Publishers(self.block_pubs, self.diag_pub, clock_pub,
-                                                  rate_pub),
+                                                  self.rate_pacer),
                             stamp_ns=lambda: self.get_clock().now().nanoseconds,
                             frame_id=config.gyro.frame_id)
         block_samples = max(1, int(round(config.run.block_duration * config.run.output_rate)))
@@ -267,6 +285,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         rtf = self.real_time_factor
         block_wall_s = self.block_samples * self.run.sim.period_s / rtf if rtf > 0 else 0.0
         period = min(max(block_wall_s / 4.0, 0.001), 0.02)
+        self._tick_period_s = period
         self.tick_timer = self.create_timer(period, self._on_tick, clock=self.steady)
 
     # ------------------------------------------------------------------ pacing
@@ -276,6 +295,26 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         if rtf <= 0.0 or self._pace_wall0 is None:
             return math.inf
         return self._pace_sim0_ns + (now - self._pace_wall0) * rtf * 1e9
+
+    def _wall_at(self, t_ns: int) -> float:
+        """Return the wall time (monotonic, s) simulation time ``t_ns`` is due at (inf: rtf 0)."""
+        rtf = self.real_time_factor
+        if rtf <= 0.0 or self._pace_wall0 is None:
+            return math.inf
+        return self._pace_wall0 + (t_ns - self._pace_sim0_ns) / (rtf * 1e9)
+
+    def _rate_due_s(self, t_ns: int) -> float:
+        """Return the wall time (monotonic, s) the ``~/rate`` sample of ``t_ns`` is due at."""
+        rtf = self.real_time_factor
+        if rtf <= 0.0 or self._pace_wall0 is None:
+            return 0.0  # as fast as possible: at once
+        latency_ns = RATE_LATENCY_BLOCKS * self.block_samples * self.run.sim.period_ns
+        return self._pace_wall0 + (t_ns + latency_ns - self._pace_sim0_ns) / (rtf * 1e9)
+
+    def _rate_spacing_s(self) -> float:
+        """Return the wall time between two ``~/rate`` samples at the pacing in force, s."""
+        rtf = self.real_time_factor
+        return 1.0 / (self.run.config.gyro.output_rate * rtf) if rtf > 0.0 else 0.0
 
     def _rebase_pacing(self, old_rtf: float) -> None:
         """Keep the target continuous (and so the lag) across a change of real_time_factor."""
@@ -287,15 +326,48 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         self._pace_wall0 = now
 
     def _on_tick(self) -> None:
+        next_block_s = self._tick_blocks()
+        if self.rate_pacer is not None and not self.done:
+            self._serve_rate(min(time.monotonic() + 0.8 * self._tick_period_s, next_block_s))
+
+    def _serve_rate(self, until: float) -> None:
+        """
+        Send ``~/rate`` on time until shortly before the next tick (module doc, "Pacing").
+
+        Sleeps (no GIL, no executor turn) until each message is due; returns once the next
+        one is due after ``until`` (wall s): 80 % of a tick period from now, or the time the
+        next block is due if sooner (never a block late for it), so inputs and services wait
+        no longer than they did between two ticks.
+        """
+        pacer = self.rate_pacer
+        pacer.send_due()
+        while True:
+            when = pacer.next_send_s(GROUP)  # two at a time: half the wake-ups
+            if when > until:
+                return
+            delay = when - time.monotonic()
+            if delay > 0.0:
+                time.sleep(delay)
+            pacer.send_due()
+
+    def _tick_blocks(self) -> float:
+        """
+        Compute the blocks that are due, for at most ``TICK_BUDGET_S`` of wall time.
+
+        Returns the wall time (monotonic, s) the next block is due at: now or earlier when
+        the node is behind, inf as fast as possible or once the run is over.
+        """
         if self.done:
-            return
+            return math.inf
         if self.stop_requested:
             self._finish(f'stopped ({self.stop_requested})')
-            return
+            return math.inf
         now = time.monotonic()
         if self._pace_wall0 is None:
             self._pace_wall0 = self._start_wall = self._diag_wall = now
             self._pace_sim0_ns = self._start_sim_ns = self._diag_sim_ns = self.run.time_ns
+        if self.rate_pacer is not None:
+            self.rate_pacer.send_due()
         deadline = now + TICK_BUDGET_S
         period_ns = self.run.sim.period_ns
         while True:
@@ -304,14 +376,15 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
                 n = min(n, self.total_samples - self.run.sim.sample_index)
                 if n <= 0:
                     self._finish('duration reached')
-                    return
-            if self.run.time_ns + n * period_ns > self._target_ns(now):
-                return
+                    return math.inf
+            end_ns = self.run.time_ns + n * period_ns
+            if end_ns > self._target_ns(now):
+                return self._wall_at(end_ns)
             self._drain_inputs()
             self._step(n)
             now = time.monotonic()
             if now >= deadline:
-                return
+                return now  # behind: the next block is due already
 
     def _drain_inputs(self) -> None:
         """
@@ -354,7 +427,10 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
 
     def _step(self, n: int) -> None:
         """Advance one block (the sink publishes and records it); report a contact at once."""
-        self.run.advance(n)
+        if self.rate_pacer is None:
+            self.run.advance(n)
+        else:  # ~/rate due while the block is computed goes out meanwhile (closed loop: 1 ms)
+            self.run.advance(n, self.rate_pacer.send_due)
         if not self.run.running and not self._contact_logged:
             self._contact_logged = True
             self.get_logger().error(self.run.failure_text())
@@ -365,6 +441,9 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         self.done = True
         self._publish_diagnostics(finished=True)
         self.get_logger().info(f'{why}: {self.summary()}')
+        if self.rate_pacer is not None:  # every ~/rate message of the run out, paced
+            self._serve_rate(time.monotonic() + RATE_DRAIN_S)
+            self.rate_pacer.flush()
         self.result = why
 
     def summary(self) -> str:
@@ -493,6 +572,11 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         if summary and self.run is not None and not self.done:
             self.done = True
             print(f'[ring_gyro_node] stopped: {self.summary()}', file=sys.stderr)
+        if self.rate_pacer is not None:
+            try:
+                self.rate_pacer.flush()  # (done already if the run finished)
+            except Exception:  # noqa: B902 - the context shut down under it: nothing to send to
+                pass
         try:
             if self.run is not None:
                 self.run.close()

@@ -82,7 +82,7 @@ BASE_ACCELERATION_QOS = _reliable_keep_last(1000)
 DRIVE_QOS = _reliable_keep_last(10)
 #: ``~/events/reset`` and ``~/events/parameters`` (recordings only).
 EVENTS_QOS = _reliable_keep_last(10)
-#: ``~/rate`` (sensor_msgs/Imu, one message per rate sample, published block by block).
+#: ``~/rate`` (sensor_msgs/Imu, one message per rate sample, paced: ``ros/rate_pacer.py``).
 RATE_QOS = _reliable_keep_last(500)
 #: ``~/angular_rate`` subscription (a streamed profile comes in bursts).
 ANGULAR_RATE_QOS = _reliable_keep_last(1000)

@@ -23,9 +23,10 @@ the node's input topics (``<ns>/shock`` ... ``<ns>/angular_rate``), diagnostics 
 
 The gyroscope (a block with ``rate`` / ``demod``, i.e. ``gyro.enabled``): the block's rate
 samples become one ``sensor_msgs/Imu`` each on ``~/rate`` (:func:`conversions.imu_message`:
-stamp = sample time, ``frame_id``, covariance from :attr:`RosSink.rate_variance`), published
-before the block messages and recorded at their sample times; the demodulator channels become
-the block topic ``~/demodulator`` next to the other three.
+stamp = sample time, ``frame_id``, covariance from :attr:`RosSink.rate_variance`), handed to
+the rate outlet before the block messages go out (the node publishes each at its sample
+time: ``ros/rate_pacer.py``) and recorded at their sample times; the demodulator channels
+become the block topic ``~/demodulator`` next to the other three.
 
 The closed loop (a block with ``control``, i.e. ``control.drive_loop: closed``): the loops'
 updates in the block become the block topic ``~/control`` (:func:`conversions.control_block`:
@@ -109,7 +110,9 @@ class Publishers:
     The node's output publishers: block topics, ``/clock``, ``/diagnostics``, ``~/rate``.
 
     ``blocks`` maps every block topic the node has (the gyroscope's ``demodulator`` and the
-    closed loop's ``control`` only when it has them) to its publisher.
+    closed loop's ``control`` only when it has them) to its publisher; ``rate`` is the outlet
+    of ``~/rate``, which takes a block's messages with their sample times
+    (``ros.rate_pacer.RatePacer``).
     """
 
     #: The block messages are published: :class:`RosSink` builds them with every sample.
@@ -123,11 +126,14 @@ class Publishers:
         self._rate = rate
 
     def rate(self, messages) -> None:
-        """Publish the ``~/rate`` messages ``[(t_ns, Imu)]`` of one block (gyroscope only)."""
-        if self._rate is None:
-            return
-        for _, msg in messages:
-            self._rate.publish(msg)
+        """
+        Hand the ``~/rate`` messages ``[(t_ns, Imu)]`` of one block to the rate outlet.
+
+        The outlet (``rate``: the node's ``ros.rate_pacer.RatePacer``, gyroscope only) takes
+        the whole list and publishes each message at its sample time.
+        """
+        if self._rate is not None:
+            self._rate.publish(messages)
 
     def blocks(self, msgs: Mapping[str, object]) -> None:
         """Publish the block messages of one block."""

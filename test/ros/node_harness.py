@@ -110,14 +110,16 @@ def process_cpu_seconds(pid):
 class NodeProcess:
     """One ``ring_gyro_node`` process; output goes to files so that no pipe can fill up."""
 
-    def __init__(self, params_file, workdir, *ros_args):
+    def __init__(self, params_file, workdir, *ros_args, nice=0):
+        """Start the node; ``nice`` < 0 raises its priority (a test that needs it on time)."""
         self.workdir = pathlib.Path(workdir)
         self.stdout_path = self.workdir / 'node.stdout'
         self.stderr_path = self.workdir / 'node.stderr'
         self._out = open(self.stdout_path, 'wb')
         self._err = open(self.stderr_path, 'wb')
         self.proc = subprocess.Popen(node_command(params_file, *ros_args), cwd=REPO_ROOT,
-                                     env=node_env(), stdout=self._out, stderr=self._err)
+                                     env=node_env(), stdout=self._out, stderr=self._err,
+                                     preexec_fn=(lambda: os.nice(nice)) if nice else None)
 
     @property
     def pid(self):
@@ -286,11 +288,11 @@ class Probe(Node):
         return blocks[0].labels, np.concatenate([b.data for b in blocks])
 
 
-def start_node(workdir, values, *ros_args, node='ring_gyro'):
+def start_node(workdir, values, *ros_args, node='ring_gyro', nice=0):
     """Write ``values`` as a params file in ``workdir`` and start a node process on it."""
     path = pathlib.Path(workdir) / 'params.yaml'
     path.write_text(params_yaml(values, node), encoding='utf-8')
-    return NodeProcess(path, workdir, *ros_args)
+    return NodeProcess(path, workdir, *ros_args, nice=nice)
 
 
 @contextlib.contextmanager

@@ -24,14 +24,20 @@ another name.
 
 # Google import order, as ament_flake8 checks it; ruff's default isort order differs.
 # isort: off
+import json
 import math
+import os
+import pathlib
 import signal
+import subprocess
+import sys
 import threading
 import time
 
 from geometry_msgs.msg import Vector3Stamped
 from mcap.reader import make_reader
-from node_harness import connected, NodeProcess, Probe, REPO_ROOT, start_node
+from node_harness import (connected, MATCH_TIMEOUT_S, node_env, NodeProcess, Probe, REPO_ROOT,
+                          start_node)
 import numpy as np
 import pytest
 from rclpy.qos import ReliabilityPolicy
@@ -303,3 +309,65 @@ def test_a_rate_flood_keeps_the_node_paced_and_every_message_counted(ros, tmp_pa
         assert progress > 0.5
         assert sum(counted.values()) >= 0.99 * sent[0]
         assert counted['accepted_angular_rate'] >= 1000 and counted['rejected_angular_rate'] > 0
+
+
+RATE_WARM_UP_S = 4.0
+"""How long the rate test lets the node settle after its subscriber started, s: starting it
+(imports, discovery) takes the 2-core host from the node, which then catches up (up to 0.5 s
+behind for the first 3.3 s once, at a load of 6.6)."""
+RATE_LISTEN_S = 4.0
+"""How long the best-effort subscriber listens to ``~/rate`` after that, s."""
+
+
+def test_a_sensor_data_subscriber_gets_every_rate_message(ros, tmp_path):
+    # Issue 22, item 6: ~/rate went out in bursts of 10 per 10 ms block, and a subscriber with
+    # rclpy's qos_profile_sensor_data (best effort, keep last 5) got 79-80 % of the messages.
+    # The subscriber runs in its own process (rate_listener.py), as a user's node would, and
+    # notes when each message was sent (the middleware's source timestamp).
+    # The plumbing, not the physics: the cheapest step (Strang, one 50 us step per sample), and
+    # the node's process at nice -10, so that the node keeps real time on this shared 2-core
+    # host (x0.56-0.82 with bm6 and no priority under others' load): pacing is the contract of
+    # a node that keeps its pace, as receiving everything is that of a subscriber keeping up.
+    node = start_node(tmp_path, {**GYRO, 'integrator.method': 'strang',
+                                 'integrator.max_step': 5e-5}, nice=-10)
+    with connected(node, lambda: Probe(topics=('modal_displacement',))) as probe:
+        with open(tmp_path / 'listener.log', 'wb') as log:
+            # A subscriber that keeps up: on this shared host its process gets the priority
+            # of one (nice -10, ~10 % of a core), so that what it misses is the node's doing.
+            listener = subprocess.Popen(
+                [sys.executable, str(pathlib.Path(__file__).with_name('rate_listener.py')),
+                 f'{NS}/rate'], env=node_env(), stdout=subprocess.PIPE, stderr=log,
+                preexec_fn=lambda: os.nice(-10))
+            try:
+                probe.spin_until(lambda: probe.count_subscribers(f'{NS}/rate') > 0,
+                                 MATCH_TIMEOUT_S, 'the listener on ~/rate')
+                probe.spin_for(RATE_WARM_UP_S + RATE_LISTEN_S)
+            finally:
+                listener.send_signal(signal.SIGINT)
+                out, _ = listener.communicate(timeout=30)
+    got = json.loads(out.decode().strip().splitlines()[-1])
+    stamps, sent = np.array(got['stamps_ns']), np.array(got['sent_ns'])
+    listened = sent >= sent[0] + RATE_WARM_UP_S * 1e9
+    stamps, sent = stamps[listened], sent[listened]
+    # The messages due while the listener listened: from its first to its last, 1 ms apart.
+    expected = (stamps.max() - stamps.min()) // 1_000_000 + 1
+    fraction = len(stamps) / expected
+    spacing = np.diff(sent) * 1e-6  # ms between two messages sent
+    most = max(np.count_nonzero((sent >= s) & (sent < s + 1_000_000)) for s in sent)
+    # Bursts: runs of messages sent less than 0.2 ms apart (a pair is paced: GROUP).
+    sizes = np.bincount(np.concatenate([[0], np.cumsum(spacing >= 0.2)]))
+    in_bursts = sizes[sizes > 3].sum() / len(sent)
+    late = (sent - stamps) * 1e-6
+    late -= late.min()  # ms after the earliest of them, relative to its sample time
+    tenth = len(late) // 10
+    print(f'\n{len(stamps)} of {expected} rate messages received ({100 * fraction:.1f} %); '
+          f'sent {np.percentile(spacing, [1, 10, 50]).round(3)} ms apart (1st, 10th, 50th '
+          f'percentile), at most {most} within 1 ms, {100 * in_bursts:.1f} % in bursts of more '
+          f'than 3; late by at most {late[:tenth].max():.1f} ms in the first tenth, '
+          f'{late[-tenth:].max():.1f} ms in the last')
+    assert expected >= 1000
+    assert np.all(np.diff(stamps) > 0)  # in order, none twice
+    # Paced: one per period, two together (GROUP); a burst only after the node stalled for
+    # longer than rate_pacer.MAX_LATE_S (it did for 80-100 ms at times on a loaded host).
+    assert in_bursts <= 0.05
+    assert fraction >= 0.97
