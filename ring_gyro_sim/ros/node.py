@@ -45,11 +45,26 @@ Pacing
     the last 10 ms), the recording finalised, exit code 0. A signal before that, during
     start-up, ends the process at once, exit code 0, without a traceback (see
     ``ring_gyro_sim.ros``). A bad parameter file or value, an unwritable ``record.path`` or a
-    failed ``drive.start_on`` orbit: one FATAL line naming the parameter, exit code 1.
+    failed ``drive.start_on`` orbit: one FATAL line naming the parameter, exit code 1; so does
+    another node of the same name in the graph ("Start-up").
 
     The node is spun with ``SingleThreadedExecutor.spin_once`` in a loop, not
     ``spin_until_future_complete``: rclpy (Jazzy) adds a done-callback to the future on
     every wake there (ros2/rclpy#1371), which grew the process by ~110 kB/s.
+
+Start-up
+    Another node of the same fully qualified name in the ROS graph is refused: two nodes of
+    one name would publish on the same topics, interleaved, and record different runs with
+    nothing to tell them apart, which a warning would not undo. Before it publishes anything
+    the node looks once (after its parameters, start state and kernels: what discovery found
+    meanwhile); then for its first ``NAMESAKE_WATCH_S`` (5 s) it looks again every
+    ``NAMESAKE_CHECK_PERIOD_S`` (0.1 s), since discovery may take longer (up to 2.35 s on a
+    loaded 2-core host). Found, the node stops: one FATAL line naming the name, its recording
+    deleted, exit code 1; a namesake found late may have seen a few seconds of its blocks.
+    Two nodes started within those seconds of each other both stop. Waiting for discovery
+    before the first block instead (2.5 s) made every start 2.4 s longer. After its first
+    seconds a node does not stop for a newcomer, but logs an ERROR once when one appears
+    (every diagnostics period it looks). A node whose parameters are refused does not look.
 
 Parameter handling
     Declared from the one table (``ros/parameters.py``), dynamically typed so that integer
@@ -149,6 +164,13 @@ SPIN_TIMEOUT_S = 0.1
 LAG_WARN_S = 0.5
 """Wall seconds behind the real-time target from which /diagnostics says WARN."""
 REJECT_LOG_PERIOD_S = 5.0
+NAMESAKE_WATCH_S = 5.0
+"""How long after its creation the node stops at once when another node of its name shows up,
+s: discovery showed one after 0-2.35 s on a loaded 2-core host (Fast DDS announces a
+participant 5 times in its first 0.5 s, then every 3 s; module doc, "Start-up")."""
+NAMESAKE_CHECK_PERIOD_S = 0.1
+"""How often the node looks at the graph for a namesake in its first ``NAMESAKE_WATCH_S``, s
+(a graph query costs tens of us)."""
 RATE_LATENCY_BLOCKS = 2
 """``~/rate`` goes out this many blocks of simulated time after its samples (module doc)."""
 RATE_DRAIN_S = 1.0
@@ -164,6 +186,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
 
     def __init__(self, node_name: str = 'ring_gyro', **kwargs) -> None:
         super().__init__(node_name, **kwargs)
+        self._created_s = time.monotonic()
         self.run: Optional[run_mod.Run] = None
         self.rate_pacer: Optional[RatePacer] = None
         self.stop_requested: Optional[str] = None
@@ -223,6 +246,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
                                late_tolerance_ns=block_samples * config.run.output_period_ns,
                                log=log.info)
         run_mod.Run(config).advance(1)  # load the compiled kernels before pacing
+        self._refuse_a_namesake()
         self.block_samples = block_samples
         self.total_samples = (int(round(config.run.duration * config.run.output_rate))
                               if config.run.duration > 0.0 else 0)
@@ -230,6 +254,8 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
                                              REJECT_LOG_PERIOD_S)
         self._ignored_z = set()
         self._contact_logged = False
+        self._namesake_logged = False
+        self._namesake_check_s = 0.0
         self._input_subs = [
             self._input(Vector3Stamped, 'shock', self._on_shock, qos.SHOCK_QOS),
             self._input(AccelStamped, 'base_acceleration', self._on_base_acceleration,
@@ -258,6 +284,41 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
             f'real_time_factor {rc.real_time_factor:g}, '
             f'duration {"unlimited" if not rc.duration else f"{rc.duration:g} s"}'
             + (f', recording to {rc.record_path}' if recorder is not None else ''))
+
+    def _namesake_refusal(self) -> Optional[str]:
+        """Return why the node refuses to run if another of its name is in the graph."""
+        if self.get_node_names_and_namespaces().count((self.get_name(),
+                                                       self.get_namespace())) < 2:
+            return None
+        return (f'another node named {self.get_fully_qualified_name()} is running: two nodes '
+                f'of one name would publish on the same topics, with nothing to tell them '
+                f'apart (ROS 2 node names must be unique); rename this one '
+                f'(--ros-args -r __node:=NAME) or stop the other')
+
+    def _refuse_a_namesake(self) -> None:
+        """Refuse to start beside a namesake already discovered (module doc, "Start-up")."""
+        refusal = self._namesake_refusal()
+        if refusal is not None:
+            self.sink.discard()
+            raise RingGyroError(refusal)
+
+    def _watch_for_a_namesake(self) -> None:
+        """
+        In the node's first ``NAMESAKE_WATCH_S``: stop at once if a namesake shows up.
+
+        Every ``NAMESAKE_CHECK_PERIOD_S``; the recording is deleted and ``main`` logs the
+        reason as FATAL and exits with code 1 (module doc, "Start-up").
+        """
+        now = time.monotonic()
+        if now - self._created_s > NAMESAKE_WATCH_S or now < self._namesake_check_s:
+            return
+        self._namesake_check_s = now + NAMESAKE_CHECK_PERIOD_S
+        refusal = self._namesake_refusal()
+        if refusal is not None:
+            self.done = True
+            self.sink.discard()
+            raise RingGyroError(f'{refusal} (seen {now - self._created_s:.1f} s after this '
+                                f'node started; its recording is deleted)')
 
     def _input(self, msg_type, topic: str, handler, profile: QoSProfile):
         """Subscribe to an input topic; count the messages the middleware reports lost."""
@@ -326,6 +387,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         self._pace_wall0 = now
 
     def _on_tick(self) -> None:
+        self._watch_for_a_namesake()
         next_block_s = self._tick_blocks()
         if self.rate_pacer is not None and not self.done:
             self._serve_rate(min(time.monotonic() + 0.8 * self._tick_period_s, next_block_s))
@@ -548,6 +610,18 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
     def _on_diagnostics_timer(self) -> None:
         if not self.done:
             self._publish_diagnostics()
+            self._warn_of_a_namesake()
+
+    def _warn_of_a_namesake(self) -> None:
+        """Log an ERROR once when another node of this name appears (after start-up)."""
+        count = self.get_node_names_and_namespaces().count((self.get_name(),
+                                                            self.get_namespace()))
+        if count > 1 and not self._namesake_logged:
+            self.get_logger().error(
+                f'another node named {self.get_fully_qualified_name()} appeared: both publish '
+                f'on the same topics, with nothing to tell them apart (ROS 2 node names must '
+                f'be unique); rename one (--ros-args -r __node:=NAME)')
+        self._namesake_logged = count > 1
 
     def _publish_diagnostics(self, finished: bool = False) -> None:
         now = time.monotonic()

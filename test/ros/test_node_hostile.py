@@ -28,6 +28,7 @@ from geometry_msgs.msg import AccelStamped
 from node_harness import connected, Probe, start_node
 import numpy as np
 import pytest
+from rclpy.node import Node
 from ring_gyro_sim.ros import conversions
 # isort: on
 
@@ -147,3 +148,47 @@ def test_a_shock_beyond_the_physical_bound_is_refused_with_its_reason(hostile):
     assert after['accepted_shocks'] == before['accepted_shocks']
     assert after['status'] == 'running'
     assert 'beyond the physical bound of 9.80665e+06 m/s^2' in node.output()
+
+
+def test_a_second_node_of_the_same_name_refuses_to_start(hostile, tmp_path):
+    # Issue 22, item 12: two nodes of one name and different record.path started without a
+    # word, and their streams interleaved on one topic. The second one, a real process too,
+    # sees the first in the graph before it publishes anything and refuses.
+    node, probe = hostile
+    # Past its own first seconds (ros/node.py, NAMESAKE_WATCH_S: 5 s), in which the first one
+    # would stop too: paced from 0 s, it is 6 s old once it has simulated 6 s.
+    probe.wait_sim_time(6_000_000_000, timeout=30.0)
+    record = tmp_path / 'second.mcap'
+    second = start_node(tmp_path, {**CONFIG, 'record.path': str(record)},
+                        '-r', f'__node:={NAME}', node=NAME)
+    try:
+        code = second.wait(60.0)
+        log = second.output()
+    finally:
+        second.stop()
+    print(f'\nsecond node: exit code {code}: {log.strip()[-600:]}')
+    assert code == 1
+    fatal = [line for line in log.splitlines() if '[FATAL]' in line]
+    assert len(fatal) == 1 and f'another node named /{NAME} is running' in fatal[0]
+    assert 'Traceback' not in log and not record.exists()
+    # The first one runs on, and its stream is its own: in order, nothing interleaved (the
+    # probe may miss blocks while it lags: test_node.py, assert_contiguous).
+    t0 = probe.last_time_ns()
+    probe.wait_sim_time(t0 + 200_000_000, timeout=10.0)
+    _, data = probe.stacked('modal_displacement', t0 * 1e-9 - 2.0)
+    steps = np.diff(np.rint(data[:, 0] * 1e5).astype(np.int64))  # 100 kHz samples
+    assert np.all(steps >= 1) and node.proc.poll() is None
+
+
+def test_a_namesake_that_appears_later_is_reported(hostile):
+    # Discovery may show a namesake after the start-up check (it took up to 2.35 s on a loaded
+    # host): the running node then logs an ERROR. The namesake here: a bare rclpy node.
+    node, probe = hostile
+    probe.wait_sim_time(6_000_000_000, timeout=30.0)  # past its first seconds (above)
+    namesake = Node(NAME)
+    try:
+        probe.spin_until(lambda: f'another node named /{NAME} appeared' in node.output(), 20.0,
+                         'the ERROR about the namesake')
+    finally:
+        namesake.destroy_node()
+    assert node.proc.poll() is None  # it warns, it does not stop

@@ -70,6 +70,10 @@ def processes(tmp_path_factory):
         workdir = tmp_path_factory.mktemp('unparsable')
         (workdir / 'bad.yaml').write_text(UNPARSABLE)
         procs['unparsable'] = (NodeProcess(workdir / 'bad.yaml', workdir), workdir)
+        # The nodes refused exist for a moment, under the name of the one below: it would
+        # refuse to start beside them (a namesake in the graph; ros/node.py, "Start-up").
+        for proc, _ in procs.values():
+            proc.wait(EXIT_TIMEOUT_S)
         workdir = tmp_path_factory.mktemp('duration')
         procs['duration'] = (start_node(workdir, {**DURATION, 'record.path':
                                                   str(workdir / 'run.mcap')}), workdir)
