@@ -331,8 +331,9 @@ class DriveLoop:
             self.rebalance_force[:] = self.rb_integral
             self.rebalance_rate = float(rate)
             scale = 2.0 * KAPPA_2 * w * self.setpoint_m
-            if (2 in self.config.modes.coupled_pairs() or self.config.gyro.sense_misalignment
-                    ) and scale > 0.0:
+            imperfect = (2 in self.config.modes.coupled_pairs()
+                         or bool(self.config.gyro.sense_misalignment))
+            if imperfect and scale > 0.0:
                 self.rebalance_rate = float(self.rb_integral[0] / scale)
                 self.rebalance_quadrature = float(self.rb_integral[1] / scale)
         return phase
