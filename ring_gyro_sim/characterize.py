@@ -291,8 +291,14 @@ def load_device(path: str, node_name: str = 'ring_gyro') -> Dict[str, Any]:
 
 def _test_parameters(flat: Mapping[str, Any], duration_s: float,
                      **values: Any) -> Dict[str, Any]:
-    """Return the device's parameters with a test's scenario: no shock, no rate but ``values``."""
+    """
+    Return the device's parameters with a test's scenario: no shock, no rate but ``values``.
+
+    The tests read the model's own readout (``gyro.calibration.source: ideal``): the sheet
+    compares the device with the model (E4-E14), whose scale factor the readout divides by.
+    """
     out = {k: v for k, v in flat.items() if not k.startswith('scenario.')}
+    out['gyro.calibration.source'] = 'ideal'
     out['duration'] = float(duration_s)
     out.update(values)
     return out
