@@ -99,7 +99,9 @@ def decoded_blocks(path, topic):
 def sliced(samples, start, stop):
     """Return the samples ``start:stop`` of a Samples (rows of every array)."""
     def rows(value):
-        return None if value is None else value[start:stop]  # drive_phase, rate: gyro only
+        if value is None or np.ndim(value) == 0:  # drive_phase, rate: gyro only
+            return value  # die_temperature: one value per block
+        return value[start:stop]
     return Samples(**{f.name: rows(getattr(samples, f.name))
                       for f in dataclasses.fields(Samples)})
 
