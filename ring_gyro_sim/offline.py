@@ -46,9 +46,9 @@ from ring_gyro_sim.recording.reader import (block_sample_counts, decode, read_me
 from ring_gyro_sim.ros import conversions
 from ring_gyro_sim.ros.recorder import INPUT_TOPICS, METADATA_NAME, RunRecorder
 from ring_gyro_sim.ros.sinks import RosSink
-from ring_gyro_sim.run import (AngularRate, BaseAcceleration, DriveAmplitude, DriveFrequency,
-                               Input, NullSink, Pacing, ParameterChange, Reset, Run,
-                               RunSummary, Shock, Sink)
+from ring_gyro_sim.run import (AmbientTemperature, AngularRate, BaseAcceleration,
+                               DriveAmplitude, DriveFrequency, Input, NullSink, Pacing,
+                               ParameterChange, Reset, Run, RunSummary, Shock, Sink)
 
 __all__ = ['DIAGNOSTICS_PERIOD_NS', 'RunSummary', 'load_recording', 'recorded_calibration',
            'resimulate', 'run_offline', 'with_record_decimation']
@@ -207,6 +207,9 @@ def load_recording(path: str):
                 knots.remove((t_ns, r.z))
                 continue
             inputs.append(AngularRate(z=r.z, x=r.x, y=r.y, at_ns=t_ns))
+        elif kind == conversions.TEMPERATURE_TOPIC:
+            inputs.append(AmbientTemperature(conversions.temperature_input(msg).kelvin,
+                                             at_ns=t_ns))
     return config, start, inputs, sizes, namespace
 
 

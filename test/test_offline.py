@@ -378,7 +378,7 @@ def test_bad_scenario_field_is_named(tmp_path, text, field):
 # 20 kHz output (a whole multiple of the 1 kHz rate output), from rest: small, fast runs.
 GYRO = {'drive.start_on': 'rest', 'modes.companions': True, 'gyro.enabled': True,
         'output.rate': 20000.0, 'gyro.frame_id': 'gyro_link'}
-GYRO_TOPICS = [f'{NS}/rate', f'{NS}/demodulator', f'{NS}/angular_rate']
+GYRO_TOPICS = [f'{NS}/rate', f'{NS}/demodulator', f'{NS}/angular_rate', f'{NS}/die_temperature']
 
 
 def test_a_gyro_run_records_the_gyro_topics(tmp_path):
@@ -390,6 +390,8 @@ def test_a_gyro_run_records_the_gyro_topics(tmp_path):
     assert types[f'{NS}/rate'] == 'sensor_msgs/msg/Imu'
     assert types[f'{NS}/demodulator'] == 'std_msgs/msg/Float64MultiArray'
     assert types[f'{NS}/angular_rate'] == 'geometry_msgs/msg/Vector3Stamped'
+    assert types[f'{NS}/die_temperature'] == 'sensor_msgs/msg/Temperature'
+    assert types[f'{NS}/temperature'] == 'sensor_msgs/msg/Temperature'
     resonator = tmp_path / 'resonator.mcap'
     offline.run_offline(paper_config({**GYRO, 'gyro.enabled': False}), 0.02,
                         output=str(resonator), progress=False)
@@ -416,6 +418,40 @@ def test_load_recording_reads_the_angular_rates_that_acted(tmp_path):
     _, _, inputs, sizes, _ = offline.load_recording(str(path))
     assert sizes == [200, 200]
     assert inputs == [run.AngularRate(z=-0.1, at_ns=6_000_000, x=0.25, y=0.0)]
+
+
+def test_ambient_steps_are_recorded_with_the_die_and_resimulate_bit_for_bit(tmp_path):
+    """
+    ~/temperature as it acted and ~/die_temperature per block; --from reproduces both.
+
+    The die follows a step of the ambient at t_s as tau T' = T_a - T (core.thermal T1):
+    T = T_a + (T_0 - T_a) exp(-(t - t_s) / tau) at each block's end, in Celsius on the topic.
+    """
+    tau, t_step, ambient = 0.01, 0.005, 308.15
+    config = paper_config({**GYRO, 'thermal.time_constant': tau})
+    t_0 = config.thermal.reference_temperature
+    original = tmp_path / 'warm.mcap'
+    inputs = [run.AmbientTemperature(kelvin=ambient, at_ns=int(t_step * 1e9))]
+    offline.run_offline(config, 0.03, output=str(original), progress=False, inputs=inputs)
+    topics = [f'{NS}/temperature', f'{NS}/die_temperature']
+    a = decoded(original, topics)
+    assert [(t, m.temperature + 273.15) for t, m in a[f'{NS}/temperature']] == [
+        (5_000_000, ambient)]
+    die = a[f'{NS}/die_temperature']
+    assert [t for t, _ in die] == [10_000_000, 20_000_000, 30_000_000]
+    for t_ns, m in die:
+        t = t_ns * 1e-9
+        expected = ambient + (t_0 - ambient) * math.exp(-(t - t_step) / tau) - 273.15
+        assert m.temperature == pytest.approx(expected, abs=1e-9)
+        assert m.header.frame_id == 'gyro_link' and m.variance == 0.0
+    again = tmp_path / 'again.mcap'
+    offline.resimulate(str(original), str(again), progress=False)
+    assert_same_outputs(original, again)
+    b = decoded(again, topics + [f'{NS}/rate'])
+    assert [(t, m.temperature) for t, m in b[f'{NS}/die_temperature']] == [
+        (t, m.temperature) for t, m in die]
+    assert [m.angular_velocity.z for _, m in b[f'{NS}/rate']] == [
+        m.angular_velocity.z for _, m in decoded(original, [f'{NS}/rate'])[f'{NS}/rate']]
 
 
 def test_resimulation_with_angular_rates_is_bit_identical(tmp_path):

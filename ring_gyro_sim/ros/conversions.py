@@ -54,7 +54,7 @@ from ring_gyro_sim.core.gyro.electronics import DEMOD_CHANNELS
 from ring_gyro_sim.core.gyro.validity import NOT_MEASURED_VARIANCE
 from ring_gyro_sim.recording import cdr
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, Temperature
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
 
 OUTPUT_TOPICS = ('modal_displacement', 'radial_gap', 'sense_electrodes')
@@ -68,6 +68,19 @@ RATE_TOPIC = 'rate'
 """The gyroscope's rate output (``gyro.enabled``): sensor_msgs/Imu, one per rate sample."""
 ANGULAR_RATE_TOPIC = 'angular_rate'
 """The rotation input (geometry_msgs/Vector3Stamped, ``vector.z`` rad/s)."""
+TEMPERATURE_TOPIC = 'temperature'
+"""The ambient temperature input (sensor_msgs/Temperature, degrees Celsius)."""
+DIE_TEMPERATURE_TOPIC = 'die_temperature'
+"""The gyroscope's die temperature sensor (``gyro.enabled``): sensor_msgs/Temperature, one per
+block, degrees Celsius."""
+ZERO_CELSIUS_K = 273.15
+"""
+0 degrees Celsius in kelvin: sensor_msgs/Temperature carries Celsius, the run kelvin.
+
+A temperature the run takes (``params.TEMPERATURE_RANGE_K``, 150-500 K) goes to Celsius and
+back bit for bit: ``K - 273.15`` is exact for ``K`` within a factor 2 of 273.15 (Sterbenz's
+lemma), so the sum back is exact too, and a recording re-simulates the ambient it recorded.
+"""
 
 
 def ns_to_stamp(t_ns: int) -> Time:
@@ -341,6 +354,46 @@ def base_acceleration_message(at_ns: int, x: float, y: float = 0.0,
     msg.header.frame_id = frame_id
     msg.accel.linear.x = float(x)
     msg.accel.linear.y = float(y)
+    return msg
+
+
+@dataclass(frozen=True)
+class TemperatureInput:
+    """
+    An ambient temperature from a ``~/temperature`` message.
+
+    Attributes
+    ----------
+    at_ns : int or None
+        Stamp, ns (None when the stamp is zero: "now"), as ``~/shock``.
+    kelvin : float
+        The temperature, K (the message's Celsius plus :data:`ZERO_CELSIUS_K`).
+
+    """
+
+    at_ns: Optional[int]
+    kelvin: float
+
+
+def temperature_input(msg: Temperature) -> TemperatureInput:
+    """Return the ambient temperature of a ``~/temperature`` message (its variance unused)."""
+    t = stamp_to_ns(msg.header.stamp)
+    return TemperatureInput(at_ns=t or None, kelvin=float(msg.temperature) + ZERO_CELSIUS_K)
+
+
+def temperature_message(t_ns: int, kelvin: float, frame_id: str = '') -> Temperature:
+    """
+    Build a sensor_msgs/Temperature at ``t_ns`` of a temperature in K (the message: Celsius).
+
+    ``~/temperature`` as recorded (the ambient as it acted) and ``~/die_temperature`` (the
+    die's sensor, which reads the model's die exactly). ``variance`` is 0: "unknown" by the
+    message's definition; the model states no sensor error.
+    """
+    msg = Temperature()
+    msg.header.stamp = ns_to_stamp(t_ns)
+    msg.header.frame_id = frame_id
+    msg.temperature = float(kelvin) - ZERO_CELSIUS_K
+    msg.variance = 0.0
     return msg
 
 

@@ -76,7 +76,8 @@ Parameter handling
 
 Inputs and the simulation time they act at
     See :mod:`ring_gyro_sim.run`: the current simulation time is the end of the last
-    published block; ``~/shock``, ``~/base_acceleration`` and ``~/angular_rate`` act at their
+    published block; ``~/shock``, ``~/base_acceleration``, ``~/angular_rate`` and
+    ``~/temperature`` (sensor_msgs/Temperature, Celsius; the ambient, K in the run) act at their
     stamp (a zero stamp: now; up to one block late: now; older: refused; beyond
     ``inputs.horizon`` ahead: refused), ``~/drive/*``, ``~/reset`` and parameter changes now.
     ``~/angular_rate`` is always subscribed; without ``gyro.enabled`` the run refuses it
@@ -107,7 +108,9 @@ QoS
     ``/diagnostics`` and ``/clock``: reliable, keep last 10. The gyroscope (``gyro.enabled``;
     the publishers exist only then): ``~/demodulator`` as the block topics, ``~/rate``
     (sensor_msgs/Imu, one message per rate sample, paced: above) reliable, keep last 500;
-    ``~/angular_rate`` reliable, keep last 1000. The closed loop
+    ``~/angular_rate`` reliable, keep last 1000; ``~/die_temperature`` (sensor_msgs/Temperature,
+    one per block) reliable, keep last 10. ``~/temperature``: reliable, keep last 100. The
+    closed loop
     (``control.drive_loop: closed``; the publisher exists only then): ``~/control``, the
     loops' updates (one row per update, at ``control.rate``), as the block topics
     (:mod:`ring_gyro_sim.ros.qos`).
@@ -151,7 +154,7 @@ from ring_gyro_sim.ros.recorder import RunRecorder
 from ring_gyro_sim.ros.sinks import Publishers, RosSink
 from ring_gyro_sim.ros.throttle import ThrottledWarnings
 from rosgraph_msgs.msg import Clock as ClockMsg
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, Temperature
 from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 # isort: on
@@ -209,6 +212,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         for name in parameters.unknown_overrides(self):
             log.warn(f'ignoring {name!r}: not a parameter of ring_gyro_sim')
         fqn = self.get_fully_qualified_name()
+        die_pub = None
         self.block_pubs = {name: self.create_publisher(Float64MultiArray, f'~/{name}',
                                                        qos.BLOCK_QOS)
                            for name in conversions.OUTPUT_TOPICS}
@@ -219,6 +223,9 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
             self.rate_pacer = RatePacer(
                 self.create_publisher(Imu, f'~/{conversions.RATE_TOPIC}', qos.RATE_QOS),
                 self._rate_due_s, self._rate_spacing_s)
+            die_pub = self.create_publisher(Temperature,
+                                            f'~/{conversions.DIE_TEMPERATURE_TOPIC}',
+                                            qos.DIE_TEMPERATURE_QOS)
         if config.control.closed:
             name = conversions.CONTROL_TOPIC
             self.block_pubs[name] = self.create_publisher(Float64MultiArray, f'~/{name}',
@@ -238,7 +245,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
                 raise ParameterError(f'record.path: {exc}') from None
         self.sink = RosSink(names, fqn, recorder=recorder,
                             publishers=Publishers(self.block_pubs, self.diag_pub, clock_pub,
-                                                  self.rate_pacer),
+                                                  self.rate_pacer, die_pub),
                             stamp_ns=lambda: self.get_clock().now().nanoseconds,
                             frame_id=config.gyro.frame_id)
         block_samples = max(1, int(round(config.run.block_duration * config.run.output_rate)))
@@ -264,6 +271,8 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
             self._input(Float64, 'drive/frequency', self._on_drive_frequency, qos.DRIVE_QOS),
             self._input(Vector3Stamped, conversions.ANGULAR_RATE_TOPIC, self._on_angular_rate,
                         qos.ANGULAR_RATE_QOS),
+            self._input(Temperature, conversions.TEMPERATURE_TOPIC, self._on_temperature,
+                        qos.TEMPERATURE_QOS),
         ]
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -558,6 +567,10 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         r = conversions.angular_rate_input(msg)
         if self._apply(run_mod.AngularRate(z=r.z, x=r.x, y=r.y, at_ns=r.at_ns)):
             self._warn_xy(conversions.ANGULAR_RATE_TOPIC, r.x, r.y)
+
+    def _on_temperature(self, msg: Temperature) -> None:
+        t = conversions.temperature_input(msg)
+        self._apply(run_mod.AmbientTemperature(kelvin=t.kelvin, at_ns=t.at_ns))
 
     def _on_drive_amplitude(self, msg: Float64) -> None:
         self._apply(run_mod.DriveAmplitude(float(msg.data)))

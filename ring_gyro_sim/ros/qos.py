@@ -57,7 +57,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 __all__ = [
     'ANGULAR_RATE_QOS', 'BASE_ACCELERATION_QOS', 'BLOCK_QOS', 'CLOCK_QOS', 'DIAGNOSTICS_QOS',
-    'DRIVE_QOS', 'EVENTS_QOS', 'RATE_QOS', 'SHOCK_QOS', 'TOPIC_QOS', 'recorded_qos',
+    'DIE_TEMPERATURE_QOS', 'DRIVE_QOS', 'EVENTS_QOS', 'RATE_QOS', 'SHOCK_QOS',
+    'TEMPERATURE_QOS', 'TOPIC_QOS', 'recorded_qos',
 ]
 
 
@@ -86,6 +87,10 @@ EVENTS_QOS = _reliable_keep_last(10)
 RATE_QOS = _reliable_keep_last(500)
 #: ``~/angular_rate`` subscription (a streamed profile comes in bursts).
 ANGULAR_RATE_QOS = _reliable_keep_last(1000)
+#: ``~/temperature`` subscription (an ambient profile may come in bursts).
+TEMPERATURE_QOS = _reliable_keep_last(100)
+#: ``~/die_temperature`` (sensor_msgs/Temperature, one message per block).
+DIE_TEMPERATURE_QOS = _reliable_keep_last(10)
 
 #: QoS of every topic, by the name the node uses (relative to its namespace, or absolute).
 TOPIC_QOS: Dict[str, QoSProfile] = {
@@ -104,6 +109,8 @@ TOPIC_QOS: Dict[str, QoSProfile] = {
     'rate': RATE_QOS,
     'angular_rate': ANGULAR_RATE_QOS,
     'control': BLOCK_QOS,
+    'temperature': TEMPERATURE_QOS,
+    'die_temperature': DIE_TEMPERATURE_QOS,
 }
 
 

@@ -130,6 +130,7 @@ INPUT_TOPICS = {
     'events/reset': 'std_msgs/msg/Empty',
     'events/parameters': 'std_msgs/msg/String',
     conversions.ANGULAR_RATE_TOPIC: 'geometry_msgs/msg/Vector3Stamped',
+    conversions.TEMPERATURE_TOPIC: 'sensor_msgs/msg/Temperature',
 }
 RATE_TYPE = 'sensor_msgs/msg/Imu'
 #: Block topics, by the name ``record.topics`` takes (decimated by ``record.decimation``,
@@ -140,6 +141,7 @@ BLOCK_TOPICS = conversions.OUTPUT_TOPICS + (conversions.DEMODULATOR_TOPIC,
 UNDECIMATED_BLOCK_TOPICS = (conversions.CONTROL_TOPIC,)
 OTHER_TOPICS = {
     conversions.RATE_TOPIC: RATE_TYPE,
+    conversions.DIE_TEMPERATURE_TOPIC: 'sensor_msgs/msg/Temperature',
     '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
     '/clock': 'rosgraph_msgs/msg/Clock',
 }
@@ -150,7 +152,7 @@ RECORDABLE_TOPICS = {**{name: BLOCK_TYPE for name in BLOCK_TOPICS},
 ALWAYS_RECORDED = tuple(INPUT_TOPICS)
 #: The topics of the gyroscope: recorded only with ``gyro.enabled``.
 GYRO_TOPICS = (conversions.DEMODULATOR_TOPIC, conversions.RATE_TOPIC,
-               conversions.ANGULAR_RATE_TOPIC)
+               conversions.ANGULAR_RATE_TOPIC, conversions.DIE_TEMPERATURE_TOPIC)
 #: The topics of the closed loop: recorded only with ``control.drive_loop: closed``.
 CONTROL_TOPICS = (conversions.CONTROL_TOPIC,)
 
@@ -654,6 +656,18 @@ class RunRecorder:
                                  f'gyro.enabled (not recorded)')
         self._input(conversions.ANGULAR_RATE_TOPIC, at_ns, conversions.angular_rate_message,
                     at_ns, z, x, y, self.config.gyro.frame_id)
+
+    def temperature(self, at_ns: int, kelvin: float) -> None:
+        """Record the ambient, in K, that acts from ``at_ns`` on (``~/temperature``)."""
+        self._input(conversions.TEMPERATURE_TOPIC, at_ns, conversions.temperature_message,
+                    at_ns, kelvin)
+
+    def die_temperature(self, msg, t_ns: int) -> None:
+        """Record a ``~/die_temperature`` message at ``t_ns`` (gyroscope only)."""
+        self._advance(t_ns)
+        topic = self._topics.get(conversions.DIE_TEMPERATURE_TOPIC)
+        if topic is not None:
+            self._put(topic, msg, t_ns)
 
     def drive(self, at_ns: int, amplitude: Optional[float] = None,
               frequency_hz: Optional[float] = None) -> None:

@@ -83,6 +83,12 @@ class NullRecorder:
     def rate(self, messages) -> None:
         """Do nothing."""
 
+    def temperature(self, at_ns: int, kelvin: float) -> None:
+        """Do nothing."""
+
+    def die_temperature(self, msg, t_ns: int) -> None:
+        """Do nothing."""
+
     def drive(self, at_ns: int, amplitude=None, frequency_hz=None) -> None:
         """Do nothing."""
 
@@ -119,11 +125,17 @@ class Publishers:
     publishes_blocks = True
 
     def __init__(self, blocks: Mapping[str, object], diagnostics, clock=None,
-                 rate=None) -> None:
+                 rate=None, die_temperature=None) -> None:
         self._blocks = dict(blocks)
         self._diagnostics = diagnostics
         self._clock = clock
         self._rate = rate
+        self._die_temperature = die_temperature
+
+    def die_temperature(self, msg) -> None:
+        """Publish ``~/die_temperature`` (gyroscope only)."""
+        if self._die_temperature is not None:
+            self._die_temperature.publish(msg)
 
     def rate(self, messages) -> None:
         """
@@ -160,6 +172,9 @@ class NullPublishers:
         """Do nothing."""
 
     def rate(self, messages) -> None:
+        """Do nothing."""
+
+    def die_temperature(self, msg) -> None:
         """Do nothing."""
 
     def clock(self, msg) -> None:
@@ -247,6 +262,8 @@ class RosSink(run_mod.Sink):
             rec.parameters(t, event.changes)
         elif isinstance(event, run_mod.AngularRate):
             rec.angular_rate(t, event.z, event.x, event.y)
+        elif isinstance(event, run_mod.AmbientTemperature):
+            rec.temperature(t, event.kelvin)
 
     def rate_messages(self, rate):
         """Return ``[(t_ns, Imu)]`` of a block's rate samples (``~/rate``)."""
@@ -280,6 +297,12 @@ class RosSink(run_mod.Sink):
             rate = self.rate_cdr(block.rate) if thinned else self.rate_messages(block.rate)
             self.publishers.rate(rate)
             self.recorder.rate(rate)
+            if block.samples.die_temperature is not None:  # the die's sensor, at the end
+                die = conversions.temperature_message(block.end_ns,
+                                                      block.samples.die_temperature,
+                                                      self.frame_id)
+                self.publishers.die_temperature(die)
+                self.recorder.die_temperature(die, block.end_ns)
         if block.demod is not None:
             msgs[conversions.DEMODULATOR_TOPIC] = conversions.demodulator_block(block.demod,
                                                                                 rows, build)

@@ -43,7 +43,7 @@ import pytest
 from rclpy.qos import ReliabilityPolicy
 from ring_gyro_sim.recording.reader import decode, read_messages, read_rate
 from ring_gyro_sim.ros import conversions
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, Temperature
 from std_msgs.msg import Float64MultiArray
 # isort: on
 
@@ -135,6 +135,45 @@ def test_a_resonator_node_refuses_angular_rates_and_has_no_rate_output(ros, tmp_
     # One warning for the three (throttled per topic and kind of reason).
     assert log.count('rejected ~/angular_rate') == 1, log[-3000:]
     assert not probe.rate and not probe.demod
+
+
+class ThermalProbe(Probe):
+    """The harness probe, also publishing ``~/temperature``, on ``~/die_temperature``."""
+
+    def __init__(self):
+        super().__init__()
+        self.die = []
+        self.create_subscription(Temperature, f'{NS}/die_temperature', self.die.append, 100)
+        self.temperature_pub = self.create_publisher(Temperature, f'{NS}/temperature', 10)
+
+    def ambient(self, celsius):
+        self.temperature_pub.publish(Temperature(temperature=float(celsius)))
+
+
+def test_the_ambient_on_its_topic_moves_the_die_sensor_and_is_recorded(ros, tmp_path):
+    # thermal.time_constant 0: the die is the ambient (T1), so the die's sensor reads the
+    # step at the next block. -200 degrees C (73.15 K) is outside 150-500 K: refused, counted.
+    path = tmp_path / 'thermal.mcap'
+    node = start_node(tmp_path, {**GYRO, 'thermal.time_constant': 0.0,
+                                 'record.path': str(path)})
+    with connected(node, ThermalProbe) as probe:
+        probe.spin_until(lambda: probe.temperature_pub.get_subscription_count() > 0
+                         and probe.die, 20.0, 'the ~/temperature subscription and the die')
+        assert probe.die[0].temperature == pytest.approx(25.0, abs=1e-9)  # the reference
+        assert probe.die[0].header.frame_id == 'gyro_link'
+        probe.ambient(35.0)
+        probe.ambient(-200.0)
+        probe.spin_until(lambda: abs(probe.die[-1].temperature - 35.0) < 1e-9, 20.0,
+                         'the die at 35 degrees C')
+        counted(probe, 'rejected_temperature', 1)
+        stop(node)
+    acted = [decode(m) for m in read_messages(path, f'{NS}/temperature')]
+    assert [m.temperature for m in acted] == [pytest.approx(35.0, abs=1e-12)]
+    die = [(m.log_time_ns, decode(m).temperature)
+           for m in read_messages(path, f'{NS}/die_temperature')]
+    step_ns = next(m.log_time_ns for m in read_messages(path, f'{NS}/temperature'))
+    assert all(c == pytest.approx(25.0 if t <= step_ns else 35.0, abs=1e-9) for t, c in die)
+    assert die[-1][1] == pytest.approx(35.0, abs=1e-9)
 
 
 def test_rate_output_end_to_end(ros, tmp_path):

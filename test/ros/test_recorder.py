@@ -213,6 +213,8 @@ def test_recorded_qos_is_the_qos_module(tmp_path):
                        # Gyroscope: a block topic; 50 blocks of 10 rate samples (1 kHz rate
                        # output in 10 ms blocks); a rate profile streamed like base_acceleration.
                        'demodulator': 50, 'rate': 500, 'angular_rate': 1000,
+                       # The die's sensor, one per block; the ambient, a few steps at once.
+                       'die_temperature': 10, 'temperature': 100,
                        # Closed loop: a block topic (its updates in each block).
                        'control': 50}
     assert sorted(expected_depths) == sorted(RECORDABLE_TOPICS)
@@ -294,13 +296,13 @@ def test_empty_record_topics_means_every_topic():
     assert '/clock' not in recorded_topic_names([], NS, publish_clock=False)
     # Without gyro.enabled the node has no gyroscope topics, so no recording holds them; nor
     # ~/control without the closed loop.
+    gyro_only = ('demodulator', 'rate', 'angular_rate', 'die_temperature')
     assert recorded_topic_names([], NS) == [
-        n for n in RECORDABLE_TOPICS if n not in ('demodulator', 'rate', 'angular_rate',
-                                                  'control')]
+        n for n in RECORDABLE_TOPICS if n not in (*gyro_only, 'control')]
     assert recorded_topic_names([], NS, gyro=True) == [n for n in RECORDABLE_TOPICS
                                                        if n != 'control']
     assert recorded_topic_names([], NS, control=True) == [
-        n for n in RECORDABLE_TOPICS if n not in ('demodulator', 'rate', 'angular_rate')]
+        n for n in RECORDABLE_TOPICS if n not in gyro_only]
     assert recorded_topic_names(['control', '~/radial_gap'], NS) == [
         'radial_gap', *RESONATOR_INPUTS]
     assert recorded_topic_names([f'{NS}/control'], NS, control=True) == [
