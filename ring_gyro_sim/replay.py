@@ -287,7 +287,7 @@ def _publish(path, rate, clock, topics, discovery_wait_s, node_name, max_gap_s, 
     result = ReplayResult(published=0, total=total)
     try:
         import rclpy
-        from rclpy.executors import ExternalShutdownException
+        from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
         from rclpy.qos import QoSProfile, ReliabilityPolicy
         from rclpy.signals import SignalHandlerOptions
 
@@ -303,10 +303,15 @@ def _publish(path, rate, clock, topics, discovery_wait_s, node_name, max_gap_s, 
     wanted = set(topics) if topics else None
     types = {t: name for t, name in read_topics(path).items() if wanted is None or t in wanted}
     # Our own handlers (above), not rclpy's: those would shut the context down under a publish.
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    # A context of its own: a process that already runs ROS (a test, an application calling
+    # replay()) keeps its global context untouched.
+    context = rclpy.Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
-        node = rclpy.create_node(node_name)
+        node = rclpy.create_node(node_name, context=context)
+        executor = SingleThreadedExecutor(context=context)  # node.executor is a weak reference
+        executor.add_node(node)
         qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         # Every publisher before the discovery wait, so that no topic's first message is lost.
         publishers = {t: node.create_publisher(message_class(name), t, qos)
@@ -357,7 +362,7 @@ def _publish(path, rate, clock, topics, discovery_wait_s, node_name, max_gap_s, 
     finally:
         if node is not None:
             node.destroy_node()
-        rclpy.try_shutdown()
+        context.try_shutdown()
     result.stopped_by = stop.signal
     return result
 
@@ -408,11 +413,10 @@ def _discover(node, publishers, discovery_wait_s: float, wait_for_subscribers_s:
 
 def _spin_for(node, seconds: float, stop, done=lambda: False) -> bool:
     """Serve the node's events for ``seconds`` or until ``done()``; False on a signal."""
-    import rclpy
     end = time.monotonic() + seconds
     while time.monotonic() < end and not done():
         if stop.signal:
             return False
-        rclpy.spin_once(node, timeout_sec=min(SIGNAL_LATENCY_S, max(end - time.monotonic(),
-                                                                    0.0)))
+        node.executor.spin_once(timeout_sec=min(SIGNAL_LATENCY_S,
+                                                max(end - time.monotonic(), 0.0)))
     return not stop.signal

@@ -27,6 +27,7 @@ was within 14 ms of its schedule. The replay's contract (replay.py, "Timing"): a
 deadlines, a stall of the host costs lateness once and is caught up, nothing accumulates.
 """
 
+import json
 import os
 import pathlib
 import random
@@ -615,3 +616,23 @@ def test_a_stall_is_caught_up(long_recording):
     note = re.search(r'latest publication ([0-9.e+]+) ms after its deadline', got.stderr)
     assert note, got.stderr
     assert float(note.group(1)) * 1e-3 > 0.9 * STALL_S - BLOCK_S
+
+
+def test_replay_in_a_process_that_runs_ros_leaves_its_context_alone(
+        recording, monkeypatch, capsys):
+    # replay() called from a process whose global context is up (a test session, an
+    # application) refused with 'Context.init() must only be called once', and its
+    # try_shutdown would have shut the caller's context down: it has a context of its own.
+    monkeypatch.setenv('ROS_DOMAIN_ID', str(DOMAIN_ID))
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    started = not rclpy.ok()
+    if started:
+        rclpy.init()
+    try:
+        assert cli.main(['replay', str(recording), '--rate', '1000', '--topics',
+                         f'{NS}/modal_displacement']) == 0
+        assert json.loads(capsys.readouterr().out)['published'] > 0
+        assert rclpy.ok()
+    finally:
+        if started:
+            rclpy.try_shutdown()
