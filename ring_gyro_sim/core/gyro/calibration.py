@@ -22,7 +22,7 @@ at the factory, and the sensor then applies that number whatever happens to the 
     rate = r / S - b,   quadrature = r_q / S                                       (K1)
 
 ``r, r_q`` the readout (the sense demodulator's in-phase and quadrature outputs over the
-drive pick-off's amplitude relative to its value at the start, V, open loop; the in-phase and
+drive pick-off's amplitude relative to its amplitude at zero rate, V, open loop; the in-phase and
 quadrature rebalance forces, m/s^2, with ``control.rebalance``; both through the output
 low-pass), ``S`` the scale factor (readout per rad/s), ``b`` the bias (rad/s).
 
@@ -48,20 +48,22 @@ The factory procedure (K2)
     Each rate is a run that starts on its drive orbit with the sense mode's steady response
     to it (``operating_point.start_state``), settles for
     :data:`FACTORY_SETTLE_TIME_CONSTANTS` time constants ``1 / (2 pi f)`` of the slowest of
-    the output filter, the rebalance loop and, closed loop, the AGC and the PLL (the AGC's
-    32 ms at 5 Hz: the start's drive force is that of the open-loop orbit, 3 % off the
-    locked one), at least :data:`FACTORY_MIN_SETTLE_S`, and is averaged over
-    :data:`FACTORY_AVERAGE_S`: 1.6 simulated s for the default gyroscope, 0.75 s for the open
-    loops of ``config/gyro.yaml``. The open-loop sense mode's own time constant (1.3 s at the
-    default Q) is not waited for: started in its steady response, that readout reads
-    10 deg/s at 0.3 s within 1e-4 of its value at 3 s, and wanders by 1e-4 over 8 s on its
-    own. A device is calibrated at ``thermal.reference_temperature`` whatever the run's
-    ambient, once: :func:`factory` keeps it in this process and, as a part keeps its
-    calibration in its memory, in a file (``$RING_GYRO_SIM_CACHE``, default
-    ``~/.cache/ring_gyro_sim``, ``calibration-<key>.json``; an empty variable keeps none),
-    keyed by the SHA-256 of the configuration that matters and of the source of
-    ``ring_gyro_sim.core``, so that a changed model measures again. A file that cannot be
-    read or written is ignored.
+    the output filter, the rebalance loop and, closed loop, the AGC and the PLL (at least
+    :data:`FACTORY_MIN_SETTLE_S`), and is then averaged over windows of
+    :data:`FACTORY_AVERAGE_S` until two in a row agree within :data:`FACTORY_TOLERANCE` of
+    the reading: the loops together are slower than each one's bandwidth says (on the
+    default gyroscope the reading's transient decays tenfold per 0.2 s, a 87 ms time
+    constant against the AGC's 32 ms), and the open-loop drive and sense modes ring down
+    with their own 1.3 s. 3.0 simulated s for the default gyroscope (about 3.6 s of CPU),
+    28.6 s for the open loops of ``config/gyro.yaml`` (12 s of CPU); at 313.15 K the table
+    then reads the scale factor the temperature laws give within 0.13 % (after 10 time
+    constants alone it was 3.5 % off). A device is calibrated at
+    ``thermal.reference_temperature`` whatever the run's ambient, once: :func:`factory`
+    keeps it in this process and, as a part keeps its calibration in its memory, in a file
+    (``$RING_GYRO_SIM_CACHE``, default ``~/.cache/ring_gyro_sim``, ``calibration-<key>.json``;
+    an empty variable keeps none), keyed by the SHA-256 of the configuration that matters
+    and of the source of ``ring_gyro_sim.core``, so that a changed model measures again. A
+    file that cannot be read or written is ignored.
 
 Temperature compensation (K3)
     ``b(T) = b + sum_i b_i dT^i``, ``S(T) = S (1 + sum_i s_i dT^i)``, ``dT = T - T_ref``,
@@ -85,6 +87,7 @@ from pathlib import Path
 import tempfile
 import threading
 from typing import Any, Callable, Dict, Optional, Tuple
+import warnings
 
 import numpy as np
 from ring_gyro_sim.core.errors import SimulationError
@@ -100,7 +103,15 @@ FACTORY_SETTLE_TIME_CONSTANTS = 10.0
 FACTORY_MIN_SETTLE_S = 0.05
 """Shortest settling (s): the output filter and the loops' start."""
 FACTORY_AVERAGE_S = 0.2
-"""Length of each table rate's average, s."""
+"""Length of each table rate's averaging window, s."""
+FACTORY_TOLERANCE = 1e-7
+"""
+A table rate has settled when two successive windows' means differ by at most this fraction
+of the reading (of the +-W readings for the zero rate): the loops' slowest transient decays
+tenfold per window on the default gyroscope, so what is left is about a tenth of it.
+"""
+FACTORY_MAX_S = 20.0
+"""Longest a table rate runs, s."""
 FACTORY_MEMO_SIZE = 16
 
 
@@ -367,33 +378,62 @@ def _table(bench: SimConfig, log: Optional[Callable[[str], None]],
     ``V_ref`` is the open-loop readout's drive pick-off amplitude (K1): ``reference_v`` when
     given (the part's trim, held over the temperature series), else the one at rate 0, which
     the runs at +-W keep (their operating points are lower: the pair's response to the rate).
+    The runs at +-W go first: the zero-rate run settles to a fraction of their reading.
     """
     from ring_gyro_sim.core import thermal
     from ring_gyro_sim.core.gyro import operating_point
     from ring_gyro_sim.core.simulator import Simulator
-    readings = {}
+    sims = {}
     for rate in (0.0, FACTORY_RATE, -FACTORY_RATE):
         cfg = replace(bench, run=replace(bench.run, rate_values=(rate,)))
         state = operating_point.start_state(thermal.start_state_device(cfg))
         raw = Calibration('given', 0.0, 1.0, readout_unit(bench),
                           readout_reference_v=reference_v)
-        sim = Simulator(cfg, state, calibration=raw)
+        sims[rate] = Simulator(cfg, state, calibration=raw)
         if rate == 0.0 and not reference_v and not bench.control.rebalance:
-            reference_v = sim.sense.electronics.readout_reference_v
-        tau = 1.0 / (2.0 * math.pi * min(_bandwidths_hz(cfg)))
-        settle = max(FACTORY_SETTLE_TIME_CONSTANTS * tau, FACTORY_MIN_SETTLE_S)
-        if rate == 0.0 and log is not None:
-            log(f'calibrating the device on a simulated rate table at '
-                f'{sim.device_temperature:.2f} K (0, +-10 deg/s, '
-                f'{3.0 * (settle + FACTORY_AVERAGE_S):.3g} simulated s)')
-        per_block = cfg.run.block_samples
-        blocks = int(math.ceil((settle + FACTORY_AVERAGE_S) * cfg.run.output_rate / per_block))
-        values, times = [], []
-        for _ in range(blocks):
-            samples = sim.advance_samples(per_block)
-            values.append(samples.rate_output.rate)
-            times.append(samples.rate_output.t)
-        t, r = np.concatenate(times), np.concatenate(values)
-        readings[rate] = float(np.mean(r[t > t[-1] - FACTORY_AVERAGE_S]))
-    scale = (readings[FACTORY_RATE] - readings[-FACTORY_RATE]) / (2.0 * FACTORY_RATE)
-    return scale, readings[0.0], float(reference_v)
+            reference_v = sims[rate].sense.electronics.readout_reference_v
+    if log is not None:
+        log(f'calibrating the device on a simulated rate table at '
+            f'{sims[0.0].device_temperature:.2f} K (0, +-10 deg/s, each until it settles)')
+    plus = _settled_reading(sims[FACTORY_RATE], None)
+    minus = _settled_reading(sims[-FACTORY_RATE], None)
+    zero = _settled_reading(sims[0.0], 0.5 * (abs(plus) + abs(minus)))
+    return (plus - minus) / (2.0 * FACTORY_RATE), zero, float(reference_v)
+
+
+def _settled_reading(sim, scale: Optional[float]) -> float:
+    """
+    Return a table run's settled reading: the mean of its first window that the next confirms.
+
+    After the settling of :func:`_bandwidths_hz` (:data:`FACTORY_SETTLE_TIME_CONSTANTS` time
+    constants, at least :data:`FACTORY_MIN_SETTLE_S`), means over successive windows of
+    :data:`FACTORY_AVERAGE_S` until two in a row differ by at most
+    :data:`FACTORY_TOLERANCE` of ``scale`` (None: of the reading), the later one returned;
+    at most :data:`FACTORY_MAX_S` (then a RuntimeWarning says how far it was).
+    """
+    cfg = sim.config
+    per_block = cfg.run.block_samples
+    rate_hz = cfg.run.output_rate
+    tau = 1.0 / (2.0 * math.pi * min(_bandwidths_hz(cfg)))
+    settle = max(FACTORY_SETTLE_TIME_CONSTANTS * tau, FACTORY_MIN_SETTLE_S)
+
+    def mean_over(seconds: float) -> float:
+        values = [sim.advance_samples(per_block).rate_output.rate
+                  for _ in range(int(math.ceil(seconds * rate_hz / per_block)))]
+        return float(np.mean(np.concatenate(values)))
+    mean_over(settle)
+    previous = mean_over(FACTORY_AVERAGE_S)
+    elapsed = settle + FACTORY_AVERAGE_S
+    while True:
+        current = mean_over(FACTORY_AVERAGE_S)
+        elapsed += FACTORY_AVERAGE_S
+        change = abs(current - previous)
+        if change <= FACTORY_TOLERANCE * abs(current if scale is None else scale):
+            return current
+        if elapsed >= FACTORY_MAX_S:
+            warnings.warn(f'gyro.calibration: the factory table did not settle within '
+                          f'{FACTORY_MAX_S:g} s (its last windows differ by {change:.3g}); '
+                          f'the calibration takes the last', RuntimeWarning, stacklevel=3)
+            return current
+        previous = current
+
