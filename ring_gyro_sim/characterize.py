@@ -190,6 +190,11 @@ class Plan:
         The rate during the shock runs (deg/s), the shock's start and the record after it (s).
     bootstrap : int
         Records of the ARW's parametric bootstrap.
+    temperature_points_k : tuple of float
+        Die temperatures of the temperature series (K): a factory table at each.
+    compensation_points_k : tuple of float
+        Where the compensation (K3) is fitted, with the reference, unless the file gives
+        ``gyro.calibration.temperature_points``.
 
     """
 
@@ -205,6 +210,8 @@ class Plan:
     shock_at_s: float
     shock_after_s: float
     bootstrap: int
+    temperature_points_k: Tuple[float, ...] = (263.15, 283.15, 298.15, 313.15, 333.15)
+    compensation_points_k: Tuple[float, ...] = (273.15, 323.15)
 
     @property
     def simulated_s(self) -> float:
@@ -221,7 +228,8 @@ FULL = Plan(zero_rate_s=310.0, zero_rate_skip_s=10.0, step_rate_dps=10.0, step_s
 QUICK = Plan(zero_rate_s=8.0, zero_rate_skip_s=2.0, step_rate_dps=10.0, step_s=2.5,
              rate_points_dps=(-300.0, -100.0, 0.0, 100.0, 300.0), rate_point_s=0.5,
              rate_average_s=0.4, shock_peaks_g=(1000.0, 10000.0), shock_rate_dps=10.0,
-             shock_at_s=0.2, shock_after_s=0.6, bootstrap=200)
+             shock_at_s=0.2, shock_after_s=0.6, bootstrap=200,
+             temperature_points_k=(283.15, 313.15))
 """``--quick``: 17.8 simulated s with the three loop modes (short records; the tests)."""
 
 
@@ -306,7 +314,7 @@ def _test_parameters(flat: Mapping[str, Any], duration_s: float,
 
 # ----------------------------------------------------------------------------- runs
 class _Trace(Sink):
-    """Keeps the rate output, the applied rate and the drive pick-off at every rate sample."""
+    """Keeps the rate output, the applied rate, the drive pick-off and the quadrature."""
 
     def __init__(self) -> None:
         self.parts: List[Tuple[np.ndarray, ...]] = []
@@ -318,12 +326,12 @@ class _Trace(Sink):
         s = block.samples
         at = np.clip(np.searchsorted(s.t, rate.t), 0, len(s) - 1)
         drive = np.hypot(block.demod.values[at, 2], block.demod.values[at, 3])
-        self.parts.append((rate.t, rate.rate, s.applied_rate[at], drive))
+        self.parts.append((rate.t, rate.rate, s.applied_rate[at], drive, rate.quadrature))
 
     def arrays(self) -> Tuple[np.ndarray, ...]:
         if not self.parts:
-            return tuple(np.zeros(0) for _ in range(4))
-        return tuple(np.concatenate([p[k] for p in self.parts]) for k in range(4))
+            return tuple(np.zeros(0) for _ in range(5))
+        return tuple(np.concatenate([p[k] for p in self.parts]) for k in range(5))
 
 
 @dataclass
@@ -334,6 +342,7 @@ class _Record:
     rate: np.ndarray
     applied: np.ndarray
     drive: np.ndarray
+    quadrature: np.ndarray
     scale_factor: float
     drive_amplitude_m: float
     electronics: Any
@@ -383,9 +392,9 @@ def _simulate(values: Mapping[str, Any], duration_s: float, bar: _Bar, note: str
     finally:
         run.close()
     bar.finish_run(duration_s)
-    t, rate, applied, drive = trace.arrays()
+    t, rate, applied, drive, quadrature = trace.arrays()
     el = run.sim.sense.electronics
-    return _Record(t=t, rate=rate, applied=applied, drive=drive,
+    return _Record(t=t, rate=rate, applied=applied, drive=drive, quadrature=quadrature,
                    scale_factor=float(el.scale_factor),
                    drive_amplitude_m=float(el.drive_amplitude_m), electronics=el,
                    summary=summary, config=config)
@@ -697,9 +706,12 @@ def characterize(params_path: str, out_dir: str, quick: bool = False,
         table = _rate_table(flat, plan, bar, drift)
         shocks = [_shock(flat, plan, bar, peak, loop)
                   for loop in loops for peak in plan.shock_peaks_g]
+        owned = _owned_device(flat, plan, bar)
     finally:
         bar.close()
     sheet = _assemble(params_path, flat, plan, quick, loops, drift, table, shocks)
+    sheet.update(owned)
+    sheet['white_noise'] = _white_noise(sheet)
     sheet['files'] = _write(out, sheet, drift, table, shocks, loops)
     sheet['wall_time_s'] = time.monotonic() - wall0
     sheet['cpu_time_s'] = time.process_time() - cpu0
@@ -800,6 +812,97 @@ def _shock(flat, plan: Plan, bar: _Bar, peak_g: float, loop: str) -> Dict[str, A
             **drive, 'rate_deg_per_s': plan.shock_rate_dps, 'shock_at_s': plan.shock_at_s,
             'record_after_s': plan.shock_after_s,
             '_series': (rec.t - plan.shock_at_s, rec.rate - rec.applied, rec.applied)}
+
+
+def _owned_device(flat, plan: Plan, bar: _Bar) -> Dict[str, Any]:
+    """
+    Return the calibration and temperature entries: the device as owned (factory, K1-K3).
+
+    The factory's calibration at the reference (its bias: the zero-rate output it removes),
+    the quadrature the held calibration reads at zero rate (noise off, the last
+    ``rate_average_s`` of a ``rate_point_s`` run), and the temperature series: the table
+    (K2) at each of ``temperature_points_k`` with the reference's calibration held, without
+    and with the compensation fitted at ``compensation_points_k`` (or the file's
+    ``gyro.calibration.temperature_points``).
+    """
+    from ring_gyro_sim.core.gyro import calibration
+    values = {k: v for k, v in flat.items() if not k.startswith('scenario.')}
+    values.update({'gyro.calibration.source': 'factory', 'gyro.temperature': 0.0,
+                   'gyro.input_noise_density': 0.0, 'gyro.bias_instability': 0.0})
+    fit_points = list(values.get('gyro.calibration.temperature_points') or ())
+    if not fit_points:
+        fit_points = list(plan.compensation_points_k)
+        values['gyro.calibration.temperature_points'] = fit_points
+    bar.note('the device as owned: its factory calibration and temperature series')
+    config = build_config(values)
+    held = calibration.factory(config)
+    record = _simulate(dict(values, **{'duration': plan.rate_point_s}), plan.rate_point_s,
+                       bar, 'quadrature at zero rate')
+    window = record.t > record.t[-1] - plan.rate_average_s
+    quadrature = float(np.mean(record.quadrature[window]))
+    reference = held.reference_temperature
+    bias0, scale0 = held.at(None)
+    rows = []
+    for kelvin in plan.temperature_points_k:
+        bar.note(f'temperature series: the table at {kelvin - 273.15:g} deg C')
+        scale_t, zero_t = calibration.table_at(config, kelvin, held)
+        bias_c, scale_c = held.at(kelvin)
+        rows.append({'temperature_k': float(kelvin),
+                     'bias_deg_per_h': (zero_t / scale0 - bias0) * RAD_S_TO_DEG_H,
+                     'bias_compensated_deg_per_h': (zero_t / scale_c - bias_c)
+                     * RAD_S_TO_DEG_H,
+                     'scale_factor_error_ppm': (scale_t / scale0 - 1.0) * 1e6,
+                     'scale_factor_error_compensated_ppm': (scale_t / scale_c - 1.0) * 1e6})
+    d_t = np.array([r['temperature_k'] - reference for r in rows])
+
+    def slope(key):
+        y = np.array([r[key] for r in rows])
+        return float(np.polyfit(d_t, y, 1)[0]) if len(rows) >= 2 else None
+
+    def worst(key):
+        return float(max(abs(r[key]) for r in rows)) if rows else None
+    return {
+        'calibration': {
+            'source': 'factory', 'reference_temperature_k': reference,
+            'bias_deg_per_h': held.bias * RAD_S_TO_DEG_H,
+            'scale_factor': held.scale_factor, 'scale_factor_unit': f'{held.unit}/(rad/s)',
+            'quadrature_deg_per_s': quadrature / DEG,
+            'method': 'the factory rate table (0, +-10 deg/s, noise off) at the reference '
+                      'temperature; the bias is the zero-rate output the calibration '
+                      'removes, the quadrature what the held calibration reads at zero rate'},
+        'temperature': {
+            'points': rows, 'compensation_points_k': [float(t) for t in fit_points],
+            'compensation_coefficients': list(held.temperature_coefficients),
+            'bias_coefficient_deg_per_h_per_k': slope('bias_deg_per_h'),
+            'scale_factor_coefficient_ppm_per_k': slope('scale_factor_error_ppm'),
+            'largest_bias_deg_per_h': worst('bias_deg_per_h'),
+            'largest_bias_compensated_deg_per_h': worst('bias_compensated_deg_per_h'),
+            'largest_scale_factor_error_ppm': worst('scale_factor_error_ppm'),
+            'largest_scale_factor_error_compensated_ppm':
+                worst('scale_factor_error_compensated_ppm'),
+            'method': 'IEEE Std 1431 temperature test: the die steady at each temperature, '
+                      'the factory table there, read with the reference calibration held; '
+                      'coefficients: least-squares line through the points'}}
+
+
+def _white_noise(sheet) -> Dict[str, Any]:
+    """
+    Return the white rate noise in the conventions datasheets use, from the measured ARW.
+
+    The Allan variance of white rate noise is ``N^2 / tau`` (IEEE Std 952, C.1), ``N`` the
+    ARW read on the -1/2 line at tau = 1 s; its two-sided power spectral density is ``N^2``,
+    the one-sided ``2 N^2``. So the rate noise density a datasheet quotes per sqrt(Hz) is
+    ``sqrt(2) N`` one-sided, ``N`` two-sided; in deg/sqrt(h), ``60 N`` with N in deg/sqrt(s).
+    """
+    arw = sheet['arw_deg_per_sqrt_h']
+    n_deg_sqrt_s = arw / 60.0
+    return {'arw_deg_per_sqrt_h': arw,
+            'density_one_sided_deg_per_s_per_sqrt_hz': math.sqrt(2.0) * n_deg_sqrt_s,
+            'density_two_sided_deg_per_s_per_sqrt_hz': n_deg_sqrt_s,
+            'convention': 'ARW N read at tau = 1 s on the -1/2 line of the Allan deviation '
+                          '(sigma^2 = N^2 / tau, IEEE Std 952); one-sided density '
+                          'sqrt(2) N, two-sided N (deg/s/sqrt(Hz)); deg/sqrt(h) = 60 x '
+                          'deg/sqrt(s)'}
 
 
 def _assemble(path, flat, plan: Plan, quick: bool, loops, drift, table,
@@ -911,6 +1014,16 @@ def _write(out: Path, sheet, drift, table, shocks, loops) -> List[str]:
                           predicted_time_constant_s=1.0 / (2.0 * math.pi * drift[
                               'predicted_bandwidth_hz'])):
         pngs['step'] = 'step.png'
+    series = sheet['temperature']['points']
+    if len(series) >= 2 and plotting.plot_temperature_series(
+            [r['temperature_k'] - 273.15 for r in series],
+            [r['bias_deg_per_h'] for r in series],
+            [r['bias_compensated_deg_per_h'] for r in series],
+            [r['scale_factor_error_ppm'] for r in series],
+            [r['scale_factor_error_compensated_ppm'] for r in series],
+            [t - 273.15 for t in sheet['temperature']['compensation_points_k']],
+            out / 'temperature.png'):
+        pngs['temperature'] = 'temperature.png'
     panels = []
     for loop in LOOP_MODES:
         curves = [(f'{s["peak_g"]:g} g', s['_series'][0], s['_series'][1] / DEG,
@@ -1009,6 +1122,37 @@ def _markdown(sheet, pngs: Mapping[str, str]) -> str:
         f'| {a["bandwidth"]:+.2%} | {_fmt(sheet["step"]["rate_deg_per_s"])} deg/s step, '
         f'first-order fit tau = {_fmt(sheet["step"]["time_constant_s"], 4)} s '
         f'(63.2 % at {_fmt(sheet["step"]["t63_s"], 4)} s) |', '']
+    c = sheet['calibration']
+    w = sheet['white_noise']
+    th = sheet['temperature']
+    lines += ['## The device as owned: calibration, quadrature, temperature', '',
+              f'The factory calibration at {_fmt(c["reference_temperature_k"], 5)} K (a rate '
+              f'table at 0 and +-10 deg/s, noise off): bias {_fmt(c["bias_deg_per_h"], 4)} '
+              f'deg/h (the zero-rate output it removes), scale factor '
+              f'{_fmt(c["scale_factor"], 6)} {c["scale_factor_unit"]}; quadrature read at zero '
+              f'rate with it held: {_fmt(c["quadrature_deg_per_s"], 4)} deg/s. The tests above '
+              f'read the model readout; this section reads the device as a user owns it.',
+              '',
+              f'White noise: ARW {_fmt(w["arw_deg_per_sqrt_h"], 4)} deg/sqrt(h) = rate noise '
+              f'density {_fmt(w["density_one_sided_deg_per_s_per_sqrt_hz"], 4)} '
+              f'deg/s/sqrt(Hz) one-sided ({_fmt(w["density_two_sided_deg_per_s_per_sqrt_hz"], 4)}'
+              f' two-sided): {w["convention"]}.', '',
+              f'Temperature series (IEEE Std 1431): the table at each die temperature, the '
+              f'reference calibration held; the compensation (K3) fitted at '
+              f'{", ".join(_fmt(t - 273.15, 4) for t in th["compensation_points_k"])} deg C '
+              f'and the reference. Bias coefficient '
+              f'{_fmt(th["bias_coefficient_deg_per_h_per_k"], 3)} deg/h/K, scale factor '
+              f'{_fmt(th["scale_factor_coefficient_ppm_per_k"], 3)} ppm/K (least-squares '
+              f'lines).', '',
+              '| die (deg C) | bias (deg/h) | compensated | scale-factor error (ppm) | '
+              'compensated |', '|---|---|---|---|---|']
+    for r in th['points']:
+        lines.append(f'| {_fmt(r["temperature_k"] - 273.15, 4)} | '
+                     f'{_fmt(r["bias_deg_per_h"], 4)} | '
+                     f'{_fmt(r["bias_compensated_deg_per_h"], 3)} | '
+                     f'{_fmt(r["scale_factor_error_ppm"], 4)} | '
+                     f'{_fmt(r["scale_factor_error_compensated_ppm"], 3)} |')
+    lines += ['']
     lines += ['## Shock response', '',
               f'{_fmt(sheet["plan"]["shock_rate_dps"])} deg/s, half-sine along x at '
               f'{_fmt(plan["shock_at_s"])} s, recorded {_fmt(plan["shock_after_s"])} s after '
@@ -1039,7 +1183,8 @@ def _markdown(sheet, pngs: Mapping[str, str]) -> str:
                      f'{r["predicted_residual_ppm_fs"]:.0f} | '
                      f'{r["drive_amplitude_ratio"]:.4f} |')
     titles = {'allan': 'Allan deviation', 'scale_factor': 'Scale-factor error',
-              'step': 'Rate step (bandwidth)', 'shock_recovery': 'Shock recovery'}
+              'step': 'Rate step (bandwidth)', 'shock_recovery': 'Shock recovery',
+              'temperature': 'Temperature series'}
     lines.append('')
     for key, name in pngs.items():
         lines += [f'![{titles[key]}]({name})', '']

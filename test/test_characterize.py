@@ -21,6 +21,7 @@ against closed forms; and the refusals (non-gyro file, missing file, bad ``--loo
 """
 
 import contextlib
+from dataclasses import replace
 import io
 import json
 import math
@@ -84,7 +85,7 @@ def test_the_run_succeeds_and_prints_its_summary_last(quick, sheet):
     assert summary['shock_entries'] == len(sheet['shock'])
     assert set(summary['files']) == {str(out / n) for n in (
         'datasheet.json', 'datasheet.md', 'allan.png', 'scale_factor.png', 'step.png',
-        'shock_recovery.png')}
+        'shock_recovery.png', 'temperature.png')}
 
 
 def test_it_says_when_it_computes_a_start_state(quick):
@@ -316,7 +317,8 @@ def test_the_drive_figures_tell_a_drive_that_stays_down_from_one_that_returns():
     t = np.arange(1, 5001) * 1e-3  # 5 s at 1 kHz, a shock at 1 s
     back = np.where(t <= 1.0, 2.0, np.where(t < 3.0, 0.2, 2.0))
     down = np.where(t <= 1.0, 2.0, 0.2)
-    common = dict(t=t, rate=np.zeros_like(t), applied=np.zeros_like(t), scale_factor=1.0,
+    common = dict(t=t, rate=np.zeros_like(t), applied=np.zeros_like(t),
+                  quadrature=np.zeros_like(t), scale_factor=1.0,
                   drive_amplitude_m=1.0, electronics=None, summary=None, config=None)
     returns = ch._drive_figures(ch._Record(drive=back, **common), 1.0)
     assert returns['drive_ratio_end'] == pytest.approx(1.0)
@@ -334,3 +336,50 @@ def test_whole_numbers_are_written_in_full(quick):
     assert ch._fmt(10000.0) == '10 000' and ch._fmt(-300.0) == '-300'
     assert ch._fmt(3104.2, 3) == '3 104' and ch._fmt(5318.7, 3) == '5 319'
     assert ch._fmt(0.0123456) == '0.01235' and ch._fmt(15798.6, 6) == '15798.6'
+
+
+def test_the_owned_device_s_temperature_series_follows_the_laws():
+    # The default gyroscope (closed loops, force-to-rebalance, a perfect ring): its factory
+    # calibration removes no bias and reads no quadrature (the ring's symmetry), and warmer
+    # by dT its scale factor is k = (1 + alpha dT) / (1 + beta dT) of the held one (T3, T6:
+    # the NCO's omega follows the mode, the AGC holds the amplitude through amplifiers whose
+    # gain rose; test/core/test_thermal.py derives it). The compensation fitted at 0 and
+    # 50 deg C with the reference takes nearly all of it out at 10 and 40 deg C.
+    from ring_gyro_sim.core.params import build_config, to_flat
+    flat = to_flat(build_config({}))
+    plan = replace(ch.QUICK, temperature_points_k=(283.15, 313.15),
+                   compensation_points_k=(273.15, 323.15))
+    owned = ch._owned_device(flat, plan, ch._Bar(1.0, False))
+    c, th = owned['calibration'], owned['temperature']
+    assert abs(c['bias_deg_per_h']) < 1e-6 and abs(c['quadrature_deg_per_s']) < 1e-9
+    alpha, beta = -30e-6, 50e-6  # thermal.frequency_coefficient, .gain_coefficient
+    for row in th['points']:
+        d = row['temperature_k'] - 298.15
+        k = (1.0 + alpha * d) / (1.0 + beta * d)
+        print(f'{d:+.0f} K: scale factor {row["scale_factor_error_ppm"]:.1f} ppm (laws '
+              f'{(k - 1) * 1e6:.1f}), compensated {row["scale_factor_error_compensated_ppm"]:.3g}'
+              f' ppm; bias {row["bias_deg_per_h"]:.3g} deg/h')
+        assert row['scale_factor_error_ppm'] == pytest.approx((k - 1.0) * 1e6, rel=0.01)
+        assert (abs(row['scale_factor_error_compensated_ppm'])
+                < abs(row['scale_factor_error_ppm']) / 20.0)
+        assert abs(row['bias_deg_per_h']) < 1e-6
+    assert th['scale_factor_coefficient_ppm_per_k'] == pytest.approx(
+        (alpha - beta) * 1e6, rel=0.01)
+
+
+def test_the_sheet_has_the_owned_device_and_the_white_noise_convention(quick, sheet):
+    # config/gyro.yaml drives open loop at a fixed 15 800 Hz: 15 K away the mode has moved
+    # 30 ppm/K x 15 K = 7 Hz, 60 half-widths of the 0.12 Hz sense and drive resonances, and
+    # the scale factor is nearly gone (an open-loop drive does not survive temperature; the
+    # PLL of the default gyroscope follows the mode).
+    c, th, w = sheet['calibration'], sheet['temperature'], sheet['white_noise']
+    assert c['source'] == 'factory' and c['scale_factor_unit'] == 'V/(rad/s)'
+    assert [r['temperature_k'] for r in th['points']] == [283.15, 313.15]
+    assert all(r['scale_factor_error_ppm'] < -0.9e6 for r in th['points'])
+    assert w['density_one_sided_deg_per_s_per_sqrt_hz'] == pytest.approx(
+        math.sqrt(2.0) * w['density_two_sided_deg_per_s_per_sqrt_hz'], rel=1e-12)
+    assert w['density_two_sided_deg_per_s_per_sqrt_hz'] * 60.0 == pytest.approx(
+        sheet['arw_deg_per_sqrt_h'], rel=1e-12)
+    text = (quick[2] / 'datasheet.md').read_text(encoding='utf-8')
+    assert '## The device as owned' in text and 'one-sided' in text
+    assert (quick[2] / 'temperature.png').stat().st_size > 10_000

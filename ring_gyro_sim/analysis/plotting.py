@@ -906,3 +906,45 @@ def plot_shock_recovery(panels, path, band=0.01) -> bool:
     finally:
         plt.close(fig)
     return True
+
+
+def plot_temperature_series(temperature_c, bias_deg_h, bias_compensated_deg_h, scale_ppm,
+                            scale_compensated_ppm, fit_points_c, path) -> bool:
+    """
+    Save the bias and scale-factor error over a temperature series, with and without K3.
+
+    Parameters
+    ----------
+    temperature_c : sequence of float
+        The die temperatures of the series, degrees Celsius.
+    bias_deg_h, bias_compensated_deg_h : sequence of float
+        Zero-rate output with the calibration held, without and with the compensation, deg/h.
+    scale_ppm, scale_compensated_ppm : sequence of float
+        Scale-factor error against the calibration's, without and with it, ppm.
+    fit_points_c : sequence of float
+        Where the compensation was fitted (with the reference), degrees Celsius.
+    path : str or Path
+        PNG file to write.
+
+    """
+    plt = _pyplot()
+    if plt is None:
+        return False
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7.0, 6.0), sharex=True)
+    try:
+        for ax, raw, comp, unit in ((top, bias_deg_h, bias_compensated_deg_h, 'deg/h'),
+                                    (bottom, scale_ppm, scale_compensated_ppm, 'ppm')):
+            ax.plot(temperature_c, raw, 'o-', ms=4, lw=0.8, label='calibration held')
+            ax.plot(temperature_c, comp, 's--', ms=4, lw=0.8, label='with the compensation')
+            for t in fit_points_c:
+                ax.axvline(t, color='0.6', lw=0.6, ls=':')
+            ax.axhline(0.0, color='k', lw=0.5)
+            ax.grid(True, lw=0.3)
+            ax.set_ylabel(f'{"bias" if ax is top else "scale-factor error"} ({unit})')
+        top.legend(fontsize=8)
+        bottom.set_xlabel('die temperature (deg C); dotted: where the compensation was fitted')
+        top.set_title('Temperature series (IEEE Std 1431): bias and scale factor')
+        _save(plt, fig, path)
+    finally:
+        plt.close(fig)
+    return True

@@ -94,7 +94,7 @@ from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.params import build_config, SimConfig, to_flat
 
 __all__ = ['Calibration', 'FACTORY_AVERAGE_S', 'FACTORY_RATE', 'FACTORY_SETTLE_TIME_CONSTANTS',
-           'factory', 'for_config', 'given', 'readout_unit']
+           'factory', 'for_config', 'given', 'readout_unit', 'table_at']
 
 FACTORY_RATE = math.radians(10.0)
 """The rate table's rates, +-10 deg/s about 0: inside the linear range of every loop mode."""
@@ -437,3 +437,19 @@ def _settled_reading(sim, scale: Optional[float]) -> float:
             return current
         previous = current
 
+
+def table_at(config: SimConfig, kelvin: float, held: Calibration) -> Tuple[float, float]:
+    """
+    Return ``(S, r(0))`` of the factory's table (K2) on this device with its die at ``kelvin``.
+
+    The die steady at ``kelvin`` (core.thermal T3-T6), noise off, read relative to the
+    readout reference ``held`` was trimmed with (K1): a temperature test of IEEE Std 1431
+    on the device as owned. ``r(0) / S_held - b_held`` is then its zero-rate output with
+    that calibration held, ``S / S_held - 1`` its scale-factor error.
+    """
+    bench = _bench(config)
+    if kelvin != bench.thermal.reference_temperature:
+        bench = replace(bench, run=replace(bench.run, temperature_times=(0.0,),
+                                           temperature_values=(float(kelvin),)))
+    scale, zero, _ = _table(bench, None, held.readout_reference_v)
+    return scale, zero
