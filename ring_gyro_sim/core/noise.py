@@ -73,8 +73,8 @@ import numpy as np
 
 from ring_gyro_sim.core.errors import InputError
 
-__all__ = ['STREAM_BROWNIAN', 'STREAM_PICKOFF', 'STREAM_FLICKER', 'MAX_KEY_WORD', 'normals',
-           'block_normals']
+__all__ = ['STREAM_BROWNIAN', 'STREAM_PICKOFF', 'STREAM_FLICKER', 'STREAM_DEVICE',
+           'MAX_KEY_WORD', 'normals', 'block_normals']
 
 STREAM_BROWNIAN = 1
 """Thermomechanical force noise of the modes (simulator kernel): width = coordinates x steps."""
@@ -82,6 +82,8 @@ STREAM_PICKOFF = 2
 """Electronic noise of the pick-off amplifiers (core/gyro/electronics.py): width 2."""
 STREAM_FLICKER = 3
 """Flicker (bias-instability) rate noise (core/gyro/electronics.py), at the rate samples."""
+STREAM_DEVICE = 4
+"""The draw of a device from its manufacturing spread (core/device.py, D1): one row of 7."""
 
 MAX_KEY_WORD = 2 ** 64 - 1
 """Largest seed and stream: each is one 64-bit word of the Philox key."""

@@ -232,6 +232,14 @@ class ParamSpec:
         return self.field.split('.', 1)[1]
 
 
+# The manufacturing spread a device.seed draws (core/device.py, D1-D5): representative of a
+# trimmed MEMS ring, not measurements of a part (doc/populations.md says why each).
+DEFAULT_SPLIT_SPREAD = 0.01
+DEFAULT_Q_MISMATCH_SPREAD = 0.01
+DEFAULT_MISALIGNMENT_SPREAD = 0.01
+DEFAULT_PHASE_ERROR_SPREAD = 0.005
+DEFAULT_GAIN_MISMATCH_SPREAD = 0.01
+
 TEMPERATURE_RANGE_K = (150.0, 500.0)
 """Temperatures (K) the parameters and ``~/temperature`` take (:data:`_TEMPERATURE_NOTE`)."""
 _TEMPERATURE_NOTE = ("the device's temperature laws are linear about the reference; a "
@@ -497,6 +505,33 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               'with source given: the compensation [b_1, .., b_k, s_1, .., s_k]: bias '
               'b + sum b_i dT^i (rad/s per K^i) and scale factor S (1 + sum s_i dT^i) '
               '(per K^i), dT = die - thermal.reference_temperature (empty = none)'),
+    ParamSpec('device.seed', 'device.seed', 'int', 0, '-',
+              'seed of the draw of this device from its manufacturing spread (device.*_spread '
+              'added to the configured imperfections; 0 = the device as configured, no draw; '
+              'the same file and seed are the same device)', 0, 2 ** 63 - 1,
+              range_note='a 64-bit key of the counter-based generator'),
+    ParamSpec('device.split_spread', 'device.split_spread', 'float', DEFAULT_SPLIT_SPREAD,
+              'Hz', 'one sigma of the drawn frequency split of the 2theta pair, at an axis '
+              'drawn uniformly over 45 deg (with device.seed)', 0.0, 100.0,
+              range_note='an untrimmed ring splits by a few Hz at most'),
+    ParamSpec('device.q_mismatch_spread', 'device.q_mismatch_spread', 'float',
+              DEFAULT_Q_MISMATCH_SPREAD, '-',
+              'one sigma of the drawn Q_y / Q_x - 1 of the 2theta pair, at an axis drawn '
+              'uniformly over 45 deg (with device.seed)', 0.0, 0.5,
+              range_note='a spread of half the Q is a broken part'),
+    ParamSpec('device.misalignment_spread', 'device.misalignment_spread', 'float',
+              DEFAULT_MISALIGNMENT_SPREAD, 'deg',
+              'one sigma of the drawn sense misalignment, added to gyro.sense_misalignment '
+              '(with device.seed)', 0.0, 22.5, range_note='that of gyro.sense_misalignment'),
+    ParamSpec('device.phase_error_spread', 'device.phase_error_spread', 'float',
+              DEFAULT_PHASE_ERROR_SPREAD, 'rad',
+              'one sigma of the drawn phase error, added to gyro.phase_error (with '
+              'device.seed)', 0.0, math.pi / 2.0, range_note='that of gyro.phase_error'),
+    ParamSpec('device.gain_mismatch_spread', 'device.gain_mismatch_spread', 'float',
+              DEFAULT_GAIN_MISMATCH_SPREAD, '-',
+              'one sigma of the drawn pick-off gain mismatch, added to '
+              'gyro.pickoff_gain_mismatch (with device.seed)', 0.0, 0.5,
+              range_note='that of gyro.pickoff_gain_mismatch'),
     ParamSpec('control.drive_loop', 'control.drive_loop', 'str', 'closed', '-',
               'the 2theta drive: open (the paper: drive.amplitude at drive.frequency) or '
               'closed (a PLL on the drive pick-off sets the frequency, an AGC the amplitude; '
@@ -895,6 +930,23 @@ class GyroParams:
                         'must be set (> 0) with gyro.calibration.source: given')
 
 
+@_parameter_group('device')
+class DeviceParams:
+    """
+    The seeded draw of the device from its manufacturing spread (``core.device``, D1-D5).
+
+    ``seed`` 0: the device as configured. Otherwise :func:`build_config` adds the draw to the
+    configured imperfections; the spreads are one sigma each.
+    """
+
+    seed: int
+    split_spread: float
+    q_mismatch_spread: float
+    misalignment_spread: float
+    phase_error_spread: float
+    gain_mismatch_spread: float
+
+
 @_parameter_group('control')
 class ControlParams:
     """
@@ -1031,7 +1083,14 @@ class RunParams:
 
 @dataclass(frozen=True)
 class SimConfig:
-    """The full resolved configuration of a run."""
+    """
+    The full resolved configuration of a run.
+
+    The groups hold the device as simulated: with ``device.seed`` > 0, the drawn one
+    (``core.device``). ``configured`` holds, for each parameter the draw changed, its value as
+    configured (lists as tuples), which :func:`to_flat` returns: the configuration that
+    draws this device again.
+    """
 
     ring: RingParams = field(default_factory=RingParams)
     legs: LegParams = field(default_factory=LegParams)
@@ -1043,6 +1102,8 @@ class SimConfig:
     integrator: IntegratorParams = field(default_factory=IntegratorParams)
     run: RunParams = field(default_factory=RunParams)
     thermal: ThermalParams = field(default_factory=ThermalParams)
+    device: DeviceParams = field(default_factory=DeviceParams)
+    configured: Tuple[Tuple[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
         e = self.electrodes
@@ -1252,7 +1313,7 @@ class SimConfig:
         return 0.1 / f2
 
 
-_GROUPS = {f.name: f.default_factory for f in fields(SimConfig)}
+_GROUPS = {f.name: f.default_factory for f in fields(SimConfig) if f.name != 'configured'}
 
 
 def defaults() -> Dict[str, Any]:
@@ -1280,6 +1341,14 @@ def build_config(values: Mapping[str, Any], *, frequencies_from_legs=None) -> Si
         flat[name] = coerce(name, raw)
     for spec in _DERIVED:
         check_value(spec, flat[spec.name])
+    config = _build(flat)
+    if config.device.seed == 0:
+        return config
+    return _draw_device(config, flat)
+
+
+def _build(flat: Mapping[str, Any], configured: Tuple[Tuple[str, Any], ...] = ()) -> SimConfig:
+    """Build and check the configuration of a complete flat mapping (coerced values)."""
     kwargs: Dict[str, Dict[str, Any]] = {group: {} for group in _GROUPS}
     for spec in PARAMETERS:
         if spec not in _DERIVED:
@@ -1290,7 +1359,27 @@ def build_config(values: Mapping[str, Any], *, frequencies_from_legs=None) -> Si
             kwargs[group]['frequencies'] = _frequencies_from_structure(
                 built['ring'], built['legs'], flat['modes.count'])
         built[group] = cls(**kwargs[group])
-    return SimConfig(**built)
+    return SimConfig(**built, configured=configured)
+
+
+def _draw_device(config: SimConfig, flat: Mapping[str, Any]) -> SimConfig:
+    """
+    Return the device ``device.seed`` draws from ``config`` (``core.device``, D1-D5).
+
+    ``config`` is the device as configured, already checked; the drawn values go through the
+    same checks, and a refusal names the seed and the check.
+    """
+    from ring_gyro_sim.core import device
+    seed = config.device.seed
+    try:
+        changed = device.drawn_values(config)
+        if not changed:
+            return config
+        configured = tuple(sorted((name, _field_value(SPECS[name], flat[name]))
+                                  for name in changed))
+        return _build({**flat, **changed}, configured)
+    except ParameterError as exc:
+        raise _fail('device.seed', f'seed {seed} draws an invalid device: {exc}') from None
 
 
 def paper_config(values: Optional[Mapping[str, Any]] = None) -> SimConfig:
@@ -1318,11 +1407,34 @@ def _frequencies_from_structure(ring: RingParams, legs: LegParams,
 
 
 def to_flat(config: SimConfig) -> Dict[str, Any]:
-    """Return the flat ``{dotted name: value}`` mapping that rebuilds ``config`` (for metadata)."""
+    """
+    Return the flat ``{dotted name: value}`` mapping that rebuilds ``config`` (for metadata).
+
+    The configuration as configured: with ``device.seed``, the configured values of the
+    parameters the draw changed (:attr:`SimConfig.configured`) and the seed, which draw the
+    same device again (``build_config(to_flat(c)) == c``).
+    """
     out: Dict[str, Any] = {}
     for spec in PARAMETERS:
         value = getattr(getattr(config, spec.group), spec.attribute)
         out[spec.name] = list(value) if spec.kind in LIST_KINDS else value
+    for name, value in config.configured:  # the configured values, not the drawn device's
+        out[name] = list(value) if SPECS[name].kind in LIST_KINDS else value
+    return out
+
+
+def device_values(config: SimConfig) -> Dict[str, Any]:
+    """
+    Return the flat values of the device as simulated (with ``device.seed``: the drawn one).
+
+    :func:`to_flat` gives the configuration (the configured values and the seed, which draw
+    the device again); this gives what the groups hold, for the parameters the draw changed.
+    """
+    out = {}
+    for name, _ in config.configured:
+        spec = SPECS[name]
+        value = getattr(getattr(config, spec.group), spec.attribute)
+        out[name] = list(value) if spec.kind in LIST_KINDS else value
     return out
 
 
