@@ -59,7 +59,8 @@ The factory procedure (K2)
     then reads the scale factor the temperature laws give within 0.13 % (after 10 time
     constants alone it was 3.5 % off). A device is calibrated at
     ``thermal.reference_temperature`` whatever the run's ambient, once: :func:`factory`
-    keeps it in this process and, as a part keeps its calibration in its memory, in a file
+    keeps its tables (:func:`factory_tables`, from which the calibration is derived) in this
+    process and, as a part keeps its calibration in its memory, in a file
     (``$RING_GYRO_SIM_CACHE``, default ``~/.cache/ring_gyro_sim``, ``calibration-<key>.json``;
     an empty variable keeps none), keyed by the SHA-256 of the configuration that matters
     and of the source of ``ring_gyro_sim.core``, so that a changed model measures again. A
@@ -75,10 +76,18 @@ Temperature compensation (K3)
     reference of the biases' and the relative scale factors' changes, of degree 1 for one
     point and 2 for more (IEEE Std 1431's temperature tests fit a polynomial likewise).
     What a parabola leaves is the compensation's residual.
+
+What the factory reads (:class:`TableReading`, :func:`factory_tables`)
+    Each table's ``S(T)``, ``r(0)`` and the quadrature reading at zero rate ``r_q(0)``
+    (K1's quadrature channel, the same window as ``r(0)``): the device's bias ``r(0) / S`` and
+    quadrature ``r_q(0) / S`` in rate units, at the reference and at each temperature point.
+    The calibration holds ``S``, ``b``, the fit and the reference table's ``V_ref`` (the
+    open-loop readout's trim, with which the series' tables read too); a datasheet (a device
+    population, ``sweep.point``) reads the rest from the same tables, which are run once.
 """
 
 from collections import OrderedDict
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 import hashlib
 import json
 import math
@@ -86,7 +95,7 @@ import os
 from pathlib import Path
 import tempfile
 import threading
-from typing import Any, Callable, Dict, Optional, Tuple
+from typing import Any, Callable, Dict, Optional, Sequence, Tuple
 import warnings
 
 import numpy as np
@@ -94,7 +103,8 @@ from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.params import build_config, SimConfig, to_flat
 
 __all__ = ['Calibration', 'FACTORY_AVERAGE_S', 'FACTORY_RATE', 'FACTORY_SETTLE_TIME_CONSTANTS',
-           'factory', 'for_config', 'given', 'readout_unit', 'table_at']
+           'TableReading', 'factory', 'factory_tables', 'fit_temperature_series', 'for_config',
+           'given', 'readout_unit', 'table_at']
 
 FACTORY_RATE = math.radians(10.0)
 """The rate table's rates, +-10 deg/s about 0: inside the linear range of every loop mode."""
@@ -196,6 +206,56 @@ class Calibration:
                 'readout_reference_v': float(self.readout_reference_v)}
 
 
+@dataclass(frozen=True)
+class TableReading:
+    """
+    One rate table (K2) at one steady die temperature: what the factory reads.
+
+    Attributes
+    ----------
+    temperature_k : float
+        The die temperature, K.
+    scale_factor : float
+        ``S(T)``, readout per rad/s.
+    zero_rate, zero_quadrature : float
+        ``r(0)`` and ``r_q(0)``: the readout and the quadrature readout at zero rate.
+    readout_reference_v : float
+        The open-loop readout's drive pick-off amplitude the table read with, V (K1): the
+        reference table's at zero rate, held over the temperature series (0 with rebalance).
+
+    """
+
+    temperature_k: float
+    scale_factor: float
+    zero_rate: float
+    zero_quadrature: float
+    readout_reference_v: float = 0.0
+
+    @property
+    def bias(self) -> float:
+        """``r(0) / S(T)``, rad/s: the zero-rate output at this temperature."""
+        return self.zero_rate / self.scale_factor
+
+    @property
+    def quadrature(self) -> float:
+        """``r_q(0) / S(T)``, rad/s: the quadrature at zero rate in rate units (K1)."""
+        return self.zero_quadrature / self.scale_factor
+
+
+def fit_temperature_series(reference_k: float, temperatures_k: Sequence[float],
+                           changes: Sequence[float]) -> Tuple[float, ...]:
+    """
+    Return the coefficients of the least-squares polynomial through the reference (K3).
+
+    ``changes[i]`` is a figure's change from the reference at ``temperatures_k[i]``; the
+    polynomial ``sum_i c_i dT^i`` has degree 1 for one temperature and 2 for more.
+    """
+    order = min(2, len(temperatures_k))
+    rows = [[(t - reference_k) ** (i + 1) for i in range(order)] for t in temperatures_k]
+    fit = np.linalg.lstsq(np.array(rows), np.array(changes, dtype=float), rcond=None)[0]
+    return tuple(float(c) for c in fit)
+
+
 def given(config: SimConfig) -> Calibration:
     """Return the calibration of ``gyro.calibration.bias`` and ``.scale_factor`` as set."""
     g = config.gyro
@@ -242,15 +302,30 @@ def _bench(config: SimConfig) -> SimConfig:
     return replace(config, gyro=g, run=run, drive=drive)
 
 
-_MEMO: 'OrderedDict[SimConfig, Calibration]' = OrderedDict()
+_MEMO: 'OrderedDict[SimConfig, Tuple[TableReading, ...]]' = OrderedDict()
 _MEMO_LOCK = threading.Lock()
 
 
 def factory(config: SimConfig, log: Optional[Callable[[str], None]] = None) -> Calibration:
     """
-    Return the factory calibration of the device of ``config`` (K2), memoised and stored.
+    Return the factory calibration of the device of ``config`` (K2, K3), memoised and stored.
 
-    ``log`` is told when one is measured (it takes the simulated time of three table runs).
+    ``log`` is told when one is measured (it takes the simulated time of three table runs per
+    temperature).
+    """
+    bench = _bench(config)
+    return _calibration(bench, factory_tables(config, log))
+
+
+def factory_tables(config: SimConfig,
+                   log: Optional[Callable[[str], None]] = None) -> Tuple[TableReading, ...]:
+    """
+    Return the factory's rate tables of the device of ``config``, memoised and stored.
+
+    The reference temperature's first, then those of ``gyro.calibration.temperature_points``
+    (the reference itself left out) in their order: what :func:`factory` calibrates with.
+    They are kept in this process and in a file (``$RING_GYRO_SIM_CACHE``), the calibration
+    being derived from them.
     """
     bench = _bench(config)
     with _MEMO_LOCK:
@@ -258,19 +333,19 @@ def factory(config: SimConfig, log: Optional[Callable[[str], None]] = None) -> C
             _MEMO.move_to_end(bench)
             return _MEMO[bench]
     path = _stored_path(bench)
-    calibration = _load(path)
-    if calibration is None:
-        calibration = measure(bench, log)
-        _store(path, calibration)
+    tables = _load(path)
+    if tables is None:
+        tables = measure(bench, log)
+        _store(path, tables)
     with _MEMO_LOCK:
-        _MEMO[bench] = calibration
+        _MEMO[bench] = tables
         while len(_MEMO) > FACTORY_MEMO_SIZE:
             _MEMO.popitem(last=False)
-    return calibration
+    return tables
 
 
 CACHE_ENV = 'RING_GYRO_SIM_CACHE'
-"""Environment variable naming the directory of stored calibrations (empty: none)."""
+"""Environment variable naming the directory of stored factory tables (empty: none)."""
 _CODE_DIGEST: Optional[str] = None
 
 
@@ -288,7 +363,7 @@ def _code_digest() -> str:
 
 
 def _stored_path(bench: SimConfig) -> Optional[Path]:
-    """Return the file of a bench's stored calibration (None: storing is off)."""
+    """Return the file of a bench's stored factory tables (None: storing is off)."""
     directory = os.environ.get(CACHE_ENV)
     if directory is None:
         directory = str(Path.home() / '.cache' / 'ring_gyro_sim')
@@ -299,25 +374,26 @@ def _stored_path(bench: SimConfig) -> Optional[Path]:
     return Path(directory) / f'calibration-{key}.json'
 
 
-def _load(path: Optional[Path]) -> Optional[Calibration]:
-    """Return a stored calibration, None when there is none (or it cannot be read)."""
+def _load(path: Optional[Path]) -> Optional[Tuple[TableReading, ...]]:
+    """Return stored factory tables, None when there are none (or they cannot be read)."""
     if path is None:
         return None
     try:
-        return Calibration.from_dict(json.loads(path.read_text(encoding='utf-8')))
-    except (OSError, ValueError, KeyError, TypeError):
+        tables = json.loads(path.read_text(encoding='utf-8'))['tables']
+        return tuple(TableReading(**{k: float(v) for k, v in t.items()}) for t in tables)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return None
 
 
-def _store(path: Optional[Path], calibration: Calibration) -> None:
-    """Store a calibration (atomically: a reader sees the whole file or none); best effort."""
+def _store(path: Optional[Path], tables: Sequence[TableReading]) -> None:
+    """Store factory tables (atomically: a reader sees the whole file or none); best effort."""
     if path is None:
         return
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix='.calibration-', suffix='.json')
         with os.fdopen(fd, 'w', encoding='utf-8') as f:
-            json.dump(calibration.to_dict(), f)
+            json.dump({'tables': [asdict(t) for t in tables]}, f)
         os.replace(tmp, path)
     except OSError:
         pass
@@ -339,41 +415,49 @@ def _bandwidths_hz(config: SimConfig) -> list:
     return out
 
 
-def measure(bench: SimConfig, log: Optional[Callable[[str], None]] = None) -> Calibration:
-    """Run the table of (K2) on a bench configuration (``_bench``), and its series (K3)."""
+def measure(bench: SimConfig,
+            log: Optional[Callable[[str], None]] = None) -> Tuple[TableReading, ...]:
+    """
+    Run the tables of a bench configuration (``_bench``): the reference's (K2), then the series'.
+
+    The series' tables (K3) read with the reference table's ``V_ref``, the part's trim.
+    """
     reference = bench.thermal.reference_temperature
-    scale, zero, reference_v = _table(bench, log)
+    scale, zero, zero_q, reference_v = _table(bench, log)
     if not (math.isfinite(scale) and scale != 0.0 and math.isfinite(zero)):
         raise SimulationError(
             f'gyro.calibration.source: the factory rate table reads no rate on this device '
             f'(scale factor {scale:.3g} {readout_unit(bench)} per rad/s: is the drive on?); '
             f'use given or ideal')
-    bias = zero / scale
-    points = [float(t) for t in bench.gyro.calibration_temperature_points if t != reference]
+    out = [TableReading(float(reference), scale, zero, zero_q, reference_v)]
+    for kelvin in bench.gyro.calibration_temperature_points:
+        if kelvin == reference:
+            continue
+        at = replace(bench, run=replace(bench.run, temperature_times=(0.0,),
+                                        temperature_values=(kelvin,)))
+        out.append(TableReading(float(kelvin), *_table(at, log, reference_v)))
+    return tuple(out)
+
+
+def _calibration(bench: SimConfig, tables: Sequence[TableReading]) -> Calibration:
+    """Return the calibration of a bench's tables: ``S``, ``b`` (K2) and the fit (K3)."""
+    ref, series = tables[0], tables[1:]
     coefficients: Tuple[float, ...] = ()
-    if points:
-        order = min(2, len(points))
-        rows, d_bias, d_scale = [], [], []
-        for kelvin in points:
-            at = replace(bench, run=replace(bench.run, temperature_times=(0.0,),
-                                            temperature_values=(kelvin,)))
-            s_t, z_t, _ = _table(at, log, reference_v)
-            d = kelvin - reference
-            rows.append([d ** (i + 1) for i in range(order)])
-            d_bias.append(z_t / s_t - bias)
-            d_scale.append(s_t / scale - 1.0)
-        a = np.array(rows)
-        b_fit = np.linalg.lstsq(a, np.array(d_bias), rcond=None)[0]
-        s_fit = np.linalg.lstsq(a, np.array(d_scale), rcond=None)[0]
-        coefficients = tuple(float(c) for c in b_fit) + tuple(float(c) for c in s_fit)
-    return Calibration('factory', bias, scale, readout_unit(bench), float(reference),
-                       coefficients, reference_v)
+    if series:
+        kelvins = [r.temperature_k for r in series]
+        coefficients = (fit_temperature_series(ref.temperature_k, kelvins,
+                                               [r.bias - ref.bias for r in series])
+                        + fit_temperature_series(
+                            ref.temperature_k, kelvins,
+                            [r.scale_factor / ref.scale_factor - 1.0 for r in series]))
+    return Calibration('factory', ref.bias, ref.scale_factor, readout_unit(bench),
+                       ref.temperature_k, coefficients, ref.readout_reference_v)
 
 
 def _table(bench: SimConfig, log: Optional[Callable[[str], None]],
-           reference_v: float = 0.0) -> Tuple[float, float, float]:
+           reference_v: float = 0.0) -> Tuple[float, float, float, float]:
     """
-    Return ``(S, r(0), V_ref)`` of the three table rates (K2) on a bench, at its die temperature.
+    Return ``(S, r(0), r_q(0), V_ref)`` of the three table rates (K2) on a bench, at its die T.
 
     ``V_ref`` is the open-loop readout's drive pick-off amplitude (K1): ``reference_v`` when
     given (the part's trim, held over the temperature series), else the one at rate 0, which
@@ -395,21 +479,22 @@ def _table(bench: SimConfig, log: Optional[Callable[[str], None]],
     if log is not None:
         log(f'calibrating the device on a simulated rate table at '
             f'{sims[0.0].device_temperature:.2f} K (0, +-10 deg/s, each until it settles)')
-    plus = _settled_reading(sims[FACTORY_RATE], None)
-    minus = _settled_reading(sims[-FACTORY_RATE], None)
-    zero = _settled_reading(sims[0.0], 0.5 * (abs(plus) + abs(minus)))
-    return (plus - minus) / (2.0 * FACTORY_RATE), zero, float(reference_v)
+    plus, _ = _settled_reading(sims[FACTORY_RATE], None)
+    minus, _ = _settled_reading(sims[-FACTORY_RATE], None)
+    zero, zero_quadrature = _settled_reading(sims[0.0], 0.5 * (abs(plus) + abs(minus)))
+    return (plus - minus) / (2.0 * FACTORY_RATE), zero, zero_quadrature, float(reference_v)
 
 
-def _settled_reading(sim, scale: Optional[float]) -> float:
+def _settled_reading(sim, scale: Optional[float]) -> Tuple[float, float]:
     """
-    Return a table run's settled reading: the mean of its first window that the next confirms.
+    Return a table run's settled reading and quadrature reading (window means, K1).
 
     After the settling of :func:`_bandwidths_hz` (:data:`FACTORY_SETTLE_TIME_CONSTANTS` time
     constants, at least :data:`FACTORY_MIN_SETTLE_S`), means over successive windows of
     :data:`FACTORY_AVERAGE_S` until two in a row differ by at most
-    :data:`FACTORY_TOLERANCE` of ``scale`` (None: of the reading), the later one returned;
-    at most :data:`FACTORY_MAX_S` (then a RuntimeWarning says how far it was).
+    :data:`FACTORY_TOLERANCE` of ``scale`` (None: of the reading), the later one returned
+    with the quadrature's mean over the same window; at most :data:`FACTORY_MAX_S` (then a
+    RuntimeWarning says how far it was).
     """
     cfg = sim.config
     per_block = cfg.run.block_samples
@@ -417,24 +502,25 @@ def _settled_reading(sim, scale: Optional[float]) -> float:
     tau = 1.0 / (2.0 * math.pi * min(_bandwidths_hz(cfg)))
     settle = max(FACTORY_SETTLE_TIME_CONSTANTS * tau, FACTORY_MIN_SETTLE_S)
 
-    def mean_over(seconds: float) -> float:
-        values = [sim.advance_samples(per_block).rate_output.rate
-                  for _ in range(int(math.ceil(seconds * rate_hz / per_block)))]
-        return float(np.mean(np.concatenate(values)))
+    def mean_over(seconds: float) -> Tuple[float, float]:
+        outputs = [sim.advance_samples(per_block).rate_output
+                   for _ in range(int(math.ceil(seconds * rate_hz / per_block)))]
+        return (float(np.mean(np.concatenate([o.rate for o in outputs]))),
+                float(np.mean(np.concatenate([o.quadrature for o in outputs]))))
     mean_over(settle)
-    previous = mean_over(FACTORY_AVERAGE_S)
+    previous, _ = mean_over(FACTORY_AVERAGE_S)
     elapsed = settle + FACTORY_AVERAGE_S
     while True:
-        current = mean_over(FACTORY_AVERAGE_S)
+        current, quadrature = mean_over(FACTORY_AVERAGE_S)
         elapsed += FACTORY_AVERAGE_S
         change = abs(current - previous)
         if change <= FACTORY_TOLERANCE * abs(current if scale is None else scale):
-            return current
+            return current, quadrature
         if elapsed >= FACTORY_MAX_S:
             warnings.warn(f'gyro.calibration: the factory table did not settle within '
                           f'{FACTORY_MAX_S:g} s (its last windows differ by {change:.3g}); '
                           f'the calibration takes the last', RuntimeWarning, stacklevel=3)
-            return current
+            return current, quadrature
         previous = current
 
 
@@ -451,5 +537,5 @@ def table_at(config: SimConfig, kelvin: float, held: Calibration) -> Tuple[float
     if kelvin != bench.thermal.reference_temperature:
         bench = replace(bench, run=replace(bench.run, temperature_times=(0.0,),
                                            temperature_values=(float(kelvin),)))
-    scale, zero, _ = _table(bench, None, held.readout_reference_v)
+    scale, zero, _, _ = _table(bench, None, held.readout_reference_v)
     return scale, zero

@@ -95,6 +95,24 @@ def test_a_factory_calibrated_imperfect_device_reads_its_zero_rate_within_noise(
     assert turning == pytest.approx(TEN_DEG_S, rel=1e-4)
 
 
+def test_the_factory_reads_the_quadrature_of_a_split_in_rate_units():
+    # (K1) the table's quadrature reading at zero rate over S is the split's quadrature
+    # K_sc / (2 kappa omega) (P2; doc/imperfections.md), here -5.05e-2 rad/s; the perfect
+    # ring has none. The tables are those the calibration holds (memoised: run once).
+    config = build_config(IMPERFECT)
+    tables = calibration.factory_tables(config)
+    k, _ = config.modes.pair_matrices(2)
+    closed_form = k[0, 1] / (2.0 * KAPPA_2 * 2.0 * math.pi * 15800.01)
+    print(f'quadrature {tables[0].quadrature:.6e} rad/s, closed form {closed_form:.6e}')
+    assert len(tables) == 1 and tables[0].temperature_k == 298.15
+    assert tables[0].quadrature == pytest.approx(closed_form, rel=1e-3)
+    cal = calibration.factory(config)
+    assert (cal.bias, cal.scale_factor) == (tables[0].bias, tables[0].scale_factor)
+    assert cal.readout_reference_v == tables[0].readout_reference_v  # the trim it read with
+    perfect = calibration.factory_tables(build_config(QUIET))[0]
+    assert abs(perfect.quadrature) < 1e-9 * abs(closed_form)
+
+
 def test_a_given_calibration_is_applied_as_set():
     # (K1) rate = r / S - b: S and b given against the factory's
     factory = calibration.factory(build_config(QUIET))
