@@ -30,6 +30,7 @@ A spec is a YAML mapping (every key optional but ``axes``)::
       modes.quality_factors[0]: [5000, 20000, 40000]     # a list
       shock.peak_g: {linear: [1000, 12000, 8]}           # np.linspace, ends included
       modes.quality_factors[0]: {log: [5000, 180000, 8]} # np.geomspace, ends included
+      device.seed: {range: [1, 100]}                     # integers, stop included (a step: 3rd)
     metrics: [final_branch, final_q2_m, min_gap_m]       # kept in results (default: all)
     envelopes: [q2]           # envelope channels kept over time per point (or all; default none)
     plot: {x: shock.peak_g, y: modes.quality_factors[0]} # axes of the maps (default: 1st, 2nd)
@@ -146,7 +147,8 @@ class Axis:
     values : tuple
         Coordinate values, coerced to the parameter's kind.
     spacing : str
-        'list', 'linear' or 'log' (how the values were given; 'log' plots on a log axis).
+        'list', 'linear', 'log' or 'range' (how the values were given; 'log' plots on a log
+        axis).
     unit : str
         Unit of the values.
 
@@ -397,12 +399,28 @@ def _coerce_value(name: str, value: Any, where: str) -> Any:
         raise SweepSpecError(f'{where}: {exc}') from None
 
 
+def _range_args(args: Any, where: str) -> Tuple[int, int, int]:
+    """Check ``{range: [start, stop]}`` or ``[start, stop, step]``: integers, stop included."""
+    if not (isinstance(args, list) and len(args) in (2, 3) and all(
+            isinstance(a, int) and not isinstance(a, bool) for a in args)):
+        raise SweepSpecError(f'{where}: range: expected integers [start, stop] or [start, '
+                             f'stop, step], got {args!r}')
+    start, stop, step = (args + [1])[:3]
+    if step < 1 or stop < start:
+        raise SweepSpecError(f'{where}: range: needs start <= stop and step >= 1, got '
+                             f'{args!r}')
+    return start, stop, step
+
+
 def _axis_count(raw: Any, where: str) -> int:
     """Return the number of values of an axis as written, without making them."""
     if isinstance(raw, list):
         if not raw:
             raise SweepSpecError(f'{where}: no values')
         return len(raw)
+    if isinstance(raw, dict) and len(raw) == 1 and next(iter(raw)) == 'range':
+        start, stop, step = _range_args(raw['range'], where)
+        return (stop - start) // step + 1
     if isinstance(raw, dict) and len(raw) == 1 and next(iter(raw)) in ('linear', 'log'):
         spacing, args = next(iter(raw.items()))
         if not (isinstance(args, list) and len(args) == 3 and all(
@@ -415,7 +433,8 @@ def _axis_count(raw: Any, where: str) -> int:
                                  f'{count!r}')
         return int(count)
     raise SweepSpecError(f'{where}: expected a list of values, {{linear: [start, stop, '
-                         f'count]}} or {{log: [start, stop, count]}}, got {raw!r}')
+                         f'count]}}, {{log: [start, stop, count]}} or {{range: [start, stop]}}, '
+                         f'got {raw!r}')
 
 
 def _cost(cpu_s: float) -> str:
@@ -446,6 +465,10 @@ def _axis_values(name: str, raw: Any, where: str) -> Tuple[Tuple[Any, ...], str]
     if isinstance(raw, list):
         values = [_coerce_value(name, v, where) for v in raw]
         spacing = 'list'
+    elif 'range' in raw:
+        start, stop, step = _range_args(raw['range'], where)
+        values = [_coerce_value(name, v, where) for v in range(start, stop + 1, step)]
+        spacing = 'range'
     else:
         spacing, (start, stop, count) = next(iter(raw.items()))
         if spacing == 'log' and not (start > 0 and stop > 0):

@@ -61,6 +61,33 @@ axes:
     assert spec.plot_axes == ('shock.peak_g', 'modes.quality_factors[0]')
 
 
+def test_an_integer_range_includes_its_stop():
+    spec = spec_of("""
+duration: 1.0
+axes:
+  device.seed: {range: [1, 5]}
+  modes.quality_factors[0]: {range: [5000, 9000, 2000]}
+""")
+    seed, q = spec.axes
+    assert seed.values == (1, 2, 3, 4, 5) and all(type(v) is int for v in seed.values)
+    assert q.values == (5000.0, 7000.0, 9000.0) and all(type(v) is float for v in q.values)
+    assert (seed.spacing, seed.unit) == ('range', '-')
+    assert spec.shape == (5, 3)
+
+
+@pytest.mark.parametrize('axis, message', [
+    ('{range: [1]}', 'expected integers [start, stop]'),
+    ('{range: [1.5, 3]}', 'expected integers'),
+    ('{range: [5, 1]}', 'start <= stop and step >= 1'),
+    ('{range: [1, 5, 0]}', 'start <= stop and step >= 1'),
+    ('{range: [-1, 1]}', 'device.seed: must be >= 0'),
+])
+def test_bad_ranges_are_refused(axis, message):
+    with pytest.raises(SweepSpecError) as info:
+        spec_of(f'duration: 1\naxes:\n  device.seed: {axis}\n')
+    assert message in str(info.value), str(info.value)
+
+
 def test_a_point_key_is_its_content_not_its_spelling():
     a = spec_of('duration: 1.0\naxes:\n  modes.quality_factors[0]: [5000, 20000]\n')
     b = spec_of('duration: 1.0\nset: {shock.peak_g: 0}\n'
