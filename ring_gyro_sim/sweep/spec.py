@@ -26,6 +26,7 @@ A spec is a YAML mapping (every key optional but ``axes``)::
     set:                      # fixed values over the base: ROS names or shock.*
       shock.peak_g: 10000.0
       drive.frequency: 15798.6
+      gyro.calibration.temperature_points: [318.15]     # set takes a whole list
     axes:                     # in dimension order
       modes.quality_factors[0]: [5000, 20000, 40000]     # a list
       shock.peak_g: {linear: [1000, 12000, 8]}           # np.linspace, ends included
@@ -38,7 +39,8 @@ A spec is a YAML mapping (every key optional but ``axes``)::
 Names
     Any parameter of the table (:data:`ring_gyro_sim.core.params.SPECS`) by its ROS name;
     one element of a list parameter as ``name[i]`` (``modes.quality_factors[0]`` is Q_1):
-    the rest of the list is the base's, and ``i`` must exist there. The shock is not a ROS
+    the rest of the list is the base's, and ``i`` must exist there. ``set`` also takes a
+    list parameter as a whole (an axis does not: its values would be lists). The shock is not a ROS
     parameter but a scenario input, named ``shock.peak_g`` (half-sine peak, g = 9.80665
     m/s^2; default 0: no shock), ``shock.phase`` (start of the shock in drive periods, in
     [0, 1); default 0, t = 0, the paper's) and ``shock.angle_deg`` (from x towards y;
@@ -345,8 +347,9 @@ def _where(source: str, key: str) -> str:
     return f'sweep spec {source}: {key}'
 
 
-def _check_name(name: Any, base: Mapping[str, Any], source: str, key: str) -> str:
-    """Check an axis or ``set`` name; return it."""
+def _check_name(name: Any, base: Mapping[str, Any], source: str, key: str,
+                whole_list: bool = False) -> str:
+    """Check an axis or ``set`` name (``whole_list``: a list parameter as a whole); return it."""
     where = _where(source, key)
     if not isinstance(name, str):
         raise SweepSpecError(f'{where}: a name must be a string, got {name!r}')
@@ -363,9 +366,9 @@ def _check_name(name: Any, base: Mapping[str, Any], source: str, key: str) -> st
             hint = f' (scenario inputs: {", ".join(SCENARIO_NAMES)}; ROS: shock.duration)'
         raise SweepSpecError(f'{where}: {name!r}: unknown parameter{hint}')
     if index is None:
-        if spec.kind in LIST_KINDS:
+        if spec.kind in LIST_KINDS and not whole_list:
             raise SweepSpecError(f'{where}: {name!r} is a list parameter: sweep one element '
-                                 f'of it, {param}[i]')
+                                 f'of it, {param}[i] (set takes a whole list)')
         return name
     if spec.kind != 'float_list':
         raise SweepSpecError(f'{where}: {name!r}: [i] applies to list parameters only '
@@ -560,7 +563,7 @@ def parse_spec(data: Any, source: str = '<text>', directory: str = '.',
                              f'values, got {fixed_raw!r}')
     fixed: Dict[str, Any] = {}
     for name, value in fixed_raw.items():
-        name = _check_name(name, base, source, 'set')
+        name = _check_name(name, base, source, 'set', whole_list=True)
         fixed[name] = _coerce_value(name, value, _where(source, f'set: {name}'))
     axes_raw = data.get('axes')
     if not isinstance(axes_raw, dict) or not axes_raw:

@@ -88,6 +88,22 @@ def test_bad_ranges_are_refused(axis, message):
     assert message in str(info.value), str(info.value)
 
 
+def test_set_takes_a_whole_list_and_an_axis_does_not():
+    spec = spec_of("""
+duration: 1.0
+set:
+  modes.quality_factors: [40000.0, 64700.0, 170000.0]
+axes:
+  modes.quality_factors[1]: [60000.0, 70000.0]
+""")
+    configs = [p.case_spec().config(None, spec.output_rate_hz) for p in spec.points()]
+    assert [c.modes.quality_factors for c in configs] == [
+        (40000.0, 60000.0, 170000.0), (40000.0, 70000.0, 170000.0)]
+    with pytest.raises(SweepSpecError) as info:
+        spec_of('duration: 1\naxes:\n  modes.quality_factors: [[1.0, 2.0, 3.0]]\n')
+    assert 'a list parameter: sweep one element' in str(info.value)
+
+
 def test_a_point_key_is_its_content_not_its_spelling():
     a = spec_of('duration: 1.0\naxes:\n  modes.quality_factors[0]: [5000, 20000]\n')
     b = spec_of('duration: 1.0\nset: {shock.peak_g: 0}\n'
