@@ -33,6 +33,17 @@ exception turned into a failure record (with the point's parameters), and the re
 at once in the sweep's point directory when the worker can see it (a worker of a cluster
 without the client's file system cannot: the client stores it on receipt).
 
+A gyroscope point (``kind: gyroscope``) runs no case: it measures its device as a datasheet
+lists it, from the factory's rate tables (``core.gyro.calibration``, K1-K3), the figures of
+:data:`GYRO_METRICS`: the bias ``b`` and the quadrature ``r_q(0) / S`` at the reference
+temperature, the scale factor ``S`` and its error against the nominal device's (the same
+configuration with ``device.seed`` 0), and the first-order temperature coefficients of the
+three from the temperature series (``gyro.calibration.temperature_points``: the K3 fit's
+``b_1`` and ``s_1``, the same fit of the quadrature), beside the drawn device itself
+(``core.device``). Its setup is the nominal device's tables (:func:`setup_task`), one task for
+all the devices of a population; the record also holds the nominal device's figures
+(``nominal``).
+
 Kept envelopes (a point whose spec has ``envelopes``): the record also holds
 ``envelope`` (``names``, ``window_s``, ``t_s`` and ``values``: one list per channel kept, m,
 the windows of :attr:`CaseResult.envelope`, exact) and ``outcome`` (the scalars of the
@@ -58,12 +69,14 @@ import numpy as np
 from ring_gyro_sim import __version__
 from ring_gyro_sim.analysis import cases
 from ring_gyro_sim.analysis import envelope as env
+from ring_gyro_sim.core.gyro import calibration
 from ring_gyro_sim.core.params import SimConfig, to_flat
 from ring_gyro_sim.sweep.spec import ALL_ENVELOPES, Point
 from ring_gyro_sim.sweep.store import PointStore
 
-__all__ = ['METRICS', 'OUTCOME_FIELDS', 'SetupFailure', 'case_result', 'compute', 'evaluate',
-           'failure_record', 'kept_output', 'setup_key', 'setup_task']
+__all__ = ['GYRO_METRICS', 'METRICS', 'OUTCOME_FIELDS', 'SetupFailure', 'case_result',
+           'compute', 'device_figures', 'evaluate', 'failure_record', 'gyroscope_figures',
+           'kept_output', 'metric_table', 'setup_key', 'setup_task']
 
 METRICS: Dict[str, tuple] = OrderedDict([
     ('final_branch', ('str', '', "branch q2 ends on: 'upper', 'lower', 'contact' ('none': "
@@ -87,13 +100,52 @@ METRICS: Dict[str, tuple] = OrderedDict([
 ])
 """Metrics of a point: name -> (kind, unit, meaning); every record holds all of them."""
 
+FIGURES: Dict[str, tuple] = OrderedDict([
+    ('bias_rad_s', ('float', 'rad/s', 'zero-rate output b = r(0) / S of the factory rate table '
+                                      'at the reference temperature (K2)')),
+    ('quadrature_rad_s', ('float', 'rad/s', 'quadrature r_q(0) / S at zero rate, at the '
+                                            'reference temperature (K1)')),
+    ('scale_factor', ('float', 'readout/(rad/s)', 'S of the factory rate table (K2): m/s^2 '
+                                                  'per rad/s with force-to-rebalance, V open '
+                                                  'loop')),
+    ('scale_factor_error_ppm', ('float', 'ppm', 'S / S_nominal - 1, S_nominal the nominal '
+                                                "device's (device.seed 0)")),
+    ('bias_tc_rad_s_k', ('float', 'rad/s/K', 'b_1 of the K3 fit: the bias change per K at '
+                                             'the reference (nan: no temperature points)')),
+    ('scale_factor_tc_ppm_k', ('float', 'ppm/K', 's_1 of the K3 fit: the relative scale '
+                                                 'factor change per K at the reference')),
+    ('quadrature_tc_rad_s_k', ('float', 'rad/s/K', "the K3 fit of the quadrature's change: "
+                                                   'per K at the reference')),
+])
+"""A device's datasheet figures (:func:`gyroscope_figures`): name -> (kind, unit, meaning)."""
+
+DEVICE_FIELDS: Dict[str, tuple] = OrderedDict([
+    ('split_hz', ('float', 'Hz', '2theta pair: principal frequency f_x - f_y (companion)')),
+    ('frequency_axis_deg', ('float', 'deg', '2theta pair: ring angle of the axis of f_x')),
+    ('q_mismatch', ('float', '1', '2theta pair: Q_y / Q_x - 1 of its principal Q')),
+    ('damping_axis_deg', ('float', 'deg', '2theta pair: ring angle of the axis of Q_x')),
+    ('sense_misalignment_deg', ('float', 'deg', 'gyro.sense_misalignment of the device')),
+    ('phase_error_rad', ('float', 'rad', 'gyro.phase_error of the device')),
+    ('pickoff_gain_mismatch', ('float', '1', 'gyro.pickoff_gain_mismatch of the device')),
+])
+"""The imperfections of a point's device as simulated (drawn with ``device.seed``)."""
+
+GYRO_METRICS: Dict[str, tuple] = OrderedDict(list(FIGURES.items()) + list(DEVICE_FIELDS.items()))
+"""Metrics of a gyroscope point (``kind: gyroscope``): its figures and its device."""
+
+
+def metric_table(kind: str) -> Dict[str, tuple]:
+    """Return the metrics of a point of ``kind`` (``case``: :data:`METRICS`)."""
+    return GYRO_METRICS if kind == 'gyroscope' else METRICS
+
+
 SETUP_CACHE_SIZE = 32
 _SETUP_CACHE: 'OrderedDict[str, cases.DriveSetup]' = OrderedDict()
 
 
 def _config(point: Point) -> SimConfig:
     """Return the configuration ``point`` runs (its shock is not part of it)."""
-    return point.case_spec().config(None, point.output_rate_hz)
+    return point.config()
 
 
 def _setup(config: SimConfig) -> cases.DriveSetup:
@@ -132,7 +184,11 @@ def setup_key(point: Point) -> str:
         The configuration cannot be built (the point will report it when computed).
 
     """
-    text = json.dumps([__version__, to_flat(_config(point))], sort_keys=True, default=str)
+    if point.kind == 'gyroscope':  # the nominal device's tables: one for a population
+        text = json.dumps([__version__, 'gyroscope', to_flat(point.nominal_config())],
+                          sort_keys=True, default=str)
+    else:
+        text = json.dumps([__version__, to_flat(_config(point))], sort_keys=True, default=str)
     return hashlib.sha256(text.encode('utf-8')).hexdigest()[:16]
 
 
@@ -140,14 +196,19 @@ def setup_task(point: Point):
     """
     Compute the drive setup of ``point``'s configuration: the task the engine runs once.
 
+    A gyroscope point's setup is the factory tables of its nominal device (the scale factor
+    its error is measured against), memoised by ``core.gyro.calibration``.
+
     Returns
     -------
-    DriveSetup or SetupFailure
+    DriveSetup, tuple of TableReading, or SetupFailure
         The setup (also kept in this process's cache), or what it raised (never raises: the
         points of the configuration report it as their failure).
 
     """
     try:
+        if point.kind == 'gyroscope':
+            return calibration.factory_tables(point.nominal_config())
         return _setup(_config(point))
     except Exception as exc:  # noqa: B902 - reported by each point of the configuration
         return SetupFailure(f'{type(exc).__name__}: {exc}', traceback.format_exc())
@@ -181,9 +242,69 @@ def metrics_of(result: cases.CaseResult) -> Dict[str, Any]:
     return out
 
 
+def device_figures(config: SimConfig) -> Dict[str, float]:
+    """Return the :data:`DEVICE_FIELDS` of a configuration's device (as simulated)."""
+    m, g = config.modes, config.gyro
+    out = {name: math.nan for name in DEVICE_FIELDS}
+    if m.companions and m.count >= 2:
+        f = m.principal_frequencies()
+        q = m.principal_quality_factors()
+        out.update(split_hz=f[1] - f[m.count + 1],
+                   frequency_axis_deg=m.frequency_axes[1] if m.frequency_axes else 0.0,
+                   q_mismatch=q[m.count + 1] / q[1] - 1.0,
+                   damping_axis_deg=m.damping_axes[1] if m.damping_axes else 0.0)
+    out.update(sense_misalignment_deg=g.sense_misalignment, phase_error_rad=g.phase_error,
+               pickoff_gain_mismatch=g.pickoff_gain_mismatch)
+    return {k: float(v) for k, v in out.items()}
+
+
+def gyroscope_figures(tables, nominal_scale_factor: float) -> Dict[str, float]:
+    """
+    Return the :data:`FIGURES` of a device's factory tables (``calibration.factory_tables``).
+
+    Parameters
+    ----------
+    tables : sequence of TableReading
+        The reference's table first, then the temperature points'.
+    nominal_scale_factor : float
+        ``S`` of the nominal device, readout per rad/s (the scale-factor error's reference).
+
+    """
+    ref, series = tables[0], tables[1:]
+    out = {'bias_rad_s': ref.bias, 'quadrature_rad_s': ref.quadrature,
+           'scale_factor': ref.scale_factor,
+           'scale_factor_error_ppm': (ref.scale_factor / nominal_scale_factor - 1.0) * 1e6,
+           'bias_tc_rad_s_k': math.nan, 'scale_factor_tc_ppm_k': math.nan,
+           'quadrature_tc_rad_s_k': math.nan}
+    if series:
+        reference = ref.temperature_k
+        kelvins = [r.temperature_k for r in series]
+        out['bias_tc_rad_s_k'] = calibration.fit_temperature_series(
+            reference, kelvins, [r.bias - ref.bias for r in series])[0]
+        out['scale_factor_tc_ppm_k'] = 1e6 * calibration.fit_temperature_series(
+            reference, kelvins, [r.scale_factor / ref.scale_factor - 1.0 for r in series])[0]
+        out['quadrature_tc_rad_s_k'] = calibration.fit_temperature_series(
+            reference, kelvins, [r.quadrature - ref.quadrature for r in series])[0]
+    return {k: float(v) for k, v in out.items()}
+
+
+def _gyroscope(point: Point, nominal=None) -> Dict[str, Any]:
+    """Return the metrics of a gyroscope point and its nominal device's figures."""
+    if nominal is None:
+        nominal = calibration.factory_tables(point.nominal_config())
+    config = point.config()
+    tables = calibration.factory_tables(config)
+    reference = nominal[0].scale_factor
+    metrics = {**gyroscope_figures(tables, reference), **device_figures(config)}
+    return {'metrics': metrics, 'nominal': gyroscope_figures(nominal, reference)}
+
+
 def evaluate(point: Point) -> Dict[str, Any]:
     """
     Run ``point`` and return its :data:`METRICS` (SI; nan where a metric does not apply).
+
+    A gyroscope point: its :data:`GYRO_METRICS` (the factory's tables of its device and of
+    the nominal one).
 
     Parameters
     ----------
@@ -202,6 +323,8 @@ def evaluate(point: Point) -> Dict[str, Any]:
         contact is not an exception but a result.
 
     """
+    if point.kind == 'gyroscope':
+        return _gyroscope(point)['metrics']
     return metrics_of(run(point))
 
 
@@ -322,12 +445,16 @@ def compute(point: Point, store_dir: Optional[str] = None,
     return record
 
 
-def _evaluated(point: Point, setup: Optional[cases.DriveSetup]) -> Dict[str, Any]:
+def _evaluated(point: Point, setup: Optional[Any]) -> Dict[str, Any]:
     """Return the record of ``point`` run with ``setup``, or its failure record."""
     try:
-        result = run(point, setup)
-        metrics = metrics_of(result)
-        kept = kept_output(point, result) if point.envelopes else {}
+        if point.kind == 'gyroscope':
+            kept = _gyroscope(point, setup)
+            metrics = kept.pop('metrics')
+        else:
+            result = run(point, setup)
+            metrics = metrics_of(result)
+            kept = kept_output(point, result) if point.envelopes else {}
     except Exception as exc:  # noqa: B902 - any failure of one point is reported, not fatal
         return failure_record(point, f'{type(exc).__name__}: {exc}', traceback.format_exc())
     record = {'key': point.key, 'coords': [[k, v] for k, v in point.coords],

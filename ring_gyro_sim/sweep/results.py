@@ -17,8 +17,8 @@ The results of a sweep as an ``xarray.Dataset``, netCDF4 and CSV.
 
 Dimensions are the sweep axes (named as in the spec, e.g. ``modes.quality_factors[0]``,
 ``shock.peak_g``; coordinate attributes ``units`` and ``spacing``), one variable per metric
-of the spec (:data:`ring_gyro_sim.sweep.point.METRICS`, attributes ``units`` and
-``long_name``), and always:
+of the spec (:data:`ring_gyro_sim.sweep.point.METRICS`, ``GYRO_METRICS`` for a gyroscope
+sweep; attributes ``units`` and ``long_name``), and always:
 
 * ``branch_code`` (with ``final_branch``): int8, 0 lower, 1 upper, 2 contact, -1 no drive or
   the point failed (CF ``flag_values`` / ``flag_meanings``): what the jump map draws;
@@ -43,7 +43,7 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence
 
 import numpy as np
 from ring_gyro_sim import __version__
-from ring_gyro_sim.sweep.point import METRICS
+from ring_gyro_sim.sweep.point import metric_table
 from ring_gyro_sim.sweep.spec import Point, SweepSpec
 
 __all__ = ['BRANCH_CODES', 'ENVELOPE_PREFIX', 'REPRODUCIBLE_EXCLUDED', 'TIME_DIM',
@@ -91,9 +91,10 @@ def build_dataset(spec: SweepSpec, points: Sequence[Point],
     import xarray as xr
     shape = spec.shape
     dims = [a.name for a in spec.axes]
+    table = metric_table(spec.kind)
     data: Dict[str, np.ndarray] = {}
     for name in spec.metrics:
-        kind = METRICS[name][0]
+        kind = table[name][0]
         if kind == 'float':
             data[name] = np.full(shape, np.nan)
         elif kind == 'bool':
@@ -113,7 +114,7 @@ def build_dataset(spec: SweepSpec, points: Sequence[Point],
             continue
         metrics = record['metrics']
         for name in spec.metrics:
-            kind = METRICS[name][0]
+            kind = table[name][0]
             value = metrics.get(name)
             if kind == 'float':
                 data[name][index] = np.nan if value is None else float(value)
@@ -138,8 +139,8 @@ def build_dataset(spec: SweepSpec, points: Sequence[Point],
         if values.dtype == object:
             values = values.astype(str)
         attrs: Dict[str, Any] = {}
-        if name in METRICS:
-            kind, unit, meaning = METRICS[name]
+        if name in table:
+            kind, unit, meaning = table[name]
             attrs = {'units': unit, 'long_name': meaning}
             if kind == 'bool':
                 attrs.update(flag_values=np.array([0, 1], dtype=np.int8),

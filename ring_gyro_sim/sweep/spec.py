@@ -36,6 +36,16 @@ A spec is a YAML mapping (every key optional but ``axes``)::
     envelopes: [q2]           # envelope channels kept over time per point (or all; default none)
     plot: {x: shock.peak_g, y: modes.quality_factors[0]} # axes of the maps (default: 1st, 2nd)
 
+Kinds
+    ``kind: case`` (the default) runs each point as a paper case (a shock on the drive, the
+    branch it ends on: :mod:`.point`). ``kind: gyroscope`` measures each point's device as a
+    datasheet lists it, from the factory's rate tables (``core.gyro.calibration``: bias,
+    quadrature, scale factor and their temperature coefficients; ``gyro.enabled`` needed):
+    a sweep over ``device.seed`` is a device population. A gyroscope point has no shock and
+    no run of its own (``shock.*``, ``duration``, ``output_rate``, ``envelope_window`` and
+    ``envelopes`` are refused); the device is simulated as configured, output rate
+    included. Without ``base`` its base is the package's defaults (the gyroscope).
+
 Names
     Any parameter of the table (:data:`ring_gyro_sim.core.params.SPECS`) by its ROS name;
     one element of a list parameter as ``name[i]`` (``modes.quality_factors[0]`` is Q_1):
@@ -53,7 +63,8 @@ Points
     from the paper's resonator, after the table's coercion: the points are its cases,
     ``analysis.cases``, which a base file or ``set`` values change; the shock, the run
     length, output rate, envelope window, the package version and, when there are any, the
-    envelope channels it keeps), so ``5000`` and ``5000.0`` are one point, and a point is
+    envelope channels it keeps; a gyroscope point: its kind, parameters and the package
+    version), so ``5000`` and ``5000.0`` are one point, and a point is
     recognised whatever spec, axis order or file it came from. A point that keeps envelopes
     is another record than the same point without (its record holds them), hence another key.
 
@@ -89,12 +100,13 @@ from ring_gyro_sim.analysis import cases
 from ring_gyro_sim.analysis import envelope as env
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.params import (coerce, defaults, LIST_KINDS, MAX_OUTPUT_RATE_HZ,
-                                       MAX_TIME_S, paper_config, PAPER_RESONATOR, SPECS)
+                                       MAX_TIME_S, paper_config, PAPER_RESONATOR, SimConfig,
+                                       SPECS)
 from ring_gyro_sim.paramfile import check_params_file, DEFAULT_NODE_NAME, RosYamlLoader
 import yaml
 
-__all__ = ['ALL_ENVELOPES', 'Axis', 'Point', 'SCENARIO_NAMES', 'SweepSpec', 'SweepSpecError',
-           'load_spec', 'parse_spec']
+__all__ = ['ALL_ENVELOPES', 'Axis', 'KINDS', 'Point', 'SCENARIO_NAMES', 'SweepSpec',
+           'SweepSpecError', 'load_spec', 'parse_spec']
 
 SCENARIO_NAMES = {
     'shock.peak_g': ('g', 'half-sine shock peak, g = 9.80665 m/s^2', 0.0),
@@ -102,8 +114,15 @@ SCENARIO_NAMES = {
     'shock.angle_deg': ('deg', 'shock direction from x towards y', 0.0),
 }
 """Scenario inputs that are not ROS parameters: name -> (unit, meaning, default)."""
-SPEC_KEYS = ('base', 'node_name', 'duration', 'output_rate', 'envelope_window', 'set', 'axes',
-             'metrics', 'envelopes', 'plot')
+SPEC_KEYS = ('base', 'node_name', 'kind', 'duration', 'output_rate', 'envelope_window', 'set',
+             'axes', 'metrics', 'envelopes', 'plot')
+KINDS = ('case', 'gyroscope')
+"""What a point is: a paper case (a shock on the drive) or a gyroscope's datasheet figures."""
+CASE_ONLY_KEYS = ('duration', 'output_rate', 'envelope_window', 'envelopes')
+"""Spec keys of a run of its own, which a gyroscope point does not have."""
+GYRO_CPU_S_PER_TABLE = 2.5
+"""CPU time of one factory rate table of the default gyroscope (1.55 simulated s), s: the
+cost estimate of a gyroscope spec (doc/populations.md)."""
 ALL_ENVELOPES = 'all'
 """``envelopes: all``: every envelope channel of the run."""
 RUN_KEYS = {'duration': 'duration', 'output.rate': 'output_rate'}
@@ -184,6 +203,9 @@ class Point:
         Run length, envelope input rate and envelope window.
     envelopes : tuple of str
         Envelope channels kept over time (``('all',)``: every one; empty: none).
+    kind : str
+        ``case`` or ``gyroscope`` (:data:`KINDS`; a gyroscope point has no shock nor run
+        settings: 0).
 
     """
 
@@ -197,6 +219,17 @@ class Point:
     output_rate_hz: float
     window_s: float
     envelopes: Tuple[str, ...] = ()
+    kind: str = 'case'
+
+    def config(self) -> SimConfig:
+        """Return the configuration the point runs (a case's: without its shock)."""
+        if self.kind == 'gyroscope':
+            return paper_config(dict(self.overrides))
+        return self.case_spec().config(None, self.output_rate_hz)
+
+    def nominal_config(self) -> SimConfig:
+        """Return the point's configuration without its device draw (``device.seed`` 0)."""
+        return paper_config({k: v for k, v in self.overrides if k != 'device.seed'})
 
     def case_spec(self) -> cases.CaseSpec:
         """Return the :class:`~ring_gyro_sim.analysis.cases.CaseSpec` of this point."""
@@ -210,6 +243,8 @@ class Point:
 
     def parameters(self) -> Dict[str, Any]:
         """Return coordinates, shock and run settings, JSON-ready (for reports)."""
+        if self.kind == 'gyroscope':
+            return {'coords': dict(self.coords), 'kind': self.kind}
         return {'coords': dict(self.coords), 'shock.peak_g': self.shock_g,
                 'shock.phase': self.shock_phase, 'shock.angle_deg': self.shock_angle_deg,
                 'duration_s': self.duration_s}
@@ -246,6 +281,9 @@ class SweepSpec:
         The two axes of the maps (one for a one-axis sweep).
     source : str
         The spec file (or '<text>').
+    kind : str
+        What a point is (:data:`KINDS`): ``case`` or ``gyroscope`` (then no run settings:
+        ``duration_s`` 0).
 
     """
 
@@ -261,6 +299,7 @@ class SweepSpec:
     plot_axes: Tuple[str, ...] = ()
     source: str = '<text>'
     raw: Dict[str, Any] = field(default_factory=dict, compare=False)
+    kind: str = 'case'
 
     @property
     def shape(self) -> Tuple[int, ...]:
@@ -284,6 +323,14 @@ class SweepSpec:
                 scenario[name] = float(value)
             else:
                 _assign(flat, name, value)
+        if self.kind == 'gyroscope':  # the device as configured: no shock, no run of its own
+            overrides = _differences(flat)
+            text = json.dumps({'version': __version__, 'kind': self.kind,
+                               'overrides': overrides}, sort_keys=True, allow_nan=False)
+            key = hashlib.sha256(text.encode('utf-8')).hexdigest()[:KEY_DIGITS]
+            return Point(key=key, coords=coords, overrides=tuple(sorted(overrides.items())),
+                         shock_g=0.0, shock_phase=0.0, shock_angle_deg=0.0, duration_s=0.0,
+                         output_rate_hz=0.0, window_s=0.0, kind=self.kind)
         flat['output.rate'] = self.output_rate_hz  # what the run uses (CaseSpec.config)
         overrides = _differences(flat)
         payload = {'version': __version__, 'overrides': overrides, 'shock': scenario,
@@ -305,7 +352,7 @@ class SweepSpec:
 
     def describe(self) -> Dict[str, Any]:
         """Return the spec as resolved (JSON-ready: the results' attributes)."""
-        return {'source': self.source, 'base_path': self.base_path,
+        return {'source': self.source, 'base_path': self.base_path, 'kind': self.kind,
                 'axes': {a.name: list(a.values) for a in self.axes},
                 'spacing': {a.name: a.spacing for a in self.axes},
                 'set': self.fixed, 'duration_s': self.duration_s,
@@ -348,12 +395,15 @@ def _where(source: str, key: str) -> str:
 
 
 def _check_name(name: Any, base: Mapping[str, Any], source: str, key: str,
-                whole_list: bool = False) -> str:
+                whole_list: bool = False, kind: str = 'case') -> str:
     """Check an axis or ``set`` name (``whole_list``: a list parameter as a whole); return it."""
     where = _where(source, key)
     if not isinstance(name, str):
         raise SweepSpecError(f'{where}: a name must be a string, got {name!r}')
     if name in SCENARIO_NAMES:
+        if kind == 'gyroscope':
+            raise SweepSpecError(f'{where}: {name!r}: a gyroscope point has no shock (it '
+                                 f'runs the factory rate tables of its device)')
         return name
     param, index = _split(name)
     if param in RUN_KEYS:
@@ -449,18 +499,22 @@ def _cost(cpu_s: float) -> str:
     return f'{cpu_s:.3g} CPU-seconds'
 
 
-def _check_size(counts: Sequence[Tuple[str, int]], duration_s: float, source: str) -> None:
-    """Refuse more than :data:`MAX_POINTS` points, with the count and the estimated cost."""
+def _check_size(counts: Sequence[Tuple[str, int]], cpu_per_point_s: float,
+                per_point: Tuple[str, str], source: str) -> None:
+    """
+    Refuse more than :data:`MAX_POINTS` points, with the count and the estimated cost.
+
+    ``per_point``: what a point is (``'25 s per point'``) and how its cost is estimated.
+    """
     size = math.prod(n for _, n in counts)
     if size <= MAX_POINTS:
         return
     shape = ' x '.join(f'{n} ({name})' for name, n in counts)
-    cpu_s = size * duration_s * CPU_S_PER_SIMULATED_S
+    cpu_s = size * cpu_per_point_s
     raise SweepSpecError(f'{_where(source, "axes")}: {size} points ({shape}): more than the '
-                         f'{MAX_POINTS} a sweep takes; at {duration_s:g} s per point that '
-                         f'is about {_cost(cpu_s)} ({CPU_S_PER_SIMULATED_S:g} CPU s per '
-                         f'simulated s): split it into smaller sweeps (one --out with '
-                         f'--resume shares their points)')
+                         f'{MAX_POINTS} a sweep takes; at {per_point[0]} that is about '
+                         f'{_cost(cpu_s)} ({per_point[1]}): split it into smaller sweeps (one '
+                         f'--out with --resume shares their points)')
 
 
 def _axis_values(name: str, raw: Any, where: str) -> Tuple[Tuple[Any, ...], str]:
@@ -527,7 +581,7 @@ def parse_spec(data: Any, source: str = '<text>', directory: str = '.',
         The message names the spec, the key and the reason.
 
     """
-    from ring_gyro_sim.sweep.point import METRICS  # the metric table lives beside evaluate
+    from ring_gyro_sim.sweep.point import metric_table  # the metrics live beside evaluate
     if not isinstance(data, dict):
         raise SweepSpecError(f'sweep spec {source}: the top level must be a mapping '
                              f'({", ".join(SPEC_KEYS)})')
@@ -536,6 +590,16 @@ def parse_spec(data: Any, source: str = '<text>', directory: str = '.',
         raise SweepSpecError(f'sweep spec {source}: unknown key(s) {unknown} (known: '
                              f'{", ".join(SPEC_KEYS)})')
     node = data.get('node_name', DEFAULT_NODE_NAME)
+    kind = data.get('kind', 'case')
+    if kind not in KINDS:
+        raise SweepSpecError(f'{_where(source, "kind")}: must be one of {", ".join(KINDS)}, '
+                             f'got {kind!r}')
+    if kind == 'gyroscope':
+        given = [k for k in CASE_ONLY_KEYS if k in data]
+        if given:
+            raise SweepSpecError(f'{_where(source, given[0])}: applies to kind: case only (a '
+                                 f'gyroscope point runs the factory rate tables of its device '
+                                 f'as configured)')
     base_path = data.get('base')
     base: Dict[str, Any] = {}
     if base_path is not None:
@@ -549,10 +613,15 @@ def parse_spec(data: Any, source: str = '<text>', directory: str = '.',
         base = dict(check_params_file(base_path, node))
     elif base_params is not None:
         base = {str(k): v for k, v in base_params.items()}
+    elif kind == 'gyroscope':  # the package's defaults: the gyroscope
+        base = {name: SPECS[name].default for name in PAPER_RESONATOR}
     try:
         base_config = paper_config(base)
     except ParameterError as exc:
         raise SweepSpecError(f'{_where(source, "base")}: {exc}') from None
+    if kind == 'gyroscope' and not base_config.gyro.enabled:
+        raise SweepSpecError(f'{_where(source, "base")}: kind gyroscope needs a gyroscope '
+                             f'(gyro.enabled: true; e.g. base: default.yaml)')
     if base_config.run.shock_times:
         raise SweepSpecError(f'{_where(source, "base")}: {base_path} schedules shocks '
                              f'(scenario.shock_times): the sweep applies its own shock '
@@ -563,43 +632,57 @@ def parse_spec(data: Any, source: str = '<text>', directory: str = '.',
                              f'values, got {fixed_raw!r}')
     fixed: Dict[str, Any] = {}
     for name, value in fixed_raw.items():
-        name = _check_name(name, base, source, 'set', whole_list=True)
+        name = _check_name(name, base, source, 'set', whole_list=True, kind=kind)
         fixed[name] = _coerce_value(name, value, _where(source, f'set: {name}'))
     axes_raw = data.get('axes')
     if not isinstance(axes_raw, dict) or not axes_raw:
         raise SweepSpecError(f'{_where(source, "axes")}: expected a mapping of names to '
                              f'values (at least one axis), got {axes_raw!r}')
-    duration = _positive(data, 'duration', base_config.run.duration or None, source,
-                         MAX_TIME_S, SPECS['duration'].range_note)
-    if duration is None:
-        raise SweepSpecError(f'{_where(source, "duration")}: give the simulated time per '
-                             f'point, s (the base has duration 0: run forever)')
-    rate = _positive(data, 'output_rate', cases.DEFAULT_OUTPUT_RATE_HZ, source,
-                     MAX_OUTPUT_RATE_HZ, SPECS['output.rate'].range_note)
-    window = _positive(data, 'envelope_window', env.DEFAULT_WINDOW_S, source, duration,
-                       'the simulated time per point')
+    if kind == 'gyroscope':
+        duration, rate, window = 0.0, 0.0, 0.0
+        points = [t for t in fixed.get('gyro.calibration.temperature_points', base_config.gyro
+                                       .calibration_temperature_points)
+                  if t != base_config.thermal.reference_temperature]
+        tables = 1 + len(points)
+        cpu_per_point = tables * GYRO_CPU_S_PER_TABLE
+        per_point = (f'{tables} rate tables per point',
+                     f'{GYRO_CPU_S_PER_TABLE:g} CPU s per table of the default gyroscope')
+    else:
+        duration = _positive(data, 'duration', base_config.run.duration or None, source,
+                             MAX_TIME_S, SPECS['duration'].range_note)
+        if duration is None:
+            raise SweepSpecError(f'{_where(source, "duration")}: give the simulated time per '
+                                 f'point, s (the base has duration 0: run forever)')
+        rate = _positive(data, 'output_rate', cases.DEFAULT_OUTPUT_RATE_HZ, source,
+                         MAX_OUTPUT_RATE_HZ, SPECS['output.rate'].range_note)
+        window = _positive(data, 'envelope_window', env.DEFAULT_WINDOW_S, source, duration,
+                           'the simulated time per point')
+        cpu_per_point = duration * CPU_S_PER_SIMULATED_S
+        per_point = (f'{duration:g} s per point',
+                     f'{CPU_S_PER_SIMULATED_S:g} CPU s per simulated s')
     context = dict(base)  # the lists an axis indexes: the base's, or a list under set
     context.update({k: v for k, v in fixed.items() if k in SPECS})
     counts = []
     for name, raw in axes_raw.items():
-        name = _check_name(name, context, source, 'axes')
+        name = _check_name(name, context, source, 'axes', kind=kind)
         if name in fixed:
             raise SweepSpecError(f'{_where(source, "axes")}: {name!r} is also under set')
         counts.append((name, _axis_count(raw, _where(source, f'axes: {name}'))))
-    _check_size(counts, duration, source)  # before any value is made
+    _check_size(counts, cpu_per_point, per_point, source)  # before any value is made
     axes = []
     for (name, _), raw in zip(counts, axes_raw.values()):
         values, spacing = _axis_values(name, raw, _where(source, f'axes: {name}'))
         axes.append(Axis(name=name, values=values, spacing=spacing, unit=_unit(name)))
-    metrics = data.get('metrics', list(METRICS))
+    known = metric_table(kind)
+    metrics = data.get('metrics', list(known))
     if not isinstance(metrics, list) or not metrics or not all(
             isinstance(m, str) for m in metrics):
         raise SweepSpecError(f'{_where(source, "metrics")}: expected a list of names '
-                             f'({", ".join(METRICS)}), got {metrics!r}')
-    bad = [m for m in metrics if m not in METRICS]
+                             f'({", ".join(known)}), got {metrics!r}')
+    bad = [m for m in metrics if m not in known]
     if bad:
-        raise SweepSpecError(f'{_where(source, "metrics")}: unknown {bad} (known: '
-                             f'{", ".join(METRICS)})')
+        raise SweepSpecError(f'{_where(source, "metrics")}: unknown {bad} (known for kind '
+                             f'{kind}: {", ".join(known)})')
     envelopes = _envelope_names(data.get('envelopes'), source)
     names = [a.name for a in axes]
     plot = data.get('plot') or {}
@@ -617,7 +700,7 @@ def parse_spec(data: Any, source: str = '<text>', directory: str = '.',
     spec = SweepSpec(axes=tuple(axes), base=base, base_path=base_path, fixed=fixed,
                      duration_s=duration, output_rate_hz=rate, window_s=window,
                      metrics=tuple(metrics), envelopes=envelopes,
-                     plot_axes=tuple(plot_axes), source=source, raw=dict(data))
+                     plot_axes=tuple(plot_axes), source=source, raw=dict(data), kind=kind)
     _check_axis_values(spec)
     return spec
 
@@ -649,10 +732,15 @@ def _check_axis_values(spec: SweepSpec) -> None:
             values[i] = value
             point = spec.point(values)
             try:
-                config = point.case_spec().config(None, spec.output_rate_hz)
+                config = point.config()
             except ParameterError as exc:
                 raise SweepSpecError(f'{_where(spec.source, "axes")}: {axis.name} = '
                                      f'{value!r}: {exc}') from None
+            if spec.kind == 'gyroscope':
+                if not config.gyro.enabled:
+                    raise SweepSpecError(f'{_where(spec.source, "axes")}: {axis.name} = '
+                                         f'{value!r}: kind gyroscope needs gyro.enabled')
+                continue
             if point.shock_angle_deg and not config.modes.companions:
                 raise SweepSpecError(f'{_where(spec.source, "axes")}: shock.angle_deg = '
                                      f'{point.shock_angle_deg:g}: a shock off the x axis '
