@@ -642,6 +642,60 @@ def plot_sweep(ds, plot_axes: Sequence[str], metrics: Sequence[str], out_dir) ->
     return written
 
 
+def plot_population(ds, sheet, path) -> List[str]:
+    """
+    Draw the histogram of each datasheet figure of a device population; the files written.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Results of a ``kind: gyroscope`` sweep (``sweep.results``).
+    sheet : mapping
+        Its datasheet (``sweep.results.population_datasheet``): the figures drawn, their
+        display units and statistics.
+    path : str or Path
+        PNG file to write.
+
+    """
+    plt = _pyplot()
+    figures = sheet['figures']
+    if plt is None or not figures:
+        return []
+    from matplotlib.ticker import MaxNLocator
+    columns = 3
+    rows = int(math.ceil(len(figures) / columns))
+    fig, axes = plt.subplots(rows, columns, figsize=(4.0 * columns, 3.2 * rows + 0.6),
+                             squeeze=False)
+    for ax, (name, f) in zip(axes.ravel(), figures.items()):
+        scale = f['display_scale']
+        v = ds[name].values.ravel().astype(float)
+        v = v[np.isfinite(v)] * scale
+        ax.hist(v, bins=max(5, int(math.ceil(math.sqrt(v.size)))), color='tab:blue',
+                alpha=0.75, edgecolor='white')
+        ax.axvline(f['median'] * scale, color='k', lw=1.2, label='median')
+        for key, label in (('mean_minus_3_sigma', 'mean -+ 3 sigma'),
+                           ('mean_plus_3_sigma', None)):
+            ax.axvline(f[key] * scale, color='tab:red', lw=1.0, ls='--', label=label)
+        for key, label in (('min', 'min / max'), ('max', None)):
+            ax.axvline(f[key] * scale, color='tab:grey', lw=0.9, ls=':', label=label)
+        ax.set_xlabel(f'{f["label"]} ({f["display_units"]})', fontsize=8)
+        ax.set_ylabel('devices', fontsize=8)
+        ax.set_title(_wrapped(f'{name}: {f["long_name"]}', 3.6), fontsize=7)
+        ax.ticklabel_format(axis='x', style='sci', scilimits=(-2, 4), useOffset=False)
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.tick_params(labelsize=7)
+        ax.grid(True, alpha=0.3)
+    for ax in axes.ravel()[len(figures):]:
+        ax.set_visible(False)
+    axes.ravel()[0].legend(fontsize=6, loc='upper left', frameon=False)
+    axes_text = ', '.join(f'{sweep_axis_name(k)} {v[0]}-{v[1]}' for k, v in sheet['axes'].items())
+    fig.suptitle(_wrapped(f'Device population: {sheet["devices"] - sheet["failed"]} devices '
+                          f'({axes_text}); datasheet figures from the factory rate tables',
+                          fig.get_figwidth()), fontsize=9, x=0.02, ha='left')
+    _save(plt, fig, path)
+    return [str(path)]
+
+
 def plot_rate(traces, path, title='Rate output', shock_s=None, drive=None,
               band=0.01, recovery_s=None) -> bool:
     """

@@ -53,8 +53,11 @@ Output
     ``DIR/results.nc`` and ``DIR/results.csv`` (:mod:`.results`), ``DIR/jump_map.png``,
     ``DIR/map_<metric>.png`` and, with kept envelopes, ``DIR/envelope_<channel>.png``
     (:func:`ring_gyro_sim.analysis.plotting.plot_sweep`), ``DIR/sweep.json`` (the resolved
-    spec), ``DIR/failures.json``. ``ring_gyro report`` runs its Case 4 through this function
-    (:func:`ring_gyro_sim.report.run_case4`).
+    spec), ``DIR/failures.json``. A gyroscope sweep (a device population) also writes its
+    datasheet, ``DIR/datasheet.json`` and ``DIR/datasheet.md``
+    (:func:`.results.population_datasheet`), and its histograms, ``DIR/population.png``
+    (:func:`ring_gyro_sim.analysis.plotting.plot_population`). ``ring_gyro report`` runs its
+    Case 4 through this function (:func:`ring_gyro_sim.report.run_case4`).
 """
 
 from contextlib import contextmanager
@@ -371,9 +374,16 @@ def _sweep(spec: SweepSpec, store: PointStore, out: str, wall0: float,
     with open(fpath, 'w', encoding='utf-8') as fh:
         json.dump(failures, fh, indent=1, sort_keys=True, default=str)
     files['failures'] = fpath
+    sheet = None
+    if spec.kind == 'gyroscope':  # a device population: its datasheet
+        sheet = results.population_datasheet(ds)
+        files.update(results.write_datasheet(sheet, out))
     if plots:
         from ring_gyro_sim.analysis import plotting
         files['plots'] = plotting.plot_sweep(ds, spec.plot_axes, spec.metrics, out)
+        if sheet is not None:
+            files['plots'] += plotting.plot_population(ds, sheet,
+                                                       os.path.join(out, 'population.png'))
     outcome = SweepOutcome(dataset=ds, points=len(points), computed=computed, reused=reused,
                            failures=failures, wall_time_s=time.perf_counter() - wall0,
                            workers=n_workers, dashboard=dashboard, files=files)

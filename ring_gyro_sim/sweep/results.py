@@ -36,9 +36,17 @@ Missing values (a failed point): nan for floats, -1 for the int8 flags (``contac
 ``base_parameters`` (JSON: the flat parameters of the base file), ``set`` and ``spec`` (JSON:
 the resolved spec), ``base_path``. ``DIR/results.csv`` has one row per point: the axes, then
 the variables (not the envelopes over time: they are in ``results.nc``).
+
+A gyroscope sweep (``kind: gyroscope``, a device population) also has its datasheet
+(:func:`population_datasheet`, :func:`write_datasheet`): for each figure of
+:data:`DATASHEET_FIGURES` over the devices computed, the count, min, median, max, mean, the
+sample standard deviation sigma (``ddof`` 1), mean -+ 3 sigma and the median magnitude, in
+``DIR/datasheet.json`` (the figures' SI units) and ``DIR/datasheet.md`` (a table in the
+units a datasheet gives: deg/s for rad/s).
 """
 
 import json
+import math
 from typing import Any, Dict, List, Mapping, Optional, Sequence
 
 import numpy as np
@@ -46,8 +54,9 @@ from ring_gyro_sim import __version__
 from ring_gyro_sim.sweep.point import metric_table
 from ring_gyro_sim.sweep.spec import Point, SweepSpec
 
-__all__ = ['BRANCH_CODES', 'ENVELOPE_PREFIX', 'REPRODUCIBLE_EXCLUDED', 'TIME_DIM',
-           'build_dataset', 'comparable', 'open_results', 'write_results']
+__all__ = ['BRANCH_CODES', 'DATASHEET_FIGURES', 'ENVELOPE_PREFIX', 'REPRODUCIBLE_EXCLUDED',
+           'TIME_DIM', 'build_dataset', 'comparable', 'datasheet_markdown', 'open_results',
+           'population_datasheet', 'write_datasheet', 'write_results']
 
 BRANCH_CODES = {'lower': 0, 'upper': 1, 'contact': 2}
 """``branch_code`` of each final branch (-1: none)."""
@@ -224,3 +233,94 @@ def open_results(path):
 def comparable(ds) -> List[str]:
     """Names of the variables that two runs of one sweep must give identically."""
     return [n for n in ds.data_vars if n not in REPRODUCIBLE_EXCLUDED]
+
+
+DATASHEET_FIGURES = {'bias_rad_s': 'bias', 'quadrature_rad_s': 'quadrature',
+                     'scale_factor_error_ppm': 'scale-factor error',
+                     'bias_tc_rad_s_k': 'bias temperature coefficient',
+                     'quadrature_tc_rad_s_k': 'quadrature temperature coefficient',
+                     'scale_factor_tc_ppm_k': 'scale-factor temperature coefficient'}
+"""The figures of a population's datasheet (``sweep.point.FIGURES``), in its order: name ->
+what a datasheet calls it."""
+DISPLAY_UNITS = {'rad/s': ('deg/s', 180.0 / math.pi), 'rad/s/K': ('deg/s/K', 180.0 / math.pi)}
+"""SI unit -> (the unit a datasheet gives, its factor)."""
+STATISTICS = ('min', 'median', 'max', 'mean', 'sigma', 'mean_minus_3_sigma',
+              'mean_plus_3_sigma', 'median_magnitude')
+"""The numbers of each datasheet figure (besides its count ``n``)."""
+
+
+def population_datasheet(ds) -> Dict[str, Any]:
+    """
+    Return the datasheet of a gyroscope sweep: each figure's spread over its devices.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Results of a ``kind: gyroscope`` sweep (:func:`build_dataset`).
+
+    Returns
+    -------
+    dict
+        ``devices`` (points of the sweep), ``failed`` (points without a record), ``axes``
+        (each axis' first and last value) and ``figures``: name -> ``units``,
+        ``long_name``, ``display_units``, ``display_scale`` (the display value is the SI
+        value times it), ``n`` and the :data:`STATISTICS` in SI units (figures the spec did
+        not keep, or nan on every device, are left out).
+
+    """
+    errors = ds['error'].values.ravel() if 'error' in ds else np.array([])
+    figures: Dict[str, Any] = {}
+    for name in DATASHEET_FIGURES:
+        if name not in ds:
+            continue
+        v = ds[name].values.ravel().astype(float)
+        v = v[np.isfinite(v)]
+        if not v.size:
+            continue
+        mean = float(np.mean(v))
+        sigma = float(np.std(v, ddof=1)) if v.size > 1 else math.nan
+        units = str(ds[name].attrs.get('units', ''))
+        display, scale = DISPLAY_UNITS.get(units, (units, 1.0))
+        figures[name] = {
+            'label': DATASHEET_FIGURES[name], 'units': units,
+            'long_name': str(ds[name].attrs.get('long_name', '')),
+            'display_units': display, 'display_scale': scale, 'n': int(v.size),
+            'min': float(np.min(v)), 'median': float(np.median(v)), 'max': float(np.max(v)),
+            'mean': mean, 'sigma': sigma, 'mean_minus_3_sigma': mean - 3.0 * sigma,
+            'mean_plus_3_sigma': mean + 3.0 * sigma,
+            'median_magnitude': float(np.median(np.abs(v)))}
+    axes = {d: [_plain(ds[d].values[0]), _plain(ds[d].values[-1])] for d in ds.dims
+            if d != TIME_DIM}
+    return {'devices': int(errors.size), 'failed': int(sum(1 for e in errors if e)),
+            'axes': axes, 'figures': figures}
+
+
+def _plain(value: Any) -> Any:
+    """Return a numpy scalar as the Python number it is (JSON-ready)."""
+    return value.item() if hasattr(value, 'item') else value
+
+
+def datasheet_markdown(sheet: Mapping[str, Any]) -> str:
+    """Return a datasheet (:func:`population_datasheet`) as a Markdown table, display units."""
+    axes = ', '.join(f'{k} {v[0]} to {v[1]}' for k, v in sheet['axes'].items())
+    lines = [f'{sheet["devices"]} devices ({axes}; {sheet["failed"]} failed). sigma: sample '
+             f'standard deviation (ddof 1).', '',
+             '| figure | unit | n | min | median | max | mean | sigma | mean - 3 sigma '
+             '| mean + 3 sigma | median abs |',
+             '|---|---|---|---|---|---|---|---|---|---|---|']
+    for name, f in sheet['figures'].items():
+        scale = f['display_scale']
+        numbers = ' | '.join(f'{f[k] * scale:.3g}' for k in STATISTICS)
+        lines.append(f'| {f["label"]} (`{name}`) | {f["display_units"]} | {f["n"]} | '
+                     f'{numbers} |')
+    return '\n'.join(lines) + '\n'
+
+
+def write_datasheet(sheet: Mapping[str, Any], out_dir) -> Dict[str, str]:
+    """Write a datasheet (:func:`population_datasheet`) as ``datasheet.json`` and ``.md``."""
+    from pathlib import Path
+    out = Path(out_dir)
+    paths = {'datasheet_json': out / 'datasheet.json', 'datasheet_md': out / 'datasheet.md'}
+    paths['datasheet_json'].write_text(json.dumps(sheet, indent=1) + '\n', encoding='utf-8')
+    paths['datasheet_md'].write_text(datasheet_markdown(sheet), encoding='utf-8')
+    return {k: str(v) for k, v in paths.items()}

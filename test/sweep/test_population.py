@@ -27,9 +27,10 @@ import math
 
 import numpy as np
 import pytest
+from ring_gyro_sim.core.gyro import calibration
 from ring_gyro_sim.core.gyro.control import KAPPA_2
 from ring_gyro_sim.core.params import build_config
-from ring_gyro_sim.sweep import load_spec, point, run_sweep
+from ring_gyro_sim.sweep import load_spec, point, results, run_sweep
 from ring_gyro_sim.sweep.store import PointStore
 from sweep_harness import write_spec
 
@@ -47,8 +48,10 @@ def population(tmp_path_factory):
     """Run the three-device population on two local workers: (spec, output dir, outcome)."""
     d = tmp_path_factory.mktemp('population')
     spec = load_spec(str(write_spec(d, SPEC)))
-    outcome = run_sweep(spec, d / 'out', workers=2, progress=False, dashboard_address=None,
-                        plots=False)
+    with pytest.MonkeyPatch.context() as mp:  # the workers' tables: measured, stored apart
+        mp.setenv(calibration.CACHE_ENV, str(d / 'cache'))
+        outcome = run_sweep(spec, d / 'out', workers=2, progress=False,
+                            dashboard_address=None, plots=True)
     return spec, d / 'out', outcome
 
 
@@ -92,12 +95,40 @@ def test_the_device_is_the_one_its_seed_draws(population):
         assert record['metrics']['quadrature_rad_s'] == pytest.approx(closed_form, rel=1e-2)
 
 
-def test_one_point_run_again_gives_the_same_numbers_bit_for_bit(population):
+def test_one_point_run_again_gives_the_same_numbers_bit_for_bit(population, monkeypatch):
     spec, out, _ = population
     p = spec.points()[1]
     stored = PointStore(out, create=False).read(p.key)
-    again = point.compute(p)  # this process: its own nominal device and tables
+    # this process runs the tables again: no stored tables, none memoised
+    monkeypatch.setenv(calibration.CACHE_ENV, '')
+    monkeypatch.setattr(calibration, '_MEMO', type(calibration._MEMO)())
+    again = point.compute(p)  # its own nominal device and tables
     for key in ('metrics', 'nominal'):  # the JSON text: repr, every bit of every float
         assert json.dumps(again[key], sort_keys=True) == json.dumps(stored[key], sort_keys=True)
     assert again['metrics'] != PointStore(out, create=False).read(spec.points()[0].key)[
         'metrics']  # control: another device's numbers are not these
+
+
+def test_the_datasheet_is_the_populations_spread(population):
+    # datasheet.json: per figure over the devices, min / median / max, the mean, the sample
+    # sigma (ddof 1) and mean -+ 3 sigma; datasheet.md the same in deg/s; population.png drawn
+    _, out, outcome = population
+    sheet = json.loads((out / 'datasheet.json').read_text(encoding='utf-8'))
+    assert (sheet['devices'], sheet['failed']) == (3, 0)
+    assert sheet['axes'] == {'device.seed': [1, 3]}
+    assert list(sheet['figures']) == list(results.DATASHEET_FIGURES)
+    for name, f in sheet['figures'].items():
+        v = outcome.dataset[name].values
+        mean, sigma = sum(v) / 3.0, math.sqrt(sum((x - sum(v) / 3.0) ** 2 for x in v) / 2.0)
+        assert f['n'] == 3
+        assert (f['min'], f['median'], f['max']) == (min(v), sorted(v)[1], max(v))
+        assert f['mean'] == pytest.approx(mean, rel=1e-12)
+        assert f['sigma'] == pytest.approx(sigma, rel=1e-12)
+        assert f['mean_plus_3_sigma'] == pytest.approx(mean + 3.0 * sigma, rel=1e-12)
+        assert f['mean_minus_3_sigma'] == pytest.approx(mean - 3.0 * sigma, rel=1e-12)
+    bias = sheet['figures']['bias_rad_s']
+    assert (bias['display_units'], bias['display_scale']) == ('deg/s', 180.0 / math.pi)
+    table = (out / 'datasheet.md').read_text(encoding='utf-8')
+    assert f'| bias (`bias_rad_s`) | deg/s | 3 | {math.degrees(bias["min"]):.3g} |' in table
+    assert str(out / 'population.png') in outcome.files['plots']
+    assert (out / 'population.png').stat().st_size > 10000
