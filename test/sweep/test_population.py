@@ -24,6 +24,7 @@ and one point re-run in this process gives the same numbers bit for bit.
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -34,6 +35,7 @@ from ring_gyro_sim.sweep import load_spec, point, results, run_sweep
 from ring_gyro_sim.sweep.store import PointStore
 from sweep_harness import write_spec
 
+REPO = Path(__file__).resolve().parents[2]
 SPEC = """\
 kind: gyroscope
 set:
@@ -132,3 +134,13 @@ def test_the_datasheet_is_the_populations_spread(population):
     assert f'| bias (`bias_rad_s`) | deg/s | 3 | {math.degrees(bias["min"]):.3g} |' in table
     assert str(out / 'population.png') in outcome.files['plots']
     assert (out / 'population.png').stat().st_size > 10000
+
+
+def test_the_population_spec_of_the_docs_is_this_one_over_100_seeds(tmp_path):
+    # config/sweep_population.yaml (doc/populations.md) is SPEC over seeds 1 to 100
+    spec = load_spec(str(REPO / 'config' / 'sweep_population.yaml'))
+    short = load_spec(str(write_spec(tmp_path, SPEC)))
+    assert spec.kind == short.kind == 'gyroscope'
+    assert spec.fixed == short.fixed == {'gyro.calibration.temperature_points': [318.15]}
+    assert [p.key for p in spec.points()[:3]] == [p.key for p in short.points()]
+    assert [dict(p.coords)['device.seed'] for p in spec.points()] == list(range(1, 101))
