@@ -36,6 +36,14 @@ Not a measurement (V1)
     variance is :data:`NOT_MEASURED_VARIANCE`, finite, so that filters that rotate a
     covariance (``R C R^T``) keep finite numbers and give the sample no weight.
 
+Saturated (V1b)
+    A sample that reads the full scale of the output word because the rate behind it is
+    beyond it (``gyro.range``, ``core.gyro.electronics`` E15) is not a measurement either:
+    it says only that the rate is at least the range. Its reason is ``saturated`` unless a
+    loop's state (V1) says more. The clip is memoryless and the readout behind it did not
+    saturate, so it starts no settling (V2): the first sample back within the range is a
+    measurement again.
+
 Settling (V2)
     When such a state ends, the output stays "not a measurement" for :data:`SETTLE_TIME_CONSTANTS`
     time constants of the rate path, ``1 / (2 pi B)`` with ``B`` the path's bandwidth (E9:
@@ -49,7 +57,9 @@ Noise and scale factor (V3)
     ``(SCALE_FACTOR_SIGMA Omega_hat)^2``. :data:`SCALE_FACTOR_SIGMA` is the model-based
     readout's accuracy: the largest deviation of its scale factor measured at the shipped
     operating points (+0.25 % open loop at config/gyro.yaml, -0.097 % with rebalance at the
-    defaults: doc/gyroscope.md, doc/control.md).
+    defaults: doc/gyroscope.md, doc/control.md). With an output word of LSB ``L``
+    (``gyro.resolution``) its rounding adds ``L^2 / 12``, the variance of an error uniform
+    within ``+-L / 2``.
 
 Transient (V4)
     A disturbance that leaves the loops locked still moves the sense mode: its in-phase and
@@ -78,8 +88,9 @@ from typing import Optional
 import numpy as np
 
 __all__ = ['BAND_SIGMAS', 'DRIVE_TOLERANCE', 'ENVELOPE_MIN_S', 'NOT_MEASURED_VARIANCE',
-           'QUADRATURE_REFERENCE_S', 'REASONS', 'RateValidity', 'SCALE_FACTOR_SIGMA',
-           'SETTLE_TIME_CONSTANTS', 'VALID_SIGMA_RATIO', 'ValidityState']
+           'QUADRATURE_REFERENCE_S', 'REASONS', 'RateValidity', 'SATURATED',
+           'SCALE_FACTOR_SIGMA', 'SETTLE_TIME_CONSTANTS', 'VALID_SIGMA_RATIO',
+           'ValidityState']
 
 NOT_MEASURED_VARIANCE = 1e6
 """(rad/s)^2 of a sample that is not a measurement, and of the axes the sensor does not
@@ -110,8 +121,10 @@ oscillation left in the mean (1 %)."""
 
 REASONS = ('', 'PLL out of lock', 'rebalance loop off (drive not qualified)',
            'drive pick-off off its operating point', 'settling after a disturbance',
-           'shock on the pick-offs', 'drive detuned from the sense mode')
+           'shock on the pick-offs', 'drive detuned from the sense mode', 'saturated')
 """Why a sample is not a measurement, by code (0: it is one)."""
+SATURATED = REASONS.index('saturated')
+"""The code of a sample that reads the output word's full scale (V1b)."""
 
 
 @dataclass(frozen=True)
@@ -150,12 +163,17 @@ class RateValidity:
         Rate of the samples, Hz (``gyro.output_rate``).
     quadrature_per_rate : float
         The quadrature a rate causes, per unit rate (E6b; 0 with rebalance).
+    resolution : float
+        The output word's LSB, rad/s (``gyro.resolution``; 0: none): its rounding's
+        variance ``L^2 / 12`` is part of a measurement's (V3).
 
     """
 
     def __init__(self, noise_variance: float, bias_sigma: float, bandwidth_hz: float,
-                 sample_rate_hz: float, quadrature_per_rate: float) -> None:
-        self.noise_variance = float(noise_variance) + float(bias_sigma) ** 2
+                 sample_rate_hz: float, quadrature_per_rate: float,
+                 resolution: float = 0.0) -> None:
+        self.noise_variance = (float(noise_variance) + float(bias_sigma) ** 2
+                               + float(resolution) ** 2 / 12.0)
         tau = 1.0 / (2.0 * math.pi * float(bandwidth_hz))
         self.settle_s = SETTLE_TIME_CONSTANTS * tau
         dt = 1.0 / float(sample_rate_hz)
@@ -177,7 +195,7 @@ class RateValidity:
         self.state = previous.state
 
     def samples(self, t: np.ndarray, rate: np.ndarray, quadrature: np.ndarray,
-                reasons: np.ndarray) -> np.ndarray:
+                reasons: np.ndarray, saturated: Optional[np.ndarray] = None) -> np.ndarray:
         """
         Return the variance of each rate sample, (rad/s)^2, and update the state.
 
@@ -188,25 +206,33 @@ class RateValidity:
         reasons : ndarray of int, shape (M,)
             Per sample, the index in :data:`REASONS` of why it is not a measurement (0: the
             loops hold their operating point, V1).
+        saturated : ndarray of bool, shape (M,), optional
+            Per sample, whether it reads the full scale (``RateSamples.saturated``, V1b);
+            None: none did.
 
         """
         out = np.empty(rate.size)
         state = self.state
+        clipped = (np.zeros(rate.size, dtype=bool) if saturated is None
+                   else np.asarray(saturated, dtype=bool))
         for k in range(rate.size):
             r, q, code = float(rate[k]), float(quadrature[k]), int(reasons[k])
             nominal = self.noise_variance + (SCALE_FACTOR_SIGMA * r) ** 2
             if self._offset is None:
                 self._offset = q - self.quadrature_per_rate * r  # the chain starts settled
             deviation = abs(q - self.quadrature_per_rate * r - self._offset)
-            self._envelope = max(deviation, self._envelope * self._decay)
+            if clipped[k]:  # the reading is not the rate: the quadrature is not judged by it
+                self._envelope *= self._decay
+            else:
+                self._envelope = max(deviation, self._envelope * self._decay)
             if code:
                 self._measured_since = math.inf
             elif self._measured_since == math.inf:
                 self._measured_since = float(t[k])  # the disturbance is over: settle (V2)
             settling = not code and float(t[k]) - self._measured_since < self.settle_s
-            if code or settling:
+            if code or settling or clipped[k]:
                 variance = NOT_MEASURED_VARIANCE
-                reason = REASONS[code or 4]
+                reason = REASONS[code or (SATURATED if clipped[k] else 4)]
             else:
                 variance = min(nominal + self._envelope ** 2, NOT_MEASURED_VARIANCE)
                 reason = ''

@@ -121,6 +121,37 @@ def test_a_disturbance_ends_in_a_settling_time_then_a_measurement():
     assert var[-1] == pytest.approx(1e-8 + (0.0025 * 0.1) ** 2)
 
 
+def test_a_saturated_sample_is_no_measurement_and_starts_no_settling():
+    # (V1b) The output word's clip is memoryless: the samples at full scale say only that
+    # the rate is at least the range, the first one back within it is a measurement again.
+    # A loop's own reason (V1) says more than the clip and is kept.
+    v = RateValidity(noise_variance=1e-8, bias_sigma=0.0, bandwidth_hz=20.0,
+                     sample_rate_hz=1000.0, quadrature_per_rate=0.0, resolution=1e-3)
+    t = np.arange(1, 101) * 1e-3
+    codes = np.zeros(t.size, dtype=np.int64)
+    saturated = np.zeros(t.size, dtype=bool)
+    saturated[20:40] = True
+    codes[30] = REASONS.index('PLL out of lock')
+    var = v.samples(t[:35], np.full(35, 0.1), np.zeros(35), codes[:35], saturated[:35])
+    assert np.all(var[20:] == NOT_MEASURED_VARIANCE)
+    assert v.state.reason == 'saturated' and not v.state.valid
+    var = np.concatenate([var, v.samples(t[35:], np.full(65, 0.1), np.zeros(65), codes[35:],
+                                         saturated[35:])])
+    nominal = 1e-8 + 1e-6 / 12.0 + (0.0025 * 0.1) ** 2  # the LSB's rounding: L^2 / 12
+    # the PLL's sample at 30 starts a settling of 5 time constants (40 ms) from 31 on
+    end = 31 + int(math.ceil(SETTLE_TIME_CONSTANTS / (2.0 * math.pi * 20.0) * 1000.0))
+    assert np.all(var[:20] == pytest.approx(nominal, rel=1e-12))
+    assert np.all(var[20:end - 1] == NOT_MEASURED_VARIANCE)
+    assert np.all(var[end + 1:] == pytest.approx(nominal, rel=1e-12))
+    w = RateValidity(noise_variance=1e-8, bias_sigma=0.0, bandwidth_hz=20.0,
+                     sample_rate_hz=1000.0, quadrature_per_rate=0.0)
+    var = w.samples(t, np.full(t.size, 0.1), np.zeros(t.size),
+                    np.zeros(t.size, dtype=np.int64), saturated)
+    assert np.all(var[20:40] == NOT_MEASURED_VARIANCE)
+    assert np.all(var[40:] == pytest.approx(1e-8 + (0.0025 * 0.1) ** 2, rel=1e-12))
+    assert w.state.valid and w.state.reason == ''
+
+
 def test_a_quadrature_transient_inflates_the_variance_by_its_envelope():
     v = RateValidity(noise_variance=1e-8, bias_sigma=0.0, bandwidth_hz=20.0,
                      sample_rate_hz=1000.0, quadrature_per_rate=0.0)
