@@ -29,9 +29,11 @@ import allantools
 import numpy as np
 import pytest
 from ring_gyro_sim import cli
-from ring_gyro_sim.core.params import paper_config, STANDARD_GRAVITY
+from ring_gyro_sim.core.gyro.validity import NOT_MEASURED_VARIANCE
+from ring_gyro_sim.core.params import build_config, paper_config, STANDARD_GRAVITY
 from ring_gyro_sim.paramfile import check_params_file
 from ring_gyro_sim.rate_record import applied_rate
+from ring_gyro_sim.ros.conversions import rate_messages
 from ring_gyro_sim.run import AngularRate, Run
 from scipy import signal
 import yaml
@@ -318,3 +320,97 @@ def test_the_rebalance_variance_is_the_loops_noise():
     print(f'rebalance at 50 Hz: measured {measured:.4e}, predicted {predicted:.4e} (rad/s)^2, '
           f'ratio {predicted / measured:.3f}')
     assert predicted == pytest.approx(measured, rel=0.15)
+
+
+THOUSAND_DEG_S = math.radians(1000.0)
+
+
+def thousand_deg_s(seconds=0.5, **extra):
+    """
+    Run the defaults under a constant rate from t = 0, the rebalance force allowed 2 m/s^2.
+
+    Return the rate output's times, rates, variances and saturation flags, and the run.
+    1 000 deg/s asks the rebalance loop for 2 kappa omega X Omega = 1.09 m/s^2: at the default
+    limit (``control.drive_limit``, 1 m/s^2) the loop itself tops out at 917 deg/s, with 2 it
+    holds the rate and the output reads it (checked below), so what cuts it is the range.
+    """
+    values = {'scenario.rate_times': [0.0], 'scenario.rate_values': [THOUSAND_DEG_S],
+              'control.drive_limit': 2.0, **extra}
+    run = Run(build_config(values))
+    parts = [run.advance(run.config.run.block_samples).rate
+             for _ in range(int(round(seconds / run.config.run.block_duration)))]
+    out = {name: np.concatenate([getattr(p, name) for p in parts])
+           for name in ('t', 'rate', 'variance')}
+    out['saturated'] = (np.concatenate([p.saturated for p in parts])
+                        if parts[0].saturated is not None else None)
+    return out, run
+
+
+@pytest.fixture(scope='module')
+def unlimited():
+    return thousand_deg_s()
+
+
+def test_1000_deg_s_into_a_300_deg_s_range_reads_300_deg_s_flagged(unlimited):
+    # Issue 24: the output word saturates at gyro.range (E15), reads the full scale exactly,
+    # and says that it is not a measurement (V1b): the covariance and /diagnostics.
+    free, _ = unlimited
+    assert free['saturated'] is None  # no range: nothing to saturate
+    assert np.mean(free['rate'][free['t'] > 0.1]) == pytest.approx(THOUSAND_DEG_S, rel=1e-3)
+    assert np.all(free['variance'] < 0.01)  # a measurement: sigma below 0.1 rad/s
+    full_scale = math.radians(300.0)
+    cut, run = thousand_deg_s(**{'gyro.range': full_scale})
+    assert len(cut['rate']) == 500
+    assert np.all(cut['rate'] == full_scale)
+    assert np.all(cut['saturated'])
+    assert np.all(cut['variance'] == NOT_MEASURED_VARIANCE)
+    diag = run.diagnostics()
+    assert diag.level == 'WARN' and 'saturated' in diag.message
+    assert diag.values['rate_valid'] is False
+    assert diag.values['rate_invalid_reason'] == 'saturated'
+    assert diag.values['rate_saturated_samples'] == 500
+    assert diag.values['rate_range_rad_s'] == full_scale
+    # ~/rate: angular_velocity.z at the full scale, covariance zz that of no measurement
+    block = run.advance(run.config.run.block_samples).rate
+    messages = rate_messages(block, 'ring_gyro')
+    assert len(messages) == 10
+    for _, imu in messages:
+        assert imu.angular_velocity.z == full_scale
+        assert list(imu.angular_velocity_covariance) == [
+            1e6, 0.0, 0.0, 0.0, 1e6, 0.0, 0.0, 0.0, NOT_MEASURED_VARIANCE]
+    # the other sense: -1 000 deg/s reads -300 deg/s
+    cut, run = thousand_deg_s(0.1, **{'scenario.rate_values': [-THOUSAND_DEG_S],
+                                      'gyro.range': full_scale})
+    assert np.all(cut['rate'] == -full_scale) and np.all(cut['saturated'])
+    assert run.diagnostics().values['rate_saturated_samples'] == 100
+
+
+def test_a_rate_within_the_range_is_read_bit_for_bit_as_without_it(unlimited):
+    free, _ = unlimited
+    within, run = thousand_deg_s(**{'gyro.range': math.radians(2000.0)})
+    assert not within['saturated'].any()
+    assert np.array_equal(within['rate'], free['rate'])
+    assert np.array_equal(within['variance'], free['variance'])
+    diag = run.diagnostics().values
+    assert diag['rate_valid'] is True and diag['rate_saturated_samples'] == 0
+
+
+def test_the_resolution_rounds_the_output_to_whole_lsb(unlimited):
+    # 80 LSB per deg/s (ADXRS453's word): the output is a whole number of LSB (numpy.round,
+    # half to even), its error against the unrounded output within +-LSB/2 and uniform
+    # (standard deviation LSB / sqrt(12); the noise, 0.044 rad/s per sample, spans 200 LSB),
+    # and the stated variance grows by LSB^2 / 12.
+    free, free_run = unlimited
+    lsb = math.radians(1.0 / 80.0)
+    word, run = thousand_deg_s(**{'gyro.resolution': lsb})
+    codes = word['rate'] / lsb
+    assert np.max(np.abs(codes - np.round(codes))) < 1e-9
+    assert np.array_equal(word['rate'], np.round(free['rate'] / lsb) * lsb)
+    error = word['rate'] - free['rate']
+    assert np.max(np.abs(error)) <= 0.5 * lsb * (1.0 + 1e-9)
+    assert np.std(error) == pytest.approx(lsb / math.sqrt(12.0), rel=0.1)
+    assert abs(np.mean(error)) < 0.1 * lsb
+    added = run.sim.sense.validity.noise_variance - free_run.sim.sense.validity.noise_variance
+    assert added == pytest.approx(lsb ** 2 / 12.0, rel=1e-9)
+    diag = run.diagnostics().values
+    assert diag['rate_resolution_rad_s'] == lsb and diag['rate_valid'] is True

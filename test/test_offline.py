@@ -475,6 +475,31 @@ def test_resimulation_with_angular_rates_is_bit_identical(tmp_path):
                zip(a[f'{NS}/demodulator'], b[f'{NS}/demodulator']))
 
 
+def test_a_saturating_quantised_rate_resimulates_bit_for_bit(tmp_path):
+    """The output word (gyro.range, gyro.resolution) is in the parameters: --from repeats it."""
+    full_scale, lsb = math.radians(300.0), math.radians(1.0 / 80.0)
+    config = build_config({'scenario.rate_times': [0.0, 0.01, 0.01],
+                           'scenario.rate_values': [0.0, 0.0, math.radians(400.0)],
+                           'gyro.range': full_scale, 'gyro.resolution': lsb})
+    original = tmp_path / 'run.mcap'
+    offline.run_offline(config, 0.06, output=str(original), progress=False)
+    again = tmp_path / 'again.mcap'
+    offline.resimulate(str(original), str(again), progress=False)
+    a = [m for _, m in decoded(original, [f'{NS}/rate'])[f'{NS}/rate']]
+    b = [m for _, m in decoded(again, [f'{NS}/rate'])[f'{NS}/rate']]
+    assert len(a) == len(b) == 60
+    assert [m.angular_velocity.z for m in a] == [m.angular_velocity.z for m in b]
+    assert [list(m.angular_velocity_covariance) for m in a] == [
+        list(m.angular_velocity_covariance) for m in b]
+    z = np.array([m.angular_velocity.z for m in a])
+    zz = np.array([m.angular_velocity_covariance[8] for m in a])
+    at_full_scale = z == full_scale
+    assert 10 < np.count_nonzero(at_full_scale) < 50  # the rise crosses the range
+    assert np.all(zz[at_full_scale] == 1e6) and np.all(zz[:10] < 1e-3)
+    codes = z[~at_full_scale] / lsb
+    assert np.max(np.abs(codes - np.round(codes))) < 1e-9
+
+
 def test_rates_replaced_or_kept_over_a_reset_resimulate_bit_for_bit(tmp_path):
     """
     The recording holds the rates as they acted, so --from reproduces a live run's arrivals.

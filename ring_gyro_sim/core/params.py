@@ -60,9 +60,9 @@ Physical limits (see each row's ``range_note``)
       (:meth:`SimConfig.max_input_rate`; 703.7 rad/s = 40 320 deg/s on the default device),
       the range in which the model of the rotating ring holds (:data:`MAX_RATE_FRACTION`).
       It is the model's range, not the sensor's: the rate output's full scale
-      (``gyro.range``, reserved for the saturation of ``~/rate``) is a property of the
-      electronics, hundreds to thousands of deg/s, and a rate between the two is simulated
-      while the output saturates.
+      (``gyro.range``, where ``~/rate`` saturates) is a property of the electronics,
+      hundreds to thousands of deg/s, and a rate between the two is simulated while the
+      output saturates.
 
 Defaults are **the gyroscope**: the studied device of the paper (section 3.1, Table 1),
 N_R = 3, N_T = 10, with the calibrated outer voltage and drive (``doc/calibration.md``), its sine
@@ -174,6 +174,15 @@ The block publishers keep up to 50 blocks each for a slow reliable subscriber (`
 so the node's memory for them stays below 50 x 4 MiB = 200 MiB whatever the rate; the default
 block (2000 samples x 23 values) is 368 kB. ``output.rate: 1e9`` with 10 ms blocks (1.8 GB per
 block) is refused before anything is allocated.
+"""
+
+MIN_RESOLUTION = 1e-12
+"""
+Finest ``gyro.resolution`` but 0 (none), rad/s.
+
+A 32-bit output word over +-300 deg/s has an LSB of 2.4e-9 rad/s; a thousand times finer is
+still above what dividing a rate by it can overflow (a subnormal LSB turns ``rate / LSB``
+into infinity).
 """
 
 LIST_KINDS = ('float_list', 'str_list')
@@ -480,6 +489,15 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
     ParamSpec('gyro.pickoff_gain_mismatch', 'gyro.pickoff_gain_mismatch', 'float', 0.0, '-',
               'relative gain error of the sense amplifier against the drive amplifier (E1)',
               -0.5, 0.5, range_note='a gain error of the order of the gain is a broken part'),
+    ParamSpec('gyro.range', 'gyro.range', 'float', 0.0, 'rad/s',
+              'full scale of ~/rate: beyond +-range the output reads +-range, and the sample '
+              'is not a measurement (reason saturated, covariance 1e6, counted on '
+              '/diagnostics); 0 = none (the model reads up to its own input range)',
+              **_NON_NEGATIVE),
+    ParamSpec('gyro.resolution', 'gyro.resolution', 'float', 0.0, 'rad/s',
+              'LSB of ~/rate: the output is rounded to a whole number of it (half to even), '
+              'before the saturation, and its variance gains LSB^2 / 12; 0 = none',
+              **_NON_NEGATIVE),
     ParamSpec('gyro.calibration.source', 'gyro.calibration_source', 'str', 'factory', '-',
               "where the rate output's bias and scale factor come from: factory (measured "
               'on a simulated rate table at the start, then held), given '
@@ -907,6 +925,8 @@ class GyroParams:
     phase_error: float
     sense_misalignment: float
     pickoff_gain_mismatch: float
+    range: float
+    resolution: float
     calibration_source: str
     calibration_bias: float
     calibration_scale_factor: float
@@ -925,6 +945,15 @@ class GyroParams:
         if len(set(self.calibration_temperature_points)) != len(
                 self.calibration_temperature_points):
             raise _fail('gyro.calibration.temperature_points', 'has a temperature twice')
+        if 0.0 < self.resolution < MIN_RESOLUTION:
+            raise _fail('gyro.resolution',
+                        f'must be 0 (none) or >= {MIN_RESOLUTION:g} rad/s, finer than any '
+                        f'output word (32 bits over +-300 deg/s: 2.4e-9 rad/s), got '
+                        f'{self.resolution!r}')
+        if self.range and self.resolution >= self.range:
+            raise _fail('gyro.resolution',
+                        f'must be below gyro.range ({self.range:g} rad/s): a full scale of '
+                        f'less than one LSB has no code but 0, got {self.resolution!r}')
         if self.calibration_source == 'given' and self.calibration_scale_factor == 0.0:
             raise _fail('gyro.calibration.scale_factor',
                         'must be set (> 0) with gyro.calibration.source: given')

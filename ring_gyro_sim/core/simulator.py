@@ -199,9 +199,14 @@ def _joined(t: np.ndarray, parts) -> Tuple[electronics.DemodSamples, electronics
         return np.concatenate([getattr(r, name) for r in rates]) if rates else np.empty(0)
     judged = [r.variance for r in rates if len(r)]
     variance = np.concatenate(judged) if judged else None
+    saturated = None
+    if any(r.saturated is not None for r in rates):  # a stretch without a range: none did
+        saturated = np.concatenate([np.zeros(len(r), bool) if r.saturated is None
+                                    else r.saturated for r in rates])
     return (electronics.DemodSamples(t=t, values=np.concatenate(demod)),
             electronics.RateSamples(t=column('t'), rate=column('rate'),
-                                    quadrature=column('quadrature'), variance=variance))
+                                    quadrature=column('quadrature'), variance=variance,
+                                    saturated=saturated))
 
 
 def _check_acceleration(name: str, x: float, y: float = 0.0) -> None:

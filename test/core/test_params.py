@@ -135,6 +135,27 @@ def test_invalid_value_names_the_parameter(name, value):
     rejects({name: value}, name)
 
 
+@pytest.mark.parametrize('name, value, reason', [
+    ('gyro.range', -1.0, 'must be >= 0'),
+    ('gyro.range', math.nan, 'must be finite'),
+    ('gyro.range', math.inf, 'must be finite'),
+    ('gyro.resolution', -1e-4, 'must be >= 0'),
+    ('gyro.resolution', math.nan, 'must be finite'),
+    ('gyro.resolution', -math.inf, 'must be finite'),
+    ('gyro.resolution', 1e-13, 'must be 0 (none) or >= 1e-12 rad/s'),
+])
+def test_a_bad_range_or_resolution_is_refused_by_name(name, value, reason):
+    assert reason in rejects({name: value}, name)
+
+
+def test_the_resolution_must_be_below_the_range():
+    message = rejects({'gyro.range': 5.0, 'gyro.resolution': 5.0}, 'gyro.resolution')
+    assert 'must be below gyro.range (5 rad/s)' in message
+    config = build_config({'gyro.range': 5.0, 'gyro.resolution': 1e-3})
+    assert (config.gyro.range, config.gyro.resolution) == (5.0, 1e-3)
+    assert build_config({'gyro.resolution': 10.0}).gyro.range == 0.0  # no range: any LSB
+
+
 def test_empty_frequencies_need_a_mode_count_and_legs():
     """Empty ``modes.frequencies`` means: from ring and legs (eqs. 7-17)."""
     rejects({'modes.frequencies': []}, 'modes.count')

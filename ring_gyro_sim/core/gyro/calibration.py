@@ -283,9 +283,11 @@ def for_config(config: SimConfig,
 
 def _bench(config: SimConfig) -> SimConfig:
     """Return the device on the factory's rate table: no noise, no scenario, raw readout."""
+    # the table reads the readout inside the part, before its output word (E15): with the
+    # raw calibration that is in readout units, which a range or LSB in rad/s cannot cut
     g = replace(config.gyro, temperature=0.0, input_noise_density=0.0, bias_instability=0.0,
                 calibration_source='given', calibration_bias=0.0,
-                calibration_scale_factor=1.0)
+                calibration_scale_factor=1.0, range=0.0, resolution=0.0)
     # what only cuts, paces or records a run is the defaults' (the table reads the same)
     plain = build_config({}).run
     block = max(plain.block_duration, config.run.output_period_ns * 1e-9)

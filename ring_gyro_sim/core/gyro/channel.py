@@ -108,7 +108,8 @@ class SenseChain:
         self.validity = validity.RateValidity(
             el.rate_variance(), deg_per_h_to_rad_per_s(config.gyro.bias_instability),
             el.bandwidth_hz, config.gyro.output_rate,
-            0.0 if el.rebalance else el.rate_quadrature_per_rate)
+            0.0 if el.rebalance else el.rate_quadrature_per_rate,
+            resolution=config.gyro.resolution)
         if previous is not None:
             calibration = previous.electronics.calibration
         self.electronics.calibration = calibration
@@ -179,7 +180,8 @@ class SenseChain:
         codes = self._reasons(rate.rate, demod.values[at],
                               None if control is None else control[at])
         codes[(codes == 0) & shock] = validity.REASONS.index('shock on the pick-offs')
-        variance = self.validity.samples(rate.t, rate.rate, rate.quadrature, codes)
+        variance = self.validity.samples(rate.t, rate.rate, rate.quadrature, codes,
+                                         rate.saturated)
         return demod, replace(rate, variance=variance)
 
     def _shock_detector(self, drive_volts: np.ndarray, picks: np.ndarray) -> np.ndarray:

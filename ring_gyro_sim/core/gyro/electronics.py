@@ -211,6 +211,25 @@ Force-to-rebalance readout (E14)
     the loop's inverse plant equals ``e_o / SF`` below the sense pole); above the pole the
     loop turns the pick-off noise into force as ``|1 + i f / f_p|``, which
     :meth:`SenseElectronics.rate_variance` integrates through the loop's response.
+
+Output word: resolution and range (E15)
+    The rate a part outputs is a digital word: what (E4), (E14) or the held calibration (K1)
+    read, plus the flicker (E13), is rounded to a whole number of LSB ``L``
+    (``gyro.resolution``; ``numpy.round``, half to even) and then held within the full scale
+    ``R`` (``gyro.range``)::
+
+        rate = clip(L round(rate / L), -R, R)                                            (E15)
+
+    A sample the clip changed (``|L round(rate / L)| > R``) is *saturated*
+    (``RateSamples.saturated``): it reads ``+-R`` exactly, whatever the rate behind it, and
+    is not a measurement (``core.gyro.validity``: reason ``saturated``, variance
+    ``NOT_MEASURED_VARIANCE``); :attr:`SenseElectronics.saturated_samples` counts them. The
+    rounding's error is uniform within ``+-L / 2`` (variance ``L^2 / 12``, in the stated
+    variance of a measurement) and bounded by it. ``L = 0`` or ``R = 0``: that step is left
+    out. The quadrature channel (a diagnostic, not on ``~/rate``) is left as read. Both steps
+    are memoryless, so that the run stays chunk-invariant and, once the rate is back within
+    the range, the next sample is a measurement again (no settling: the readout behind the
+    word did not saturate).
 """
 
 from dataclasses import dataclass
@@ -299,6 +318,9 @@ class RateSamples:
     variance : ndarray, shape (M,), optional
         The variance of each rate sample, (rad/s)^2 (``core.gyro.validity``: what the
         sample is worth, large when it is not a measurement); None: not judged.
+    saturated : ndarray of bool, shape (M,), optional
+        Whether each sample reads the full scale because the rate behind it is beyond it
+        (``gyro.range``, E15); None: no range.
 
     """
 
@@ -306,6 +328,7 @@ class RateSamples:
     rate: np.ndarray
     quadrature: np.ndarray
     variance: Optional[np.ndarray] = None
+    saturated: Optional[np.ndarray] = None
 
     def __len__(self) -> int:
         return int(self.t.size)
@@ -702,6 +725,8 @@ class SenseElectronics:
         self.calibration = None
         self.readout_reference_v = self.drive_pickoff_nominal_v
         self.die_temperature: Optional[float] = None  # the die's sensor (K3; None: T_ref)
+        self.saturated_samples = 0
+        """Rate samples that read the full scale since the chain started (E15)."""
 
     def _bandwidth(self) -> float:
         """(E9): -3 dB frequency of the sense envelope's pole times the Butterworth, Hz."""
@@ -789,6 +814,7 @@ class SenseElectronics:
         self.flicker = previous.flicker
         self.readout_reference_v = previous.readout_reference_v
         self.die_temperature = previous.die_temperature
+        self.saturated_samples = previous.saturated_samples
 
     def rate_variance(self) -> float:
         """
@@ -934,6 +960,7 @@ class SenseElectronics:
             self._latest_rate = float(rate[-1])
         if picks.size:
             rate += self.flicker.samples((first_index + start + 1) // d - 1, picks.size)
+        rate, saturated = self.output_word(rate)
         self._next_index = first_index + count
         if count:
             self._latest = values[-1].copy()
@@ -947,7 +974,26 @@ class SenseElectronics:
                           / self.drive_pickoff_nominal_v, RHO_FLOOR)
                 self._latest_quadrature = float(values[-1, 1] / (self.scale_factor * rho))
         return (DemodSamples(t=t, values=values),
-                RateSamples(t=t[picks], rate=rate, quadrature=quadrature))
+                RateSamples(t=t[picks], rate=rate, quadrature=quadrature, saturated=saturated))
+
+    def output_word(self, rate: np.ndarray) -> Tuple[np.ndarray, Optional[np.ndarray]]:
+        """
+        Return the rate as the part outputs it, and which samples saturated (E15).
+
+        ``rate`` rounded to a whole number of ``gyro.resolution`` (half to even), then held
+        within +-``gyro.range``; the second value is None without a range. Counts the
+        saturated samples in :attr:`saturated_samples`.
+        """
+        g = self.config.gyro
+        if g.resolution > 0.0:
+            rate = np.round(rate / g.resolution) * g.resolution
+        if g.range <= 0.0:
+            return rate, None
+        saturated = np.abs(rate) > g.range
+        if saturated.any():
+            rate = np.clip(rate, -g.range, g.range)
+            self.saturated_samples += int(np.count_nonzero(saturated))
+        return rate, saturated
 
     def expected_drive_ratio(self, rate: float) -> float:
         """
@@ -997,4 +1043,7 @@ class SenseElectronics:
             'bias_instability_deg_per_h': float(g.bias_instability),
             'predicted_arw_deg_per_sqrt_h': float(self.predicted_arw_deg_per_sqrt_h()),
             'bandwidth_hz': float(self.bandwidth_hz),
+            'rate_range_rad_s': float(g.range),
+            'rate_resolution_rad_s': float(g.resolution),
+            'rate_saturated_samples': int(self.saturated_samples),
         }

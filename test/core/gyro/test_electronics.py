@@ -335,7 +335,8 @@ def test_diagnostics_and_the_collapsed_drive():
                      'drive_pickoff_nominal_v', 'drive_amplitude_ratio', 'scale_factor_valid',
                      'noise_seed', 'input_noise_density_v_per_sqrt_hz', 'temperature_k',
                      'bias_instability_deg_per_h', 'predicted_arw_deg_per_sqrt_h',
-                     'bandwidth_hz', 'drive_amplitude_ratio_expected'}
+                     'bandwidth_hz', 'drive_amplitude_ratio_expected', 'rate_range_rad_s',
+                     'rate_resolution_rad_s', 'rate_saturated_samples'}
     assert set(values) == expected_keys
     assert values['drive_amplitude_ratio_expected'] == pytest.approx(1.0, abs=1e-12)
     run(el, sim, amplitude, [20 * BLOCK], b=0.5 * RATE * el.mechanical_scale_factor)
