@@ -385,6 +385,27 @@ def test_1000_deg_s_into_a_300_deg_s_range_reads_300_deg_s_flagged(unlimited):
     assert run.diagnostics().values['rate_saturated_samples'] == 100
 
 
+def test_a_rebalance_force_at_its_limit_says_the_reading_is_not_the_rate(unlimited):
+    # At the default control.drive_limit (1 m/s^2) the loop tops out at
+    # 1 / (2 kappa omega X) = 917 deg/s (C8): 1 000 deg/s reads about 917 deg/s, which is not
+    # the rate, and every sample says so; with the limit at 2 m/s^2 the same rate is a
+    # measurement (the fixture), and so is 800 deg/s at the default limit.
+    free, _ = unlimited
+    assert np.all(free['variance'] < 0.01)
+    held, run = thousand_deg_s(0.3, **{'control.drive_limit': 1.0})
+    late = held['t'] > 0.1
+    print(f'1 000 deg/s at the default limit reads {math.degrees(np.mean(held["rate"][late])):.1f}'
+          f' deg/s')
+    assert math.degrees(np.mean(held['rate'][late])) == pytest.approx(917.0, rel=0.01)
+    assert np.all(held['variance'][late] == NOT_MEASURED_VARIANCE)
+    assert run.diagnostics().values['rate_invalid_reason'] == 'rebalance force at its limit'
+    below, run = thousand_deg_s(0.3, **{'control.drive_limit': 1.0,
+                                        'scenario.rate_values': [math.radians(800.0)]})
+    assert np.all(below['variance'][below['t'] > 0.1] < 0.01)
+    assert math.degrees(np.mean(below['rate'][below['t'] > 0.1])) == pytest.approx(
+        800.0, rel=1e-3)
+
+
 def test_a_rate_within_the_range_is_read_bit_for_bit_as_without_it(unlimited):
     free, _ = unlimited
     within, run = thousand_deg_s(**{'gyro.range': math.radians(2000.0)})

@@ -92,9 +92,12 @@ class SenseChain:
                                             start_rate=start_rate, pickoff=pickoff)
         self._rebalance_columns = [CONTROL_CHANNELS.index(name) for name in (
             'rebalance_rate_rad_s', 'rebalance_quadrature_rad_s', 'rebalance_c', 'rebalance_s')]
+        self._force_columns = [CONTROL_CHANNELS.index(name)
+                               for name in ('rebalance_c', 'rebalance_s')]
         self._loop_columns = [CONTROL_CHANNELS.index(name) for name in
                               ('locked', 'rebalance_on', 'amplitude_m', 'frequency_hz')]
         self._setpoint_m = sim.loop.setpoint_m if sim.loop is not None else 0.0
+        self._force_limit = float(config.control.drive_limit)
         self._dc_partial = 0.0    # the shock detector's state (_shock_detector)
         self._dc_last: Optional[float] = None
         el = self.electronics
@@ -219,9 +222,10 @@ class SenseChain:
         """
         Return per rate sample why it is not a measurement (``validity.REASONS``; 0: it is).
 
-        Closed loop: the PLL's lock (C4), the rebalance loop's qualification (C8b), the AGC's
-        amplitude against its set-point, and without rebalance the NCO's detuning from the
-        frequency the open-loop sense readout's scale factor holds at (the NCO's steady
+        Closed loop: the PLL's lock (C4), the rebalance loop's qualification (C8b) and its
+        force against ``control.drive_limit`` (C8), the AGC's amplitude against its
+        set-point, and without rebalance the NCO's detuning from the frequency the open-loop
+        sense readout's scale factor holds at (the NCO's steady
         frequency, frozen through a disturbance, against its mean over the sense mode's time
         constant: :meth:`_detuning`); open loop: the drive pick-off against the pair's linear
         response at the measured rate (E8).
@@ -234,6 +238,11 @@ class SenseChain:
                          if self._setpoint_m > 0.0 else np.ones(rate.size, bool))
             codes[off_point] = 3
             if self.electronics.rebalance:
+                # A force held at control.drive_limit no longer nulls the sense mode: the
+                # reading is the limit's, not the rate's (C8)
+                force = np.abs(control[:, self._force_columns]).max(axis=1)
+                codes[force >= self._force_limit] = validity.REASONS.index(
+                    'rebalance force at its limit')
                 codes[rebalance_on == 0.0] = 2
             codes[locked == 0.0] = 1
             if not self.electronics.rebalance:

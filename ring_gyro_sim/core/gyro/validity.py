@@ -121,7 +121,8 @@ oscillation left in the mean (1 %)."""
 
 REASONS = ('', 'PLL out of lock', 'rebalance loop off (drive not qualified)',
            'drive pick-off off its operating point', 'settling after a disturbance',
-           'shock on the pick-offs', 'drive detuned from the sense mode', 'saturated')
+           'shock on the pick-offs', 'drive detuned from the sense mode', 'saturated',
+           'rebalance force at its limit')
 """Why a sample is not a measurement, by code (0: it is one)."""
 SATURATED = REASONS.index('saturated')
 """The code of a sample that reads the output word's full scale (V1b)."""
