@@ -417,6 +417,20 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               range_note='|Omega| at most 1 % of the angular frequency of the lowest mode '
               '(703.7 rad/s on the default device): the range of the model, not of the '
               'sensor'),
+    ParamSpec('scenario.vibration_frequency', 'run.vibration_frequency', 'float', 0.0, 'Hz',
+              'frequency of a sine base vibration in the plane of the ring (0 = none); made '
+              'inside at every output sample, so at most output.rate / 40',
+              minimum=0.0, maximum=MAX_OUTPUT_RATE_HZ / 40.0,
+              range_note='sampled at output.rate and interpolated linearly: 40 samples per '
+              'period keep its amplitude within 0.2 %'),
+    ParamSpec('scenario.vibration_amplitude', 'run.vibration_amplitude', 'float', 0.0, 'm/s^2',
+              'peak base acceleration of the sine vibration', minimum=0.0,
+              maximum=MAX_ACCELERATION, range_note=_ACCELERATION_NOTE),
+    ParamSpec('scenario.vibration_angle', 'run.vibration_angle', 'float', 0.0, 'deg',
+              'direction of the vibration in the plane of the ring, from x towards y'),
+    ParamSpec('scenario.acceleration', 'run.acceleration', 'float_list', [], 'm/s^2',
+              'steady base acceleration [x, y] in the plane of the ring from t = 0 (empty = '
+              'none; z is not in the model)', **_ACCELERATION),
     ParamSpec('scenario.temperature_times', 'run.temperature_times', 'float_list', [], 's',
               'knots of the ambient temperature (non-decreasing; a repeated time is a step); '
               'linear between knots, the first value before the first and the last after the '
@@ -1052,6 +1066,10 @@ class RunParams:
     rate_values: Tuple[float, ...]
     temperature_times: Tuple[float, ...]
     temperature_values: Tuple[float, ...]
+    vibration_frequency: float
+    vibration_amplitude: float
+    vibration_angle: float
+    acceleration: Tuple[float, ...]
     record_topics: Tuple[str, ...]
     record_decimation: int
     record_compression: str
@@ -1075,6 +1093,15 @@ class RunParams:
                         f'{len(self.rate_times)}')
         if any(b < a for a, b in zip(self.rate_times, self.rate_times[1:])):
             raise _fail('scenario.rate_times', 'must not decrease (a repeated time is a step)')
+        if len(self.acceleration) not in (0, 2):
+            raise _fail('scenario.acceleration',
+                        f'give [x, y] in m/s^2 (or nothing), got {len(self.acceleration)} '
+                        f'values')
+        if self.vibration_frequency > self.output_rate / 40.0:
+            raise _fail('scenario.vibration_frequency',
+                        f'{self.vibration_frequency:g} Hz is above output.rate / 40 = '
+                        f'{self.output_rate / 40.0:g} Hz: the vibration is sampled at '
+                        f'output.rate and interpolated linearly')
         if len(self.temperature_values) != len(self.temperature_times):
             raise _fail('scenario.temperature_values',
                         f'has {len(self.temperature_values)} values but '

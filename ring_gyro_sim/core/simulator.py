@@ -218,6 +218,26 @@ def _check_acceleration(name: str, x: float, y: float = 0.0) -> None:
                          f'far beyond it the arithmetic of a contact overflows)')
 
 
+def _environment_of(config: SimConfig) -> Optional[Tuple[float, float, float, float, float]]:
+    """
+    Return the scenario's environment: ``(a_x, a_y, A_x, A_y, omega)``, None without one.
+
+    The base acceleration ``(a_x, a_y) + (A_x, A_y) sin(omega t)`` in the ring's plane:
+    ``scenario.acceleration`` steady from t = 0, and the sine vibration of
+    ``scenario.vibration_amplitude`` (peak) at ``scenario.vibration_frequency`` along
+    ``scenario.vibration_angle`` (from x towards y), zero phase at t = 0. It enters the
+    equations as a streamed base acceleration does (eq. 32's forcing).
+    """
+    r = config.run
+    steady = tuple(r.acceleration) if r.acceleration else (0.0, 0.0)
+    peak = r.vibration_amplitude if r.vibration_frequency > 0.0 else 0.0
+    if peak == 0.0 and steady == (0.0, 0.0):
+        return None
+    angle = math.radians(r.vibration_angle)
+    return (float(steady[0]), float(steady[1]), peak * math.cos(angle),
+            peak * math.sin(angle), 2.0 * math.pi * r.vibration_frequency)
+
+
 def _first_nonfinite(*arrays: Optional[np.ndarray]) -> Optional[int]:
     """Return the first row with a non-finite value in any of ``arrays`` (None: all finite)."""
     for a in arrays:
@@ -357,6 +377,7 @@ class Simulator:
         self._profile_x: List[float] = []
         self._profile_y: List[float] = []
         self._profile_head = 0
+        self._environment = _environment_of(config)
         self.rate_profile = RateProfile.of(config)  # the angular rate of the sensor frame
         self._events: List[Tuple[int, int, Callable[[], None]]] = []
         self._event_seq = 0
@@ -1127,7 +1148,7 @@ class Simulator:
         pulse_arr = np.array(active, dtype=np.float64).reshape(-1, 4)
         pulse_max_sub = (float(np.min(pulse_arr[:, 1])) / PULSE_SUBSTEPS_PER_DURATION
                          if len(active) else self.h)
-        prof_t, prof_x, prof_y = self._profile_arrays(t_start, t_end)
+        prof_t, prof_x, prof_y = self._base_arrays(t_start, t_end, count)
         rate_t, rate_w = self.rate_profile.stretch(t_start, t_end)
         forcing = kernels.Forcing(pulses=pulse_arr, pulse_max_sub=pulse_max_sub,
                                   profile_t=prof_t, profile_x=prof_x, profile_y=prof_y,
@@ -1193,6 +1214,33 @@ class Simulator:
         z = noise.block_normals(self._noise_seed, noise.STREAM_BROWNIAN, self.sample_index,
                                 count, self.n_sub * n)
         return z.reshape(count * self.n_sub, n)
+
+    def _base_arrays(self, t_start: float, t_end: float, count: int):
+        """
+        Return the base acceleration (s, m/s^2, m/s^2) of a stretch of ``count`` samples.
+
+        The streamed profile (:meth:`_profile_arrays`) plus the environment of the scenario
+        (``scenario.vibration_*``, ``scenario.acceleration``; :func:`_environment_of`),
+        evaluated at every output sample from two before the stretch to two after it (the
+        kernel's stages stay within two steps of it) and at the streamed samples there: the
+        kernel interpolates the sum linearly. The values at a time do not depend on how the
+        run is cut, so neither does the result.
+        """
+        prof_t, prof_x, prof_y = self._profile_arrays(t_start, t_end)
+        env = self._environment
+        if env is None:
+            return prof_t, prof_x, prof_y
+        t = np.arange(self.sample_index - 2, self.sample_index + count + 3) * self.period_s
+        if prof_t.size:
+            inside = prof_t[(prof_t > t[0]) & (prof_t < t[-1])]
+            grid = np.union1d(t, inside)
+            x = np.interp(grid, prof_t, prof_x, left=0.0, right=0.0)
+            y = np.interp(grid, prof_t, prof_y, left=0.0, right=0.0)
+        else:
+            grid, x, y = t, np.zeros(t.size), np.zeros(t.size)
+        steady_x, steady_y, peak_x, peak_y, omega = env
+        wave = np.sin(omega * grid) if omega > 0.0 else np.zeros(grid.size)
+        return grid, x + steady_x + peak_x * wave, y + steady_y + peak_y * wave
 
     def _profile_arrays(self, t_start: float, t_end: float):
         """
