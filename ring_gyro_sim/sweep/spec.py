@@ -120,9 +120,10 @@ KINDS = ('case', 'gyroscope')
 """What a point is: a paper case (a shock on the drive) or a gyroscope's datasheet figures."""
 CASE_ONLY_KEYS = ('duration', 'output_rate', 'envelope_window', 'envelopes')
 """Spec keys of a run of its own, which a gyroscope point does not have."""
-GYRO_CPU_S_PER_TABLE = 2.5
-"""CPU time of one factory rate table of the default gyroscope (1.55 simulated s), s: the
-cost estimate of a gyroscope spec (doc/populations.md)."""
+GYRO_CPU_S_PER_TABLE = 3.1
+"""CPU time of one factory rate table of the default gyroscope (3.0-3.8 simulated s, each
+rate averaged until it settles), s: the cost estimate of a gyroscope spec, as measured on 100
+devices (doc/populations.md)."""
 ALL_ENVELOPES = 'all'
 """``envelopes: all``: every envelope channel of the run."""
 RUN_KEYS = {'duration': 'duration', 'output.rate': 'output_rate'}
