@@ -501,6 +501,14 @@ class Run:
             calibration = gyro_calibration.for_config(config, log)
         self.calibration: Optional[gyro_calibration.Calibration] = calibration
         self.sim = Simulator(config, start_state, calibration=calibration)
+        random = self.sim.random_vibration
+        if random is not None and log is not None:
+            r = config.run
+            log(f'random vibration: {random.rms_g:.4g} g rms, '
+                f'{r.vibration_psd_frequencies[0]:g} .. {r.vibration_psd_frequencies[-1]:g} '
+                f'Hz along {r.vibration_angle:g} deg, a multisine of {random.lines.size} '
+                f'lines that repeats every {random.n / r.output_rate:.4g} s '
+                f'(doc/environments.md)')
         self.start_state: Tuple[np.ndarray, np.ndarray] = (self.sim.q.copy(),
                                                            self.sim.v.copy())
         self.rate_stats: Optional[RateStats] = None
@@ -967,7 +975,14 @@ class Run:
             contact=not self.running,
             status=FINISHED if self.running else str(sim.status), message=sim.message,
             samples=self.stats.samples, steps=sim.steps_taken, output=output,
-            extra=self.gyro_figures())
+            extra=self._environment_figures())
+
+    def _environment_figures(self) -> Dict[str, Any]:
+        """Return :meth:`gyro_figures` and the random vibration's rms (g) if one is on."""
+        out = self.gyro_figures()
+        if self.sim.random_vibration is not None:
+            out['random_vibration_rms_g'] = self.sim.random_vibration.rms_g
+        return out
 
     def gyro_figures(self) -> Dict[str, Any]:
         """

@@ -74,7 +74,7 @@ import numpy as np
 from ring_gyro_sim.core.errors import InputError
 
 __all__ = ['STREAM_BROWNIAN', 'STREAM_PICKOFF', 'STREAM_FLICKER', 'STREAM_DEVICE',
-           'MAX_KEY_WORD', 'normals', 'block_normals']
+           'STREAM_VIBRATION', 'MAX_KEY_WORD', 'normals', 'block_normals']
 
 STREAM_BROWNIAN = 1
 """Thermomechanical force noise of the modes (simulator kernel): width = coordinates x steps."""
@@ -84,6 +84,8 @@ STREAM_FLICKER = 3
 """Flicker (bias-instability) rate noise (core/gyro/electronics.py), at the rate samples."""
 STREAM_DEVICE = 4
 """The draw of a device from its manufacturing spread (core/device.py, D1): one row of 7."""
+STREAM_VIBRATION = 5
+"""The phases of the random vibration's lines (core/vibration.py): row k, width 2."""
 
 MAX_KEY_WORD = 2 ** 64 - 1
 """Largest seed and stream: each is one 64-bit word of the Philox key."""

@@ -79,7 +79,7 @@ import math
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
-from ring_gyro_sim.core import structure
+from ring_gyro_sim.core import structure, vibration
 from ring_gyro_sim.core.errors import ParameterError
 import scipy.constants
 
@@ -132,6 +132,12 @@ A tenth of it already closes the default device's gap (10^5 g: contact within th
 MEMS die survives it and no shock machine makes it; up to it the ring that touches is held
 within 2 d_g of rest, so contact stays a defined state with finite numbers. Far beyond it the
 arithmetic overflows (1.7e308 m/s^2: a held displacement of 3e292 m and non-finite gaps).
+"""
+MAX_RANDOM_RMS = 1e5 * STANDARD_GRAVITY
+"""
+Largest rms of a random vibration (``scenario.vibration_psd_*``), m/s^2 (10^5 g): a
+multisine of thousands of lines peaks at 4-5 times its rms, so its peaks stay within
+:data:`MAX_ACCELERATION`.
 """
 MAX_RATE_FRACTION = 0.01
 """
@@ -419,18 +425,34 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               'sensor'),
     ParamSpec('scenario.vibration_frequency', 'run.vibration_frequency', 'float', 0.0, 'Hz',
               'frequency of a sine base vibration in the plane of the ring (0 = none); made '
-              'inside at every output sample, so at most output.rate / 40',
+              'inside at every output sample, so at most output.rate / 40; live: its phase '
+              'runs on continuously',
               minimum=0.0, maximum=MAX_OUTPUT_RATE_HZ / 40.0,
               range_note='sampled at output.rate and interpolated linearly: 40 samples per '
-              'period keep its amplitude within 0.2 %'),
+              'period keep its amplitude within 0.2 %', read_only=False),
     ParamSpec('scenario.vibration_amplitude', 'run.vibration_amplitude', 'float', 0.0, 'm/s^2',
               'peak base acceleration of the sine vibration', minimum=0.0,
-              maximum=MAX_ACCELERATION, range_note=_ACCELERATION_NOTE),
+              maximum=MAX_ACCELERATION, range_note=_ACCELERATION_NOTE, read_only=False),
     ParamSpec('scenario.vibration_angle', 'run.vibration_angle', 'float', 0.0, 'deg',
-              'direction of the vibration in the plane of the ring, from x towards y'),
+              'direction of the vibration (sine and random) in the plane of the ring, from x '
+              'towards y', read_only=False),
+    ParamSpec('scenario.vibration_psd_frequencies', 'run.vibration_psd_frequencies',
+              'float_list', [], 'Hz',
+              'break points of a random base vibration along scenario.vibration_angle '
+              '(strictly increasing, at least 2, at most output.rate / 40; empty = none); the '
+              'PSD is log-log between them and zero outside (core/vibration.py)',
+              minimum=0.0, open_minimum=True, maximum=MAX_OUTPUT_RATE_HZ / 40.0,
+              range_note='log-log needs f > 0; sampled at output.rate and interpolated '
+              'linearly, as the sine', read_only=False),
+    ParamSpec('scenario.vibration_psd_values', 'run.vibration_psd_values', 'float_list', [],
+              'g^2/Hz', 'one-sided acceleration PSD of the random vibration at each break '
+              'point (same length as scenario.vibration_psd_frequencies)',
+              minimum=0.0, open_minimum=True,
+              range_note='log-log needs S > 0; its rms at most 10^5 g', read_only=False),
     ParamSpec('scenario.acceleration', 'run.acceleration', 'float_list', [], 'm/s^2',
-              'steady base acceleration [x, y] in the plane of the ring from t = 0 (empty = '
-              'none; z is not in the model)', **_ACCELERATION),
+              'steady base acceleration [x, y] in the plane of the ring from t = 0 (live: from '
+              'the change; empty = none; z is not in the model)', **_ACCELERATION,
+              read_only=False),
     ParamSpec('scenario.temperature_times', 'run.temperature_times', 'float_list', [], 's',
               'knots of the ambient temperature (non-decreasing; a repeated time is a step); '
               'linear between knots, the first value before the first and the last after the '
@@ -1069,6 +1091,8 @@ class RunParams:
     vibration_frequency: float
     vibration_amplitude: float
     vibration_angle: float
+    vibration_psd_frequencies: Tuple[float, ...]
+    vibration_psd_values: Tuple[float, ...]
     acceleration: Tuple[float, ...]
     record_topics: Tuple[str, ...]
     record_decimation: int
@@ -1102,6 +1126,7 @@ class RunParams:
                         f'{self.vibration_frequency:g} Hz is above output.rate / 40 = '
                         f'{self.output_rate / 40.0:g} Hz: the vibration is sampled at '
                         f'output.rate and interpolated linearly')
+        self._check_psd()
         if len(self.temperature_values) != len(self.temperature_times):
             raise _fail('scenario.temperature_values',
                         f'has {len(self.temperature_values)} values but '
@@ -1113,6 +1138,48 @@ class RunParams:
             raise _fail('scenario.shock_angles',
                         f'has {len(self.shock_angles)} values but scenario.shock_times has '
                         f'{len(self.shock_times)}')
+
+    def _check_psd(self) -> None:
+        """Refuse a random-vibration profile that is not a band (``core.vibration``)."""
+        freqs, values = self.vibration_psd_frequencies, self.vibration_psd_values
+        if len(values) != len(freqs):
+            raise _fail('scenario.vibration_psd_values',
+                        f'has {len(values)} values but scenario.vibration_psd_frequencies has '
+                        f'{len(freqs)}')
+        if not freqs:
+            return
+        if len(freqs) < 2:
+            raise _fail('scenario.vibration_psd_frequencies',
+                        f'needs at least 2 points (a band, log-log between them), got '
+                        f'{len(freqs)}')
+        if any(b <= a for a, b in zip(freqs, freqs[1:])):
+            raise _fail('scenario.vibration_psd_frequencies', 'must increase strictly')
+        if freqs[-1] > self.output_rate / 40.0:
+            raise _fail('scenario.vibration_psd_frequencies',
+                        f'{freqs[-1]:g} Hz is above output.rate / 40 = '
+                        f'{self.output_rate / 40.0:g} Hz: the vibration is sampled at '
+                        f'output.rate and interpolated linearly')
+        df = self.output_rate / vibration.period_samples(self.output_rate)
+        lines = math.floor(freqs[-1] / df + 1e-9) - math.ceil(freqs[0] / df - 1e-9) + 1
+        if lines < vibration.MIN_LINES:
+            raise _fail('scenario.vibration_psd_frequencies',
+                        f'the band {freqs[0]:g} .. {freqs[-1]:g} Hz holds {max(lines, 0)} '
+                        f'lines of the multisine (spacing {df:.6g} Hz at this output.rate), '
+                        f'fewer than {vibration.MIN_LINES}')
+        rms = math.sqrt(vibration.psd_mean_square(freqs, values)) * STANDARD_GRAVITY
+        if not rms <= MAX_RANDOM_RMS:
+            raise _fail('scenario.vibration_psd_values',
+                        f'the rms of the profile, {rms / STANDARD_GRAVITY:.6g} g, is beyond '
+                        f'{MAX_RANDOM_RMS / STANDARD_GRAVITY:.6g} g: its peaks (several rms) '
+                        f'would pass the physical bound of 10^6 g')
+
+    @property
+    def random_vibration_rms_g(self) -> float:
+        """Return the random vibration's rms, g (the integral of its PSD; 0 without one)."""
+        if not self.vibration_psd_frequencies:
+            return 0.0
+        return math.sqrt(vibration.psd_mean_square(self.vibration_psd_frequencies,
+                                                   self.vibration_psd_values))
 
     def scheduled_shocks(self) -> List[Tuple[int, float, float]]:
         """Return the scheduled shocks as ``(start ns, peak x, peak y)`` (m/s^2)."""

@@ -73,12 +73,12 @@ from typing import Any, Callable, List, Mapping, Optional, Tuple
 
 import numpy as np
 
-from ring_gyro_sim.core import forces, kernels, noise, structure, thermal
+from ring_gyro_sim.core import forces, kernels, noise, structure, thermal, vibration
 from ring_gyro_sim.core.errors import InputError, SimulationError
 from ring_gyro_sim.core.gyro import calibration as gyro_calibration, control, electronics
 from ring_gyro_sim.core.gyro.channel import SenseChain
 from ring_gyro_sim.core.params import (BOLTZMANN, build_config, EPSILON_0, MAX_ACCELERATION,
-                                       SimConfig, to_flat)
+                                       SimConfig, STANDARD_GRAVITY, to_flat)
 from ring_gyro_sim.core.rate_profile import RateProfile
 
 THERMAL_UPDATE_S = 0.01
@@ -218,24 +218,49 @@ def _check_acceleration(name: str, x: float, y: float = 0.0) -> None:
                          f'far beyond it the arithmetic of a contact overflows)')
 
 
-def _environment_of(config: SimConfig) -> Optional[Tuple[float, float, float, float, float]]:
+@dataclass(frozen=True)
+class _Environment:
     """
-    Return the scenario's environment: ``(a_x, a_y, A_x, A_y, omega)``, None without one.
+    The scenario's base acceleration in the ring's plane (:func:`_environment_of`), m/s^2.
 
-    The base acceleration ``(a_x, a_y) + (A_x, A_y) sin(omega t)`` in the ring's plane:
-    ``scenario.acceleration`` steady from t = 0, and the sine vibration of
-    ``scenario.vibration_amplitude`` (peak) at ``scenario.vibration_frequency`` along
-    ``scenario.vibration_angle`` (from x towards y), zero phase at t = 0. It enters the
-    equations as a streamed base acceleration does (eq. 32's forcing).
+    ``steady + sine_peak sin(omega (t - t_ref) + phase) + direction a_r(n)``: the steady part,
+    the sine's peak along x and y (its phase reference is the simulator's, which keeps it
+    continuous across changes), the random vibration's multisine ``a_r`` at output sample
+    ``n`` (``core.vibration``) and its direction.
+    """
+
+    steady: Tuple[float, float]
+    sine_peak: Tuple[float, float]
+    omega: float
+    random: Optional[vibration.RandomVibration]
+    direction: Tuple[float, float]
+
+
+def _environment_of(config: SimConfig) -> Optional[_Environment]:
+    """
+    Return the scenario's environment, None without one.
+
+    ``scenario.acceleration`` steady, the sine vibration of ``scenario.vibration_amplitude``
+    (peak) at ``scenario.vibration_frequency`` and the random vibration of
+    ``scenario.vibration_psd_*`` (seeded by ``gyro.noise_seed``), both along
+    ``scenario.vibration_angle`` (from x towards y). It enters the equations as a streamed
+    base acceleration does (eq. 32's forcing).
     """
     r = config.run
     steady = tuple(r.acceleration) if r.acceleration else (0.0, 0.0)
     peak = r.vibration_amplitude if r.vibration_frequency > 0.0 else 0.0
-    if peak == 0.0 and steady == (0.0, 0.0):
+    random = None
+    if r.vibration_psd_frequencies:
+        random = vibration.random_vibration(
+            tuple(r.vibration_psd_frequencies), tuple(r.vibration_psd_values), r.output_rate,
+            config.gyro.noise_seed, STANDARD_GRAVITY)
+    if peak == 0.0 and steady == (0.0, 0.0) and random is None:
         return None
     angle = math.radians(r.vibration_angle)
-    return (float(steady[0]), float(steady[1]), peak * math.cos(angle),
-            peak * math.sin(angle), 2.0 * math.pi * r.vibration_frequency)
+    return _Environment(steady=(float(steady[0]), float(steady[1])),
+                        sine_peak=(peak * math.cos(angle), peak * math.sin(angle)),
+                        omega=2.0 * math.pi * r.vibration_frequency, random=random,
+                        direction=(math.cos(angle), math.sin(angle)))
 
 
 def _first_nonfinite(*arrays: Optional[np.ndarray]) -> Optional[int]:
@@ -378,6 +403,10 @@ class Simulator:
         self._profile_y: List[float] = []
         self._profile_head = 0
         self._environment = _environment_of(config)
+        # The sine vibration's phase reference: its phase is continuous across a change of
+        # its frequency (as the drive's), so a change moves the reference to its time.
+        self._vibration_t_ref = 0.0
+        self._vibration_phase = 0.0
         self.rate_profile = RateProfile.of(config)  # the angular rate of the sensor frame
         self._events: List[Tuple[int, int, Callable[[], None]]] = []
         self._event_seq = 0
@@ -602,6 +631,11 @@ class Simulator:
         return self._config
 
     @property
+    def random_vibration(self) -> Optional[vibration.RandomVibration]:
+        """Return the random vibration in force (``scenario.vibration_psd_*``), None if none."""
+        return None if self._environment is None else self._environment.random
+
+    @property
     def drive_phase_at_start(self) -> float:
         """Return the drive's phase at t = 0, rad (0 open loop; closed loop the NCO's, C3)."""
         return self._drive_phase if self.sample_index == 0 else math.nan
@@ -667,6 +701,9 @@ class Simulator:
         if (config.drive.amplitude != old.amplitude
                 or config.drive.frequency != old.frequency):
             self._rephase_drive()
+        if config.run.vibration_frequency != self._config.run.vibration_frequency:
+            self._rephase_vibration()
+        self._environment = _environment_of(config)
         self._config = config
         self._build(thermal.device_at(config, self.device_temperature))
         if self.pickoff is not None:  # the voltages set the amplifiers' gains
@@ -804,6 +841,14 @@ class Simulator:
         phase = d.omega * (t - d.t_ref) + d.phase
         self._drive_phase = math.fmod(phase, 2.0 * math.pi)
         self._drive_t_ref = t
+
+    def _rephase_vibration(self) -> None:
+        """Move the sine vibration's phase reference to now, before its frequency changes."""
+        t = self.time_s
+        omega = 2.0 * math.pi * self._config.run.vibration_frequency
+        phase = omega * (t - self._vibration_t_ref) + self._vibration_phase
+        self._vibration_phase = math.fmod(phase, 2.0 * math.pi)
+        self._vibration_t_ref = t
 
     def _drive_args(self) -> kernels.Drive:
         """
@@ -1223,14 +1268,18 @@ class Simulator:
         (``scenario.vibration_*``, ``scenario.acceleration``; :func:`_environment_of`),
         evaluated at every output sample from two before the stretch to two after it (the
         kernel's stages stay within two steps of it) and at the streamed samples there: the
-        kernel interpolates the sum linearly. The values at a time do not depend on how the
-        run is cut, so neither does the result.
+        kernel interpolates the sum linearly. The sine is evaluated at every time of the
+        grid, the random vibration (a table of output samples) interpolated linearly onto
+        the streamed samples' times. The values at a time do not depend on how the run is
+        cut, so neither does the result; the environment in force over the stretch is the
+        one of the last change (changes cut the stretches).
         """
         prof_t, prof_x, prof_y = self._profile_arrays(t_start, t_end)
         env = self._environment
         if env is None:
             return prof_t, prof_x, prof_y
-        t = np.arange(self.sample_index - 2, self.sample_index + count + 3) * self.period_s
+        index = np.arange(self.sample_index - 2, self.sample_index + count + 3)
+        t = index * self.period_s
         if prof_t.size:
             inside = prof_t[(prof_t > t[0]) & (prof_t < t[-1])]
             grid = np.union1d(t, inside)
@@ -1238,9 +1287,44 @@ class Simulator:
             y = np.interp(grid, prof_t, prof_y, left=0.0, right=0.0)
         else:
             grid, x, y = t, np.zeros(t.size), np.zeros(t.size)
-        steady_x, steady_y, peak_x, peak_y, omega = env
-        wave = np.sin(omega * grid) if omega > 0.0 else np.zeros(grid.size)
-        return grid, x + steady_x + peak_x * wave, y + steady_y + peak_y * wave
+        (steady_x, steady_y), (peak_x, peak_y) = env.steady, env.sine_peak
+        if env.omega > 0.0 and (peak_x != 0.0 or peak_y != 0.0):
+            wave = np.sin(env.omega * (grid - self._vibration_t_ref) + self._vibration_phase)
+        else:
+            wave = np.zeros(grid.size)
+        x = x + steady_x + peak_x * wave
+        y = y + steady_y + peak_y * wave
+        if env.random is not None:
+            a = env.random.at(index)
+            if grid.size != t.size:
+                a = np.interp(grid, t, a)
+            x += env.direction[0] * a
+            y += env.direction[1] * a
+        return grid, x, y
+
+    def environment_at(self, index: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """
+        Return the scenario's base acceleration (m/s^2, x and y) at output sample ``index``.
+
+        As the kernel sees it at those samples under the environment in force now (not the
+        streamed ``~/base_acceleration``); zeros without an environment.
+        """
+        index = np.asarray(index, dtype=np.int64)
+        x, y = np.zeros(index.shape), np.zeros(index.shape)
+        env = self._environment
+        if env is None:
+            return x, y
+        t = index * self.period_s
+        (steady_x, steady_y), (peak_x, peak_y) = env.steady, env.sine_peak
+        wave = (np.sin(env.omega * (t - self._vibration_t_ref) + self._vibration_phase)
+                if env.omega > 0.0 else np.zeros(t.shape))
+        x = x + steady_x + peak_x * wave
+        y = y + steady_y + peak_y * wave
+        if env.random is not None:
+            a = env.random.at(index)
+            x += env.direction[0] * a
+            y += env.direction[1] * a
+        return x, y
 
     def _profile_arrays(self, t_start: float, t_end: float):
         """
