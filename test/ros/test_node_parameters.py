@@ -15,6 +15,8 @@
 """
 Parameter refusals of the real node, across processes (issue 10 items 3 and 4).
 
+And the environment changed live (issue 24): ``ros2 param set`` of the vibration.
+
 rclpy refuses undeclared, read-only and out-of-range changes before the node's callback
 runs; they must be counted on ``/diagnostics`` by kind and answered with a reason naming the
 parameter. A params file the node and ``ring_gyro run`` would read differently stops the node
@@ -27,7 +29,10 @@ import math
 import time
 
 from node_harness import connected, NodeProcess, params_yaml, Probe, start_node
+import numpy as np
 import pytest
+from rcl_interfaces.srv import SetParametersAtomically
+from rclpy.parameter import Parameter
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.params import paper_config
 from ring_gyro_sim.paramfile import check_params_file
@@ -144,3 +149,53 @@ def test_a_params_file_run_refuses_stops_the_node_with_the_same_reason(bad_files
     fatal = [line for line in log.splitlines() if '[FATAL]' in line]
     assert fatal == [f'[FATAL] [ring_gyro_node]: cannot start: {info.value}']
     assert 'Traceback' not in log
+
+
+def q1_moves_after(probe, t_ns):
+    """Tell whether a received block holds a sample after ``t_ns`` with q1 off rest."""
+    for block in probe.blocks['modal_displacement']:
+        late = block.t > t_ns * 1e-9
+        if late.any() and np.any(block.data[late, block.labels.index('q1')] != 0.0):
+            return True
+    return False
+
+
+def test_the_environment_is_changed_live_and_a_bad_value_is_refused_by_name(node):
+    """
+    ``scenario.vibration_*`` are live parameters: set, they act on the running ring.
+
+    The resonator at rest (no drive) keeps q1 at exactly 0 until the vibration is switched
+    on; a bad value is refused with a reason naming the parameter and changes nothing; the
+    profile's two lists change together through ``set_parameters_atomically``.
+    """
+    proc, probe = node
+    probe.spin_until(lambda: probe.blocks['modal_displacement'], 30, 'a block')
+    assert not q1_moves_after(probe, 0)
+    for name, value, text in [
+            ('scenario.vibration_amplitude', -1.0,
+             'scenario.vibration_amplitude: must be between 0'),
+            ('scenario.vibration_frequency', 3000.0,
+             'scenario.vibration_frequency: 3000 Hz is above output.rate / 40'),
+            ('scenario.vibration_psd_frequencies', [20.0, 2000.0],
+             'scenario.vibration_psd_values: has 0 values')]:
+        result = probe.remote_set((name, value), timeout=30.0)[0]
+        print(f'\n{name} = {value!r}: {result.reason}')
+        assert not result.successful and text in result.reason
+    accepted = probe.remote_set(('scenario.vibration_frequency', 1000.0),
+                                ('scenario.vibration_amplitude', 20.0), timeout=30.0)
+    assert all(r.successful for r in accepted), [r.reason for r in accepted]
+    assert probe.remote_get('scenario.vibration_amplitude', timeout=30.0) == 20.0
+    now = probe.last_time_ns()
+    probe.spin_until(lambda: q1_moves_after(probe, now), 60, 'q1 to answer the vibration')
+    client = probe.create_client(SetParametersAtomically,
+                                 f'{probe.target}/set_parameters_atomically')
+    probe.spin_until(client.service_is_ready, 30, 'set_parameters_atomically')
+    request = SetParametersAtomically.Request(parameters=[
+        Parameter('scenario.vibration_psd_frequencies',
+                  value=[20.0, 2000.0]).to_parameter_msg(),
+        Parameter('scenario.vibration_psd_values', value=[0.01, 0.01]).to_parameter_msg()])
+    result = probe.call(client, request, timeout=30.0).result
+    assert result.successful, result.reason
+    probe.spin_until(lambda: 'scenario.vibration_psd_values = ' in proc.output(),
+                     30, 'the node to log the change')
+    assert 'parameters applied at simulation time' in proc.output()
