@@ -40,9 +40,9 @@ into a table of N samples; the base acceleration at output sample ``n`` is
 * over one period its mean square is ``sum_k S(f_k) df`` exactly, and its periodogram at
   resolution ``df`` is the profile in every line: the amplitudes are deterministic (the
   "periodic random" or pseudo-random excitation of vibration controllers), only the phases are
-  random. With thousands of lines the values are Gaussian to within ``1 / (2 M)`` in the
-  kurtosis (M lines; a Gaussian process's amplitudes would scatter each line's power by 100 %
-  and the mean square of a finite record with them);
+  random (Gaussian amplitudes would scatter each line's power by 100 % and the mean square of
+  a finite record with them). With thousands of lines the values are nearly Gaussian all the
+  same: the expected kurtosis is ``3 - 3 / (2 M)`` for M equal lines (a Gaussian's: 3);
 * the phases ``phi_k = atan2(z_2, z_1)`` come from row ``k`` of the counter-based normals
   (``core.noise``, :data:`~ring_gyro_sim.core.noise.STREAM_VIBRATION`, width 2: uniform
   angles), so each line's phase depends on ``(gyro.noise_seed, k)`` only: a change of the
