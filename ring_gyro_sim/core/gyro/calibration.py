@@ -294,6 +294,7 @@ def _bench(config: SimConfig) -> SimConfig:
     run = replace(config.run, shock_times=(), shock_peaks=(), shock_angles=(),
                   rate_times=(0.0,), rate_values=(0.0,), temperature_times=(),
                   temperature_values=(), vibration_frequency=0.0, vibration_amplitude=0.0,
+                  vibration_psd_frequencies=(), vibration_psd_values=(),
                   acceleration=(), record_path='', duration=0.0, block_duration=block,
                   real_time_factor=plain.real_time_factor, publish_clock=plain.publish_clock,
                   record_topics=plain.record_topics, record_decimation=plain.record_decimation,

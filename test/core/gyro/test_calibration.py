@@ -170,3 +170,17 @@ def test_a_factory_calibration_is_kept_in_a_file_and_read_back(tmp_path, monkeyp
         calibration.factory(other)
     monkeypatch.setenv(calibration.CACHE_ENV, '')
     assert calibration._stored_path(calibration._bench(config)) is None
+
+
+def test_the_factory_bench_leaves_the_scenario_out():
+    # The table measures the device, not the run's environment: a sine or random vibration,
+    # a steady acceleration or a shock of the scenario would bias K2 and K3 (and a cached
+    # table would then be read back for the quiet device).
+    base = build_config(QUIET)
+    shaken = build_config({**QUIET, 'scenario.vibration_frequency': 1000.0,
+                           'scenario.vibration_amplitude': 50.0,
+                           'scenario.vibration_psd_frequencies': [20.0, 2000.0],
+                           'scenario.vibration_psd_values': [0.01, 0.01],
+                           'scenario.acceleration': [9.8, 0.0]})
+    assert shaken != base
+    assert calibration._bench(shaken) == calibration._bench(base)
