@@ -54,6 +54,7 @@ evaluated at two angles per orbit, which is the cost of the plain half-circle ru
 """
 
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -64,7 +65,7 @@ from ring_gyro_sim.core.params import SimConfig
 __all__ = ['SYMMETRY_TOLERANCE', 'ForceModel', 'coordinate_harmonics', 'mode_shapes',
            'quadrature_points', 'coordinate_parity', 'build_force_model',
            'nonlinear_acceleration', 'scratch_size', 'contact_angle', 'full_grid', 'jacobian',
-           'electrostatic_energy', 'mechanical_energy']
+           'electrostatic_energy', 'mechanical_energy', 'build_stops']
 
 SYMMETRY_TOLERANCE = 1e-12
 """r_o V_o^2 and r_i V_i^2 closer than this (relative) are taken as equal: users write
@@ -334,3 +335,41 @@ def mechanical_energy(x: np.ndarray, v: np.ndarray, omega: np.ndarray,
     """
     m = model.masses
     return float(0.5 * np.sum(m * (v ** 2 + (omega * x) ** 2)) - electrostatic_energy(x, model))
+
+
+def build_stops(config: SimConfig, stages: int, n_pairs: int,
+                state: Optional[np.ndarray] = None) -> 'kernels.Stops':
+    """
+    Assemble the mechanical stops of a configuration as the kernels take them.
+
+    ``stages`` is the splitting's number of drifts, ``n_pairs`` the coupled pairs' count (the
+    sub-steps' propagators have their shapes); ``state`` the counters to keep (a rebuild at
+    another die temperature keeps the impacts counted), None: new ones. Without stops
+    (``stops.gap`` 0) the arrays are placeholders the kernels never read.
+    """
+    n = len(config.modal_masses())
+    if state is None:
+        state = np.zeros(4, dtype=np.int64)
+    s = config.stops
+    if not s.enabled:
+        return kernels.Stops(gap=0.0, unload=1.0, basis=np.zeros((n, 1)),
+                             projection=np.zeros((n, 1)), max_sub=0.0, w=np.zeros(1),
+                             f=np.zeros(1), index=np.zeros(1, dtype=np.int64),
+                             save=np.zeros((3, n)), prop=np.zeros((1, n, 4)),
+                             pair_prop=np.zeros((1, max(n_pairs, 1), 16)),
+                             rot=np.zeros((1, 2)), key=np.full(2, np.nan), state=state)
+    harmonics, sine = coordinate_harmonics(config.modes.count, config.modes.companions)
+    masses = np.asarray(config.modal_masses(), dtype=np.float64)
+    m = kernels.stop_angles(config.modes.count)
+    theta = 2.0 * np.pi * np.arange(m) / m
+    basis = np.ascontiguousarray(mode_shapes(harmonics, sine, theta).T)
+    radius = config.ring.radius
+    projection = np.ascontiguousarray(
+        (2.0 * np.pi * radius * s.stiffness / m) * basis / masses[:, None])
+    return kernels.Stops(
+        gap=float(s.gap), unload=float(s.restitution ** 2), basis=basis,
+        projection=projection,
+        max_sub=kernels.stop_max_substep(s.stiffness, radius, float(np.min(masses))),
+        w=np.zeros(m), f=np.zeros(m), index=np.zeros(m, dtype=np.int64), save=np.zeros((3, n)),
+        prop=np.zeros((stages, n, 4)), pair_prop=np.zeros((stages, n_pairs, 16)),
+        rot=np.zeros((stages + 1, 2)), key=np.full(2, np.nan), state=state)

@@ -255,6 +255,12 @@ DEFAULT_MISALIGNMENT_SPREAD = 0.01
 DEFAULT_PHASE_ERROR_SPREAD = 0.005
 DEFAULT_GAIN_MISMATCH_SPREAD = 0.01
 
+# The mechanical stops' contact law (core/kernels/stops.py): a restitution typical of a hard
+# stop and a penalty stiffness that keeps a 30 000 g impact within a few % of d_g at 0.6 d_g
+# (doc/environments.md, "Mechanical stops", says why each).
+DEFAULT_STOP_RESTITUTION = 0.5
+DEFAULT_STOP_STIFFNESS = 1e10
+
 TEMPERATURE_RANGE_K = (150.0, 500.0)
 """Temperatures (K) the parameters and ``~/temperature`` take (:data:`_TEMPERATURE_NOTE`)."""
 _TEMPERATURE_NOTE = ("the device's temperature laws are linear about the reference; a "
@@ -586,6 +592,23 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               'one sigma of the drawn pick-off gain mismatch, added to '
               'gyro.pickoff_gain_mismatch (with device.seed)', 0.0, 0.5,
               range_note='that of gyro.pickoff_gain_mismatch'),
+    ParamSpec('stops.gap', 'stops.gap', 'float', 0.0, 'm',
+              'radial clearance of the mechanical stops, on both sides of the ring (outer '
+              'and inner): where |w| reaches it the contact law pushes the ring back and the '
+              'run goes on; 0 = no stops (contact with an electrode ends the run); when set, '
+              'below electrodes.gap (doc/environments.md)', **_NON_NEGATIVE),
+    ParamSpec('stops.restitution', 'stops.restitution', 'float', DEFAULT_STOP_RESTITUTION,
+              '-', 'coefficient of restitution e of the stops: at every angle in contact the '
+              'stop gives back e^2 of the elastic energy the ring stored in it (loading '
+              'stiffness stops.stiffness, unloading e^2 stops.stiffness)', 0.0, 1.0,
+              open_minimum=True, range_note='0 would hold the ring in the stop, above 1 '
+              'would create energy'),
+    ParamSpec('stops.stiffness', 'stops.stiffness', 'float', DEFAULT_STOP_STIFFNESS, 'N/m^2',
+              "contact stiffness of the stops per unit length of the ring's circumference "
+              '(force per unit length per m of penetration, a penalty: large enough that the '
+              'penetration is small, doc/environments.md)', 1e6, 1e14,
+              range_note='below, a 30 000 g shock goes through the stop; above, the contact '
+              'sub-step becomes impractically short'),
     ParamSpec('control.drive_loop', 'control.drive_loop', 'str', 'closed', '-',
               'the 2theta drive: open (the paper: drive.amplitude at drive.frequency) or '
               'closed (a PLL on the drive pick-off sets the frequency, an AGC the amplitude; '
@@ -1012,6 +1035,20 @@ class DeviceParams:
     gain_mismatch_spread: float
 
 
+@_parameter_group('stops')
+class StopParams:
+    """The mechanical stops: clearance and contact law (``core/kernels/stops.py``)."""
+
+    gap: float
+    restitution: float
+    stiffness: float
+
+    @property
+    def enabled(self) -> bool:
+        """Whether there are stops (``stops.gap`` > 0)."""
+        return self.gap > 0.0
+
+
 @_parameter_group('control')
 class ControlParams:
     """
@@ -1223,6 +1260,7 @@ class SimConfig:
     gyro: GyroParams = field(default_factory=GyroParams)
     control: ControlParams = field(default_factory=ControlParams)
     integrator: IntegratorParams = field(default_factory=IntegratorParams)
+    stops: StopParams = field(default_factory=StopParams)
     run: RunParams = field(default_factory=RunParams)
     thermal: ThermalParams = field(default_factory=ThermalParams)
     device: DeviceParams = field(default_factory=DeviceParams)
@@ -1260,6 +1298,10 @@ class SimConfig:
                             f'multiple of it, got {self.gyro.output_rate:g} Hz')
         if self.drive.amplitude != 0.0 and self.modes.count < 2:
             raise _fail('drive.amplitude', 'drives the 2theta mode: needs at least 2 modes')
+        if self.stops.enabled and self.stops.gap >= self.electrodes.gap:
+            raise _fail('stops.gap', f'must be below electrodes.gap '
+                        f'({format_number(self.electrodes.gap)} m): a stop beyond the '
+                        f'electrodes never acts, got {format_number(self.stops.gap)} m')
         self._check_control()
         self._check_voltages()
         self._check_block_memory()

@@ -523,6 +523,9 @@ class Simulator:
                                       a=self._a, b=self._b, prop=prop, omega=self.omega,
                                       zeta=self.zeta, coupled=coupled, pairs=pairs,
                                       pair_prop=pair_prop, pair_system=systems)
+        old = getattr(self, '_stops', None)
+        self._stops = forces.build_stops(config, self._a.size, pairs.shape[0],
+                                         None if old is None else old.state)
         self._scratch = kernels.Scratch(
             work=np.empty(forces.scratch_size(self.model)), fe=np.empty(n),
             info=np.zeros(2, dtype=np.int64), tinfo=np.zeros(1),
@@ -892,6 +895,7 @@ class Simulator:
             self.message = ''
             self.contact_time_s = math.nan
             self.contact_theta_rad = math.nan
+            self._stops.state[kernels.STOP_IN_CONTACT] = 0  # at rest: off the stops
         self._schedule(at_ns, apply)
 
     def set_state(self, q: np.ndarray, v: np.ndarray) -> None:
@@ -933,6 +937,25 @@ class Simulator:
 
     def _refresh_acceleration(self) -> None:
         self._acc[:] = forces.nonlinear_acceleration(self.q, self.model)
+        if self._stops.gap > 0.0:  # the force the first kick takes includes the stops'
+            kernels.stop_accel(self.q, self.v, self._stops, self._acc, False)
+            self._stops.state[kernels.STOP_IN_CONTACT] = self._stops.state[
+                kernels.STOP_LAST_CONTACT]
+
+    @property
+    def impacts(self) -> int:
+        """Impacts on the mechanical stops so far: entries into contact (``kernels.stops``)."""
+        return int(self._stops.state[kernels.STOP_IMPACTS])
+
+    @property
+    def in_stop_contact(self) -> bool:
+        """Whether the ring touched a stop at the end of the last step."""
+        return bool(self._stops.state[kernels.STOP_IN_CONTACT])
+
+    @property
+    def stop_substeps(self) -> int:
+        """Sub-steps taken near the stops so far (their cost, ``kernels.stops`` S4)."""
+        return int(self._stops.state[kernels.STOP_SUBSTEPS])
 
     # ------------------------------------------------------------------ advancing
     def advance(self, seconds: float) -> Samples:
@@ -1200,7 +1223,7 @@ class Simulator:
                                   y_index=self._y_index, rate_t=rate_t, rate_w=rate_w,
                                   pair_c=self._pair_c, pair_s=self._pair_s, kappa=self._kappa,
                                   noise=(self._force_noise(count) if force_noise is None
-                                         else force_noise))
+                                         else force_noise), stops=self._stops)
         scratch = self._scratch
         if scratch.cuts.size < 2 * len(active) + 2:
             scratch = self._scratch = scratch._replace(cuts=np.empty(2 * len(active) + 2))

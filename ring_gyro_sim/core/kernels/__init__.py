@@ -27,6 +27,8 @@ A package of modules by job; every public name is re-exported here, so that call
   :func:`nl_accel`);
 - :mod:`~ring_gyro_sim.core.kernels.forcing`: the external forcing of a stage (:class:`Drive`,
   :class:`Forcing`);
+- :mod:`~ring_gyro_sim.core.kernels.stops`: the mechanical stops' contact force
+  (:class:`Stops`, :func:`stop_accel`);
 - :mod:`~ring_gyro_sim.core.kernels.step`: the kicks, the splitting step and
   :func:`run_samples` (:class:`Scratch`);
 - :mod:`~ring_gyro_sim.core.kernels.channels`: the output channels (:func:`output_channels`);
@@ -150,6 +152,11 @@ from ring_gyro_sim.core.kernels.status import (describe_status, STATUS_INNER_CON
                                                STATUS_NONFINITE, STATUS_OK,
                                                STATUS_OUTER_CONTACT, STATUS_SERIES_RANGE)
 from ring_gyro_sim.core.kernels.step import run_samples, Scratch
+from ring_gyro_sim.core.kernels.stops import (IMPACTS as STOP_IMPACTS,
+                                              IN_CONTACT as STOP_IN_CONTACT,
+                                              LAST_CONTACT as STOP_LAST_CONTACT, stop_accel,
+                                              stop_angles, stop_max_substep, Stops,
+                                              SUBSTEPS as STOP_SUBSTEPS)
 
 __all__ = ['STATUS_OK', 'STATUS_OUTER_CONTACT', 'STATUS_INNER_CONTACT', 'STATUS_SERIES_RANGE',
            'STATUS_NONFINITE', 'NEEDS_GENERAL', 'Force', 'Drive', 'Forcing', 'Method', 'Scratch',
@@ -157,4 +164,6 @@ __all__ = ['STATUS_OK', 'STATUS_OUTER_CONTACT', 'STATUS_INNER_CONTACT', 'STATUS_
            'splitting_coefficients', 'linear_propagators', 'pair_propagators', 'pair_system',
            'member_basis', 'nl_accel',
            'drive_phasor', 'run_samples', 'OutputGeometry', 'Channels', 'output_channels',
-           'pickoff_volts', 'iq_fit']
+           'pickoff_volts', 'iq_fit', 'Stops', 'stop_accel', 'stop_angles',
+           'stop_max_substep', 'STOP_IMPACTS', 'STOP_IN_CONTACT', 'STOP_LAST_CONTACT',
+           'STOP_SUBSTEPS']

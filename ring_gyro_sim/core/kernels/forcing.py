@@ -28,6 +28,8 @@ from typing import NamedTuple
 from numba import njit
 import numpy as np
 
+from ring_gyro_sim.core.kernels.stops import Stops
+
 __all__ = ['Drive', 'Forcing', 'drive_phasor']
 
 
@@ -91,6 +93,8 @@ class Forcing(NamedTuple):
     noise : ndarray, shape (T, n)
         Velocity increments (m/s) added at the start of each step of the call, row
         ``s n_sub + j`` for step j of sample s (the force noise); T = 0: none.
+    stops : Stops
+        The mechanical stops (``kernels.stops``; ``gap`` 0.0: none).
 
     """
 
@@ -106,6 +110,7 @@ class Forcing(NamedTuple):
     pair_s: np.ndarray
     kappa: np.ndarray
     noise: np.ndarray
+    stops: Stops
 
 
 class DrivePhasors(NamedTuple):

@@ -33,6 +33,8 @@ from ring_gyro_sim.core.kernels.drift import (_drift, _fill_pair_propagators, _f
 from ring_gyro_sim.core.kernels.force import _force_any
 from ring_gyro_sim.core.kernels.forcing import (_external, _profile_accel, _rate_at,
                                                 _stage_rotations, _step_phasors)
+from ring_gyro_sim.core.kernels.stops import (IMPACTS, IN_CONTACT, LAST_CONTACT,
+                                              may_touch, REFINE, stop_accel, SUBSTEPS)
 
 __all__ = ['Scratch', 'run_samples']
 
@@ -188,9 +190,13 @@ def _kick_rotating(q, v, acc, fe, kick, rate, forcing, turn):
 
 
 @njit(cache=True, inline='always')
-def _step(q, v, acc, span, method, force, drive, forcing, scratch):
+def _step(q, v, acc, span, method, force, drive, forcing, scratch, full_step):
     """
     One BAB splitting step over ``span`` (package docstring), in place.
+
+    With stops (``forcing.stops.gap > 0``) their force is added to the electrostatic one at
+    every stage (``stops.stop_accel``); a ``full_step`` that finds a stage in contact stops
+    with ``info[0] = stops.REFINE`` (taken again in sub-steps, :func:`_advance_span`).
 
     ``span`` is the step or sub-step (:class:`Span`): its start, its length and its
     propagators and drive rotations. ``acc`` holds the force at the start (FSAL) and gets the
@@ -239,6 +245,11 @@ def _step(q, v, acc, span, method, force, drive, forcing, scratch):
         if info[0] != 0:
             scratch.tinfo[0] = tt
             return False
+        if forcing.stops.gap > 0.0:
+            if stop_accel(q, v, forcing.stops, acc, full_step) == 2:
+                info[0] = REFINE
+                scratch.tinfo[0] = tt
+                return False
     if forcing.profile_t.size > 0:
         base = _profile_accel(ts + hs, forcing.profile_t, forcing.profile_x, forcing.profile_y)
     _external(ts + hs, t_mid, base, (rot[n_stages, 0], rot[n_stages, 1]), forcing, drive,
@@ -247,6 +258,69 @@ def _step(q, v, acc, span, method, force, drive, forcing, scratch):
         _kick_rotating(q, v, acc, fe, b[n_stages] * hs, (w, wdot), forcing, turn[n_stages])
     else:
         _kick(v, acc, fe, b[n_stages] * hs)
+    return True
+
+
+@njit(cache=True, inline='always')
+def _advance_span(q, v, acc, span, method, force, drive, forcing, scratch):
+    """
+    Take ``span`` as one :func:`_step`, or, near a stop, as sub-steps (``kernels.stops``, S4).
+
+    Without stops, one step. With them, a span that may reach a stop (``stops.may_touch``)
+    is cut into equal sub-steps of at most ``stops.max_sub``; one that may not is
+    taken whole, from a saved start, and taken again in sub-steps if a stage touched a stop
+    (:data:`stops.REFINE`). The ends of the (sub-)steps count the impacts (S5). Returns what
+    :func:`_step` returns.
+    """
+    stops = forcing.stops
+    on = stops.gap > 0.0
+    n = q.size
+    full = True
+    save = stops.save
+    if on:
+        full = not may_touch(q, v, acc, method.omega, span.h, stops)
+        if full:
+            for c in range(n):
+                save[0, c] = q[c]
+                save[1, c] = v[c]
+                save[2, c] = acc[c]
+    m = 1
+    sub = span
+    r = 0
+    while r < m:
+        if not full:
+            if r == 0:
+                m = max(1, int(math.ceil(span.h / stops.max_sub - 1e-9)))
+                hs = span.h / m
+                if not (hs == stops.key[0] and drive.omega == stops.key[1]):
+                    _fill_propagators(method.omega, method.zeta, method.a, hs, stops.prop,
+                                      method.coupled)
+                    _fill_pair_propagators(method.pair_system, method.a, hs, stops.pair_prop,
+                                           scratch.pair_work)
+                    _stage_rotations(method.a, hs, drive.omega, stops.rot)
+                    stops.key[0] = hs
+                    stops.key[1] = drive.omega
+            hs = span.h / m
+            sub = Span(t=span.t + r * hs, h=hs, prop=stops.prop, rot=stops.rot,
+                       pair_prop=stops.pair_prop)
+            stops.state[SUBSTEPS] += 1
+        if not _step(q, v, acc, sub, method, force, drive, forcing, scratch, full and on):
+            if not (on and scratch.info[0] == REFINE):
+                return False
+            scratch.info[0] = 0
+            for c in range(n):
+                q[c] = save[0, c]
+                v[c] = save[1, c]
+                acc[c] = save[2, c]
+            full = False
+            r = 0
+            continue
+        if on:
+            now = stops.state[LAST_CONTACT]
+            if now != 0 and stops.state[IN_CONTACT] == 0:
+                stops.state[IMPACTS] += 1
+            stops.state[IN_CONTACT] = now
+        r += 1
     return True
 
 
@@ -334,6 +408,7 @@ def run_samples(q, v, acc, k0, n_samples, method, force, drive, forcing, scratch
     for c in range(q.size):
         fe[c] = 0.0
     scratch.turn_key[0] = np.nan  # another call's coefficients may be another config's
+    forcing.stops.key[0] = np.nan  # and so may the stops' sub-step arrays
     h = method.h
     cuts = scratch.cuts
     _stage_rotations(method.a, h, drive.omega, scratch.rot)
@@ -371,7 +446,8 @@ def run_samples(q, v, acc, k0, n_samples, method, force, drive, forcing, scratch
                 for r in range(m):
                     span = Span(t=cuts[g] + r * hs, h=hs, prop=prop, rot=rot,
                                 pair_prop=pair_prop)
-                    if not _step(q, v, acc, span, method, force, drive, forcing, scratch):
+                    if not _advance_span(q, v, acc, span, method, force, drive, forcing,
+                                         scratch):
                         return s
         for c in range(q.size):
             out_q[s, c] = q[c]
