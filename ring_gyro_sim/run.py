@@ -833,7 +833,8 @@ class Run:
         :data:`PARAMETER_REFUSAL_KINDS`), ``rejected_angular_rate``, ``lost_inputs`` (messages
         the middleware reports lost), ``pending_shocks``, ``pending_inputs``, ``accepted_shocks``,
         ``accepted_angular_rate``, ``drive_amplitude``, ``drive_frequency_hz``,
-        ``nonfinite_failures`` (``Simulator.nonfinite_failures``).
+        ``nonfinite_failures`` (``Simulator.nonfinite_failures``), ``stop_impacts`` (impacts
+        on the mechanical stops, ``Simulator.impacts``: 0 without them).
         """
         sim = self.sim
         stats = self.stats
@@ -872,6 +873,7 @@ class Run:
         values['drive_amplitude'] = drive.amplitude
         values['drive_frequency_hz'] = drive.frequency
         values['nonfinite_failures'] = sim.nonfinite_failures
+        values['stop_impacts'] = sim.impacts
         values['die_temperature_k'] = float(sim.die.kelvin)
         values['ambient_temperature_k'] = float(sim.die.ambient.at(sim.time_s))
         gyro_warning = ''
@@ -978,11 +980,21 @@ class Run:
             extra=self._environment_figures())
 
     def _environment_figures(self) -> Dict[str, Any]:
-        """Return :meth:`gyro_figures` and the random vibration's rms (g) if one is on."""
-        out = self.gyro_figures()
+        """
+        Return :meth:`stop_figures`, :meth:`gyro_figures` and the random vibration's rms (g).
+
+        The rms only if a random vibration is on.
+        """
+        out = {**self.stop_figures(), **self.gyro_figures()}
         if self.sim.random_vibration is not None:
             out['random_vibration_rms_g'] = self.sim.random_vibration.rms_g
         return out
+
+    def stop_figures(self) -> Dict[str, Any]:
+        """Return the mechanical stops' figures (``stop_impacts``), {} without stops."""
+        if not self.sim.config.stops.enabled:
+            return {}
+        return {'stop_impacts': self.sim.impacts}
 
     def gyro_figures(self) -> Dict[str, Any]:
         """
@@ -1011,6 +1023,8 @@ class Run:
     def summary_text(self) -> str:
         """Return the run's numbers in one line (the node's log), the gyroscope's included."""
         text = self.stats.text()
+        if self.sim.config.stops.enabled:
+            text += f'; {self.sim.impacts} impacts on the stops'
         gyro = describe(self.gyro_figures())
         if gyro:
             text += f'; {gyro}'

@@ -421,3 +421,21 @@ def test_loops_that_overflow_fail_the_run_with_finite_outputs():
     assert run.sim.status == 'failed' and 'non-finite loop state' in run.sim.message
     assert run.sim.contact_time_s == pytest.approx(1.05e-3)
     assert len(blocks[-1].rate.rate) == 10 and len(blocks[-1].control) == 10
+
+
+def test_a_shock_into_the_stops_runs_on_and_counts_the_impacts():
+    # Issue 24 item 2: with stops at 0.6 d_g a 30 000 g shock bounces the ring instead of
+    # ending the run in contact; the impacts are on /diagnostics and in the summary.
+    run = rest_run(**{'stops.gap': 6e-6})
+    run.advance(BLOCK)
+    run.apply(Shock(x=30000.0 * STANDARD_GRAVITY))
+    blocks = [run.advance(BLOCK) for _ in range(3)]
+    assert all(b is not None and all_finite(b) for b in blocks)
+    assert run.running and run.sim.status == 'running'
+    impacts = run.diagnostics().values['stop_impacts']
+    assert impacts == run.sim.impacts > 0
+    summary = run.summary()
+    assert summary.status == 'finished' and summary.extra['stop_impacts'] == impacts
+    assert f'{impacts} impacts on the stops' in run.summary_text()
+    # without stops the diagnostics still carry the key, at 0
+    assert rest_run().diagnostics().values['stop_impacts'] == 0
