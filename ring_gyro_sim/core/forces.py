@@ -65,7 +65,8 @@ from ring_gyro_sim.core.params import SimConfig
 __all__ = ['SYMMETRY_TOLERANCE', 'ForceModel', 'coordinate_harmonics', 'mode_shapes',
            'quadrature_points', 'coordinate_parity', 'build_force_model',
            'nonlinear_acceleration', 'scratch_size', 'contact_angle', 'full_grid', 'jacobian',
-           'electrostatic_energy', 'mechanical_energy', 'build_stops']
+           'electrostatic_energy', 'mechanical_energy', 'build_stops',
+           'PULL_IN_GRID', 'static_pull_in_displacement']
 
 SYMMETRY_TOLERANCE = 1e-12
 """r_o V_o^2 and r_i V_i^2 closer than this (relative) are taken as equal: users write
@@ -373,3 +374,32 @@ def build_stops(config: SimConfig, stages: int, n_pairs: int,
         w=np.zeros(m), f=np.zeros(m), index=np.zeros(m, dtype=np.int64), save=np.zeros((3, n)),
         prop=np.zeros((stages, n, 4)), pair_prop=np.zeros((stages, n_pairs, 16)),
         rot=np.zeros((stages + 1, 2)), key=np.full(2, np.nan), state=state)
+
+
+PULL_IN_GRID = 2000
+"""Displacements of the scan of :func:`static_pull_in_displacement`, over [0, d_g)."""
+
+
+def static_pull_in_displacement(config: SimConfig, model: ForceModel) -> float:
+    """
+    Return the static pull-in displacement of the 1theta mode, m (inf: none below d_g).
+
+    The 1theta mode is the one a shock drives. Alone and held still, its restoring
+    acceleration is ``R(q) = omega_1^2 q - a_nl,1(q)`` (eq. 28 without time derivatives,
+    the other coordinates at 0): the electrostatic force softens it and R has a maximum at
+    the static pull-in displacement, beyond which no static load is balanced and the ring
+    is pulled onto whatever it meets. Found on :data:`PULL_IN_GRID` displacements of
+    ``[0, 0.999 d_g]`` (to 5e-4 d_g), with the model's own force (N_T terms or untruncated).
+    On the default device (78 V, N_T = 10): 0.702 d_g (0.674 d_g untruncated).
+    """
+    gap = config.electrodes.gap
+    omega = 2.0 * np.pi * config.modes.coordinate_frequencies()[0]
+    best_q, best_r = 0.0, -np.inf
+    x = np.zeros(model.n_coordinates)
+    for q in np.linspace(0.0, 0.999 * gap, PULL_IN_GRID):
+        x[0] = q
+        r = omega * omega * q - nonlinear_acceleration(x, model)[0]
+        if r <= best_r:
+            return float(best_q)
+        best_q, best_r = q, r
+    return np.inf

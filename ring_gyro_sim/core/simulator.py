@@ -70,6 +70,7 @@ from dataclasses import dataclass, replace
 import enum
 import math
 from typing import Any, Callable, List, Mapping, Optional, Tuple
+import warnings
 
 import numpy as np
 
@@ -432,6 +433,10 @@ class Simulator:
             self._drive_phase = self.loop.start(self.q, self.v, self._rate_at_start(),
                                                 self._start_omega())
         self._drive = self._drive_args()
+        self.pull_in_displacement = math.inf
+        """Static pull-in displacement of the 1theta mode, m (computed with stops only)."""
+        if config.stops.enabled:
+            self._check_stops_against_pull_in(config)
         self.steps_taken = 0
         self.nonfinite_failures = 0
         """Times the run failed on a non-finite value (:attr:`Status.FAILED`; module doc)."""
@@ -445,6 +450,18 @@ class Simulator:
                                     calibration=calibration)
 
     # ------------------------------------------------------------------ configuration
+    def _check_stops_against_pull_in(self, config: SimConfig) -> None:
+        """Warn when the stops lie beyond the static pull-in displacement (issue 24)."""
+        self.pull_in_displacement = forces.static_pull_in_displacement(config, self.model)
+        gap = config.electrodes.gap
+        if config.stops.gap >= self.pull_in_displacement:
+            warnings.warn(f'stops.gap: {config.stops.gap:.4g} m ({config.stops.gap / gap:.3f} '
+                          f'd_g) lies beyond the static pull-in displacement of the 1theta '
+                          f'mode, {self.pull_in_displacement:.4g} m '
+                          f'({self.pull_in_displacement / gap:.3f} d_g): a ring pushed past '
+                          f'it is pulled onto the stop and held there by the electrodes',
+                          RuntimeWarning, stacklevel=3)
+
     def _make_pickoffs(self, config: SimConfig) -> None:
         """Build the amplifiers at the die's temperature and as designed (one when equal)."""
         noisy = config.gyro.enabled

@@ -15,6 +15,7 @@
 """The mechanical stops (issue 24 item 2): restitution, a 30 000 g shock, the refusals."""
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -135,3 +136,17 @@ def test_30000_g_into_stops_at_0p6_dg_bounces_and_runs_on():
     variance = np.concatenate([r.variance for r in rates])
     after = t > 0.0201
     assert np.all(variance[after] >= 1e6)  # flagged: not a measurement
+
+
+def test_stops_beyond_the_static_pull_in_are_said_at_start():
+    # The 1theta mode's static pull-in displacement on the default device (78 V, N_T = 10) is
+    # where omega_1^2 q - a_nl,1(q) peaks: 0.702 d_g. Stops at 0.6 d_g lie inside it; at
+    # 0.75 d_g the electrodes would pull a ring pushed past 0.702 d_g onto the stop.
+    base = {'gyro.enabled': False, 'control.drive_loop': 'open', 'control.rebalance': False,
+            'drive.start_on': 'rest', 'modes.companions': False}
+    with pytest.warns(RuntimeWarning, match=r'^stops\.gap: .* beyond the static pull-in'):
+        sim = Simulator(build_config({**base, 'stops.gap': 7.5e-6}), calibration=None)
+    assert sim.pull_in_displacement == pytest.approx(0.702e-5, abs=1e-8)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        Simulator(build_config({**base, 'stops.gap': 6e-6}), calibration=None)
