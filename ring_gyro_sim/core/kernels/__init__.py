@@ -66,7 +66,11 @@ proportional to the nonlinear force (the linear part is exact) times ``(omega h)
 default step (see ``simulator.default_max_step``) the paper configuration stays within 1e-4 of
 the peak q1 of a DOP853 reference at rtol 1e-10 over 20 ms after a 10 000 g shock.
 Steps that overlap a shock pulse are cut into sub-steps of at most ``T_s / 16`` so the
-half-sine (whose derivative jumps at both ends) is resolved.
+half-sine (whose derivative jumps at both ends) is resolved. With mechanical stops, a step that
+may touch one is cut into sub-steps of ``pi / (16 omega_c)``, the stiffest contact's
+half-period, and a full step that touched one is taken again so (``stops.py``, S4); the stops'
+force joins the electrostatic one in B (its loading or unloading stiffness is chosen by the
+sign of the penetration's rate, the only use of the velocities outside the rotating kick).
 
 Everything is float64 and SI. Kernels take arrays and scalars grouped by what they are, in
 named tuples (:class:`Force`, :class:`Drive`, :class:`Forcing`, :class:`Method`,
