@@ -294,3 +294,38 @@ def test_a_step_of_the_steady_acceleration_acts_from_its_sample_and_the_mode_rin
 def test_a_bad_random_profile_is_refused_naming_the_field(values, field):
     with pytest.raises(ParameterError, match=field.replace('.', r'\.')):
         paper_config(values)
+
+
+def test_the_start_on_the_environment_s_answer_does_not_ring():
+    # with_environment_response puts the 1theta pair on its linear steady answer at t = 0:
+    # started from rest a 3 kHz sine leaves a free ringing at omega_1 of (w / omega_1) = 0.27
+    # of the forced amplitude for 3.4 s; from the answer (the interpolant's sinc^2 included)
+    # 8e-7 of it is left: the electrostatic terms the linear answer leaves out. The forced
+    # amplitude is the closed form times sinc^2(f / output.rate) = 1 - 7.4e-4 at 3 kHz. A
+    # steady acceleration is held at -a / omega_1^2 from the first sample. A random profile's
+    # start is the periodic answer of each line, steady_state_start's.
+    from ring_gyro_sim.core.gyro.operating_point import with_environment_response
+    f, peak = 3000.0, 10.0 * STANDARD_GRAVITY
+    config = paper_config({**QUIET, 'scenario.vibration_frequency': f,
+                           'scenario.vibration_amplitude': peak,
+                           'scenario.acceleration': [STANDARD_GRAVITY, 0.0]})
+    w1, w = 2.0 * math.pi * config.modes.frequencies[0], 2.0 * math.pi * f
+    forced = peak / (w1 * w1 - w * w)
+    periods = int(round(0.01 * config.run.output_rate))  # 10 ms: 30 and 112 whole periods
+    for start, ringing_bound in ((None, 0.2), (with_environment_response(config, None), 1e-5)):
+        s = Simulator(config, start).advance_samples(periods)
+        q1 = s.q[:, 0] + STANDARD_GRAVITY / w1 ** 2
+        in_phase, _ = lock_in(s.t, q1, f)
+        ring = math.hypot(*lock_in(s.t, q1, config.modes.frequencies[0]))
+        print(f'start {"settled" if start is not None else "at rest"}: forced '
+              f'{-in_phase / forced - 1:+.2e}, ringing at omega_1 {ring / forced:.2e}')
+        if start is None:
+            assert ring > ringing_bound * forced  # the step's ringing, (w / omega_1) = 0.27
+        else:
+            assert ring < ringing_bound * forced
+            assert -in_phase == pytest.approx(forced, rel=1e-3)
+    random = paper_config(RANDOM)
+    q, v = with_environment_response(random, None)
+    expected = steady_state_start(random, Simulator(random).random_vibration)
+    assert q[0] == pytest.approx(expected[0][0], rel=1e-9)
+    assert v[0] == pytest.approx(expected[1][0], rel=1e-9)

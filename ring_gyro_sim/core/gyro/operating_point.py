@@ -43,6 +43,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
 __all__ = ['ForcedOrbit', 'ModalEquations', 'ORBIT_MEMO_SIZE', 'cos_only', 'drive_orbit',
+           'with_environment_response',
            'drive_operating_point', 'forced_orbit', 'lock_frequency', 'remember_orbit',
            'resting_orbit', 'start_state', 'with_rate_response']
 
@@ -390,6 +391,59 @@ def _add_sense_response(config: SimConfig, x: np.ndarray, v: np.ndarray) -> None
 
 _MEMO: 'OrderedDict[tuple, Optional[State]]' = OrderedDict()
 _MEMO_LOCK = threading.Lock()
+
+
+def with_environment_response(config: SimConfig, state):
+    """
+    Return a copy of a start state with the 1theta pair on its answer to the environment.
+
+    The scenario's base acceleration (``core.simulator._environment_of``: a steady ``a``, a
+    sine ``A sin(w t)`` and a random multisine ``sum_k A_k cos(w_k t + phi_k)`` along the
+    vibration's direction) forces the 1theta pair as eq. (27):
+    ``q1'' + c q1' + k q1 = -a_x(t)`` (``q1s`` with ``a_y``), ``k`` the coordinate's linear
+    stiffness at rest (``omega_1^2`` less the unfolded electrostatic term, eq. 26) and
+    ``c = omega_1 / Q_1``. Started at rest the pair rings at ``omega_1`` for
+    ``2 Q_1 / omega_1`` (3.4 s): by ``a / k`` after a steady acceleration's step, by
+    ``w / omega_1`` of the forced amplitude after a sine's, and by half the random answer's
+    variance again on average. Here the pair starts on the linear steady (periodic) answer
+    instead: ``-a / k``, plus per line the phasor ``-H C`` at t = 0 with
+    ``H = 1 / (k - w^2 + i c w)`` and ``C`` the line's complex amplitude (``-i A`` for the sine,
+    ``A_k e^{i phi_k}`` for the multisine) times the linear interpolant's
+    ``sinc^2(f / output.rate)``, as the kernel sees it. What remains is the nonlinear answer's
+    transient (the other modes' static and slow parts, which the electrostatic coupling brings
+    in from t = 0). ``state`` is ``(x, v)`` (None: the ring at rest); the others are kept.
+    """
+    from ring_gyro_sim.core.simulator import _environment_of  # the simulator's own reading
+    env = _environment_of(config)
+    frequencies = config.modes.coordinate_frequencies()
+    if state is None:
+        x, v = np.zeros(len(frequencies)), np.zeros(len(frequencies))
+    else:
+        x = np.array(state[0], dtype=np.float64)
+        v = np.array(state[1], dtype=np.float64)
+    if env is None:
+        return x, v
+    rate = config.run.output_rate
+    w = np.array([env.omega], dtype=np.float64)
+    lines = np.array([-1j], dtype=np.complex128)  # A sin(w t) = Re(-i A e^{i w t}) per unit A
+    if env.random is not None:
+        rv = env.random
+        w = np.concatenate([w, 2.0 * math.pi * rv.lines * rv.df])
+        lines = np.concatenate([lines, rv.amplitudes * np.exp(1j * rv.phases)])
+    lines = lines * np.sinc(w / (2.0 * math.pi * rate)) ** 2
+    quality = config.modes.coordinate_quality_factors()
+    jac = forces.jacobian(np.zeros(x.size), forces.build_force_model(config))
+    axes = [(0, env.steady[0], env.sine_peak[0], env.direction[0])]
+    if config.modes.companions:
+        axes.append((config.modes.count, env.steady[1], env.sine_peak[1], env.direction[1]))
+    for i, steady, peak, direction in axes:
+        omega = 2.0 * math.pi * frequencies[i]
+        k = omega * omega - jac[i, i]
+        h = 1.0 / (k - w * w + 1j * (omega / quality[i]) * w)
+        c = lines * np.concatenate([[peak], np.full(w.size - 1, direction)])
+        x[i] += -steady / k - float(np.real(np.sum(h * c)))
+        v[i] += -float(np.real(np.sum(1j * w * h * c)))
+    return x, v
 
 
 def _orbit_key(config: SimConfig) -> tuple:
