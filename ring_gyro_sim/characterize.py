@@ -102,6 +102,20 @@ device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
    **Lost lock**: the PLL's ``pll_lost_lock`` of the closed loop (``None`` open loop: there
    is no loop to lose). **Contact**: the run summary's (the run stops there).
 
+4. The device as owned (section of its own): the factory calibration, the quadrature at
+   zero rate (one ``rate_point_s`` run, noise off) and the temperature series (the factory's
+   tables at each temperature: ``core.gyro.calibration``, run until settled and kept).
+
+5. Environment (12.17's environment series; issue 24): g-sensitivity (a steady 1 g, + and -
+   along x and y: its odd part per g and per m/s^2, and its even part), vibration
+   rectification (10 g sine along x at 100 Hz, 1 kHz and 3 kHz; at 1 kHz along 0, 22.5 and
+   45 deg) and the rectified bias against amplitude over a decade (1 to 10 g at 1 kHz along
+   x) with its log-log slope. Each is one run of 10 s / 0.3 s, noise off, from the drive
+   orbit with the 1theta pair on its answer to the environment, the mean of ``~/rate`` over
+   the last 2 s / 0.1 s less the same without the environment (``analysis.environment``,
+   :func:`_environment`; the open-loop rate path settles with 1.3 s, so ``--quick`` reads
+   low). 13 runs.
+
 Loop modes: the shock table has one entry per amplitude and per mode of ``loops``:
 ``open`` (the paper's fixed drive), ``closed`` (``control.drive_loop: closed``: PLL and AGC,
 the sense mode read open loop) and ``rebalance`` (closed with ``control.rebalance: true``,
@@ -113,10 +127,10 @@ Why sequential runs, not the sweep engine: a sweep point (``sweep.point.evaluate
 paper case that keeps scalar metrics of the 100 kHz modal envelopes (and, on request, the
 envelopes); these tests need the 1 kHz rate records themselves (the Allan deviation, the
 step, the error curves of the shock plot) and the electronics' calibration of each run. The
-runs are cheap beside a sweep (the full characterization is 847 simulated s with the three
-loop modes, ~15 min wall on this loaded 2-core machine), and a local Dask cluster here bought
-1.0-1.6x (doc/sweeps.md) for a second process tree; one process keeps the numba kernels, the
-one orbit shooting per device and the progress bar in one place.
+runs are cheap beside a sweep (the full characterization is 989 simulated s with the three
+loop modes, :meth:`Plan.runs`, ~17 min wall on this loaded 2-core machine), and a local Dask
+cluster here bought 1.0-1.6x (doc/sweeps.md) for a second process tree; one process keeps
+the numba kernels, the one orbit shooting per device and the progress bar in one place.
 """
 
 from dataclasses import dataclass, replace
@@ -195,6 +209,15 @@ class Plan:
     compensation_points_k : tuple of float
         Where the compensation (K3) is fitted, with the reference, unless the file gives
         ``gyro.calibration.temperature_points``.
+    environment_s, environment_average_s : float
+        Length of each run of the environment tests and its final part averaged, s.
+    g_level_g : float
+        The steady acceleration of the g-sensitivity test, g (+ and - along x and y).
+    vibration_amplitude_g, vibration_frequencies_hz, vibration_angles_deg : float, tuples
+        The sine vibration tests: at ``vibration_amplitude_g`` (peak), along x at each
+        frequency, and at the middle frequency at each angle (from x towards y).
+    rectification_amplitudes_g : tuple of float
+        The amplitude series (peak g) at the middle frequency along x: the log-log slope.
 
     """
 
@@ -212,25 +235,82 @@ class Plan:
     bootstrap: int
     temperature_points_k: Tuple[float, ...] = (263.15, 283.15, 298.15, 313.15, 333.15)
     compensation_points_k: Tuple[float, ...] = (273.15, 323.15)
+    environment_s: float = 10.0
+    environment_average_s: float = 2.0
+    g_level_g: float = 1.0
+    vibration_amplitude_g: float = 10.0
+    vibration_frequencies_hz: Tuple[float, ...] = (100.0, 1000.0, 3000.0)
+    vibration_angles_deg: Tuple[float, ...] = (0.0, 22.5, 45.0)
+    rectification_amplitudes_g: Tuple[float, ...] = (1.0, 2.154434690031884,
+                                                     4.641588833612778, 10.0)
 
-    @property
-    def simulated_s(self) -> float:
-        """Return the simulated seconds of the drift, table and one loop mode's shock runs."""
-        return (self.zero_rate_s + self.step_s + len(self.rate_points_dps) * self.rate_point_s
-                + len(self.shock_peaks_g) * (self.shock_at_s + self.shock_after_s))
+    def environment_runs(self, output_rate_hz: float = 200000.0) -> List[Dict[str, Any]]:
+        """
+        Return the runs of the environment tests: one dict of scenario values each.
+
+        The reference (no environment) first, then the g-sensitivity's four, then every
+        distinct sine vibration of the three tests, frequencies above ``output.rate / 40``
+        (the scenario's limit) left out. A later test (a random profile's rectification,
+        shock survival with stops) adds its runs here and its entry in :func:`_environment`.
+        """
+        g = STANDARD_GRAVITY
+        runs: List[Dict[str, Any]] = [{'test': 'reference'}]
+        for axis, (ux, uy) in (('x', (1.0, 0.0)), ('y', (0.0, 1.0))):
+            for sign in (1.0, -1.0):
+                runs.append({'test': 'g_sensitivity', 'axis': axis, 'sign': sign,
+                             'scenario.acceleration': [sign * ux * self.g_level_g * g,
+                                                       sign * uy * self.g_level_g * g]})
+        middle = self.vibration_frequencies_hz[len(self.vibration_frequencies_hz) // 2]
+        sines = [(self.vibration_amplitude_g, f, 0.0) for f in self.vibration_frequencies_hz]
+        sines += [(self.vibration_amplitude_g, middle, a) for a in self.vibration_angles_deg]
+        sines += [(a, middle, 0.0) for a in self.rectification_amplitudes_g]
+        for amplitude, frequency, angle in dict.fromkeys(sines):
+            if frequency > output_rate_hz / 40.0:
+                continue
+            runs.append({'test': 'vibration', 'amplitude_g': amplitude,
+                         'frequency_hz': frequency, 'angle_deg': angle,
+                         'scenario.vibration_amplitude': amplitude * g,
+                         'scenario.vibration_frequency': frequency,
+                         'scenario.vibration_angle': angle})
+        return runs
+
+    def runs(self, loops: int = 1, output_rate_hz: float = 200000.0) -> List[Tuple[str, float]]:
+        """
+        Return every run of the characterization: ``(section, simulated s)``, in order.
+
+        ``loops`` loop modes of the shock table. The one place the totals come from (the
+        progress bar's, :attr:`simulated_s`, the sheet's ``simulated_s``). The factory's rate
+        tables of the device as owned are not among them: ``core.gyro.calibration`` runs
+        each table rate until it has settled (3 simulated s per table on the default
+        gyroscope, 29 s on the open loops of ``config/gyro.yaml``) and keeps them (in this
+        process and in its cache file), so their length is not the plan's.
+        """
+        out = [('drift and step', self.zero_rate_s + self.step_s)]
+        out += [('rate table', self.rate_point_s)] * len(self.rate_points_dps)
+        out += [('shock', self.shock_at_s + self.shock_after_s)] * (
+            loops * len(self.shock_peaks_g))
+        out += [('device as owned', self.rate_point_s)]
+        out += [('environment', self.environment_s)] * len(self.environment_runs(
+            output_rate_hz))
+        return out
+
+    def simulated_s(self, loops: int = 1, output_rate_hz: float = 200000.0) -> float:
+        """Return the simulated seconds of :meth:`runs`."""
+        return float(sum(s for _, s in self.runs(loops, output_rate_hz)))
 
 
 FULL = Plan(zero_rate_s=310.0, zero_rate_skip_s=10.0, step_rate_dps=10.0, step_s=12.0,
             rate_points_dps=tuple(float(r) for r in range(-300, 301, 50)), rate_point_s=12.0,
             rate_average_s=4.0, shock_peaks_g=(1000.0, 3000.0, 10000.0), shock_rate_dps=10.0,
             shock_at_s=1.0, shock_after_s=40.0, bootstrap=50)
-"""The full characterization: 847 simulated s with the three loop modes' shocks."""
+"""The full characterization: 989 simulated s with the three loop modes' shocks."""
 QUICK = Plan(zero_rate_s=8.0, zero_rate_skip_s=2.0, step_rate_dps=10.0, step_s=2.5,
              rate_points_dps=(-300.0, -100.0, 0.0, 100.0, 300.0), rate_point_s=0.5,
              rate_average_s=0.4, shock_peaks_g=(1000.0, 10000.0), shock_rate_dps=10.0,
              shock_at_s=0.2, shock_after_s=0.6, bootstrap=200,
-             temperature_points_k=(283.15, 313.15))
-"""``--quick``: 17.8 simulated s with the three loop modes (short records; the tests)."""
+             temperature_points_k=(283.15, 313.15), environment_s=0.3,
+             environment_average_s=0.1)
+"""``--quick``: 22.2 simulated s with the three loop modes (short records; the tests)."""
 
 
 # ----------------------------------------------------------------------------- the device
@@ -357,6 +437,7 @@ class _Bar:
         from ring_gyro_sim.progress import Progress
         self.progress = Progress(total_s, enabled, name='characterize')
         self.done_s = 0.0
+        self.runs = 0
 
     def update(self, run_s: float, note: str) -> None:
         self.progress.update(self.done_s + run_s, note)
@@ -366,6 +447,7 @@ class _Bar:
 
     def finish_run(self, planned_s: float) -> None:
         self.done_s += planned_s
+        self.runs += 1
         self.progress.update(self.done_s)
 
     def close(self) -> None:
@@ -698,20 +780,23 @@ def characterize(params_path: str, out_dir: str, quick: bool = False,
             raise ParameterError('--shock-g: give positive shock amplitudes in g')
         plan = replace(plan, shock_peaks_g=peaks)
     out = prepare_directory(out_dir)  # before computing: 20 minutes lost otherwise
-    total_s = plan.simulated_s + (len(loops) - 1) * len(plan.shock_peaks_g) * (
-        plan.shock_at_s + plan.shock_after_s)
-    bar = _Bar(total_s, progress)
+    output_rate = build_config(flat).run.output_rate
+    bar = _Bar(plan.simulated_s(len(loops), output_rate), progress)
     try:
         drift = _drift_and_step(flat, plan, bar)
         table = _rate_table(flat, plan, bar, drift)
         shocks = [_shock(flat, plan, bar, peak, loop)
                   for loop in loops for peak in plan.shock_peaks_g]
         owned = _owned_device(flat, plan, bar)
+        environment = _environment(flat, plan, bar, drift['step']['time_constant_s'])
     finally:
         bar.close()
     sheet = _assemble(params_path, flat, plan, quick, loops, drift, table, shocks)
     sheet.update(owned)
+    sheet['environment'] = environment
     sheet['white_noise'] = _white_noise(sheet)
+    sheet['simulated_s'] = bar.done_s
+    sheet['runs'] = bar.runs
     sheet['files'] = _write(out, sheet, drift, table, shocks, loops)
     sheet['wall_time_s'] = time.monotonic() - wall0
     sheet['cpu_time_s'] = time.process_time() - cpu0
@@ -885,6 +970,105 @@ def _owned_device(flat, plan: Plan, bar: _Bar) -> Dict[str, Any]:
                       'coefficients: least-squares line through the points'}}
 
 
+def _environment(flat, plan: Plan, bar: _Bar, time_constant_s: float) -> Dict[str, Any]:
+    """
+    Return the environment tests: g-sensitivity and vibration rectification (noise off).
+
+    Each run of :meth:`Plan.environment_runs` is the device of the file, quiet (noise off,
+    the model's readout: ``analysis.environment``), for ``environment_s`` from the drive's
+    orbit with the 1theta pair on its answer to the environment, read as the mean of
+    ``~/rate`` over the last ``environment_average_s``; each test's figure is that mean less
+    the reference run's (no environment): the shift the environment causes. The
+    g-sensitivity is split into its odd part in the acceleration (the linear coefficient a
+    datasheet quotes, per g and per m/s^2) and its even part (what does not change sign with
+    it); the amplitude series gives the log-log slope (``analysis.environment.loglog_slope``).
+    ``settled``: the averaging starts at least 5 time constants of the rate path (the step's,
+    ``time_constant_s``) after the start. doc/environments.md explains the numbers.
+    """
+    from ring_gyro_sim.analysis import environment as env
+    output_rate = build_config(flat).run.output_rate
+    results = []
+    for run in plan.environment_runs(output_rate):
+        scenario = {k: v for k, v in run.items() if k.startswith('scenario.')}
+        config = env.quiet(build_config(_test_parameters(flat, plan.environment_s,
+                                                         **scenario)))
+        note = ('environment: reference' if run['test'] == 'reference' else
+                f'g-sensitivity {run["sign"] * plan.g_level_g:+g} g along {run["axis"]}'
+                if run['test'] == 'g_sensitivity' else
+                f'vibration {run["amplitude_g"]:.3g} g at {run["frequency_hz"]:g} Hz, '
+                f'{run["angle_deg"]:g} deg')
+        out = env.mean_output(config, plan.environment_s, plan.environment_average_s,
+                              log=bar.note, progress=lambda t, n=note: bar.update(t, n))
+        bar.finish_run(plan.environment_s)
+        results.append((run, out, config))
+    ref = results[0][1]
+
+    def shift(out, key='rate_rad_s'):
+        return (out[key] - ref[key]) / DEG
+    g_axes = []
+    for axis in ('x', 'y'):
+        plus, minus = (next(o for r, o, _ in results if r['test'] == 'g_sensitivity'
+                            and r['axis'] == axis and r['sign'] == sign) for sign in (1.0, -1.0))
+        b_plus, b_minus = shift(plus), shift(minus)
+        odd, even = (b_plus - b_minus) / 2.0, (b_plus + b_minus) / 2.0
+        g_axes.append({'axis': axis, 'bias_shift_plus_deg_per_s': b_plus,
+                       'bias_shift_minus_deg_per_s': b_minus,
+                       'linear_deg_per_s_per_g': odd / plan.g_level_g,
+                       'linear_deg_per_s_per_m_s2': odd / (plan.g_level_g * STANDARD_GRAVITY),
+                       'even_deg_per_s': even,
+                       'quadratic_deg_per_s_per_g2': even / plan.g_level_g ** 2})
+    sines = {}
+    for run, out, config in results:
+        if run['test'] != 'vibration':
+            continue
+        w1 = 2.0 * math.pi * config.modes.coordinate_frequencies()[0]
+        w = 2.0 * math.pi * run['frequency_hz']
+        bias = shift(out)
+        sines[(run['amplitude_g'], run['frequency_hz'], run['angle_deg'])] = {
+            'amplitude_g': run['amplitude_g'], 'frequency_hz': run['frequency_hz'],
+            'angle_deg': run['angle_deg'], 'rectified_bias_deg_per_s': bias,
+            'rectified_bias_deg_per_h': bias * 3600.0,
+            'rectified_bias_deg_per_s_per_g2': bias / run['amplitude_g'] ** 2,
+            'rectified_quadrature_deg_per_s': shift(out, 'quadrature_rad_s'),
+            'q1_amplitude_m': run['amplitude_g'] * STANDARD_GRAVITY / (w1 * w1 - w * w)}
+    middle = plan.vibration_frequencies_hz[len(plan.vibration_frequencies_hz) // 2]
+    amp = plan.vibration_amplitude_g
+    series = [sines[(a, middle, 0.0)] for a in plan.rectification_amplitudes_g
+              if (a, middle, 0.0) in sines]
+    fit = env.loglog_slope([r['amplitude_g'] for r in series],
+                           [r['rectified_bias_deg_per_s'] * DEG for r in series])
+    settle = plan.environment_s - plan.environment_average_s
+    return {
+        'method': 'noise off, the model readout; the mean of ~/rate over the last '
+                  f'{plan.environment_average_s:g} s of {plan.environment_s:g} s runs from '
+                  'the drive orbit with the 1theta pair on its linear answer to the '
+                  'environment, less the same without it',
+        'record_s': plan.environment_s, 'average_s': plan.environment_average_s,
+        'settled': bool(settle >= 5.0 * time_constant_s),
+        'rate_path_time_constant_s': time_constant_s,
+        'zero_floor_deg_per_s': env.ZERO_RAD_S / DEG,
+        'reference_rate_deg_per_s': ref['rate_rad_s'] / DEG,
+        'contact': any(o['contact'] for _, o, _ in results),
+        'g_sensitivity': {'acceleration_g': plan.g_level_g, 'axes': g_axes},
+        'vibration': {'amplitude_g': amp, 'angle_deg': 0.0,
+                      'points': [sines[(amp, f, 0.0)] for f in plan.vibration_frequencies_hz
+                                 if (amp, f, 0.0) in sines]},
+        'vibration_angle': {'amplitude_g': amp, 'frequency_hz': middle,
+                            'points': [sines[(amp, middle, a)]
+                                       for a in plan.vibration_angles_deg
+                                       if (amp, middle, a) in sines]},
+        'rectification': {
+            'frequency_hz': middle, 'angle_deg': 0.0,
+            'amplitudes_g': [r['amplitude_g'] for r in series],
+            'rectified_bias_deg_per_s': [r['rectified_bias_deg_per_s'] for r in series],
+            'log_log_slope': None if fit is None else fit['slope'],
+            'log_log_slope_standard_error': None if fit is None else fit['standard_error'],
+            'local_slopes': None if fit is None else fit['local_slopes'],
+            'coefficient_deg_per_s_at_1_g': None if fit is None else fit['coefficient'] / DEG,
+            'zero_by_symmetry': fit is None and all(
+                abs(r['rectified_bias_deg_per_s']) * DEG < env.ZERO_RAD_S for r in series)}}
+
+
 def _white_noise(sheet) -> Dict[str, Any]:
     """
     Return the white rate noise in the conventions datasheets use, from the measured ARW.
@@ -1031,6 +1215,14 @@ def _write(out: Path, sheet, drift, table, shocks, loops) -> List[str]:
         panels.append((LOOP_TITLES[loop], curves, loop in available_loops()))
     if plotting.plot_shock_recovery(panels, out / 'shock_recovery.png'):
         pngs['shock_recovery'] = 'shock_recovery.png'
+    rect = sheet['environment']['rectification']
+    if rect['log_log_slope'] is not None and plotting.plot_rectification(
+            rect['amplitudes_g'], [b * 3600.0 for b in rect['rectified_bias_deg_per_s']],
+            out / 'rectification.png', slope=rect['log_log_slope'],
+            coefficient=rect['coefficient_deg_per_s_at_1_g'] * 3600.0,
+            title=f'Vibration rectification: sine at {_fmt(rect["frequency_hz"])} Hz along x '
+                  f'(noise off)'):
+        pngs['rectification'] = 'rectification.png'
     files += list(pngs.values())
     (out / 'datasheet.md').write_text(_markdown(sheet, pngs), encoding='utf-8')
     return files
@@ -1182,13 +1374,61 @@ def _markdown(sheet, pngs: Mapping[str, str]) -> str:
                      f'{r["residual_ppm_fs"]:.0f} | {r["standard_error_ppm_fs"]:.0f} | '
                      f'{r["predicted_residual_ppm_fs"]:.0f} | '
                      f'{r["drive_amplitude_ratio"]:.4f} |')
+    lines += _environment_markdown(sheet['environment'])
     titles = {'allan': 'Allan deviation', 'scale_factor': 'Scale-factor error',
               'step': 'Rate step (bandwidth)', 'shock_recovery': 'Shock recovery',
-              'temperature': 'Temperature series'}
+              'temperature': 'Temperature series', 'rectification': 'Vibration rectification'}
     lines.append('')
     for key, name in pngs.items():
         lines += [f'![{titles[key]}]({name})', '']
     return '\n'.join(lines)
+
+
+def _environment_markdown(e) -> List[str]:
+    """Return the sheet's environment section (:func:`_environment`'s entries)."""
+    g = e['g_sensitivity']
+    settled = 'settled' if e['settled'] else (
+        f'not settled: the rate path needs ~5 x {_fmt(e["rate_path_time_constant_s"], 3)} s, '
+        f'the figures read low')
+    lines = ['', '## Environment: g-sensitivity and vibration rectification', '',
+             f'{e["method"]} ({settled}; doc/environments.md). Below '
+             f'{_fmt(e["zero_floor_deg_per_s"], 2)} deg/s a shift is zero to rounding.', '',
+             f'**g-sensitivity** (steady +-{_fmt(g["acceleration_g"])} g):', '',
+             '| axis | shift at +a (deg/s) | at -a (deg/s) | linear (deg/s/g) | '
+             'linear (deg/s/(m/s^2)) | even part (deg/s) |', '|---|---|---|---|---|---|']
+    for r in g['axes']:
+        lines.append(f'| {r["axis"]} | {_fmt(r["bias_shift_plus_deg_per_s"], 4)} | '
+                     f'{_fmt(r["bias_shift_minus_deg_per_s"], 4)} | '
+                     f'{_fmt(r["linear_deg_per_s_per_g"], 3)} | '
+                     f'{_fmt(r["linear_deg_per_s_per_m_s2"], 3)} | '
+                     f'{_fmt(r["even_deg_per_s"], 4)} |')
+    v, a = e['vibration'], e['vibration_angle']
+    lines += ['', f'**Sine vibration** ({_fmt(v["amplitude_g"])} g peak; along x at each '
+                  f'frequency, at {_fmt(a["frequency_hz"])} Hz at each angle):', '',
+              '| frequency (Hz) | angle (deg) | q1 amplitude (nm) | rectified bias (deg/h) | '
+              '(deg/s/g^2) | quadrature shift (deg/s) |', '|---|---|---|---|---|---|']
+    for r in v['points'] + [p for p in a['points'] if p['angle_deg'] != 0.0]:
+        lines.append(f'| {_fmt(r["frequency_hz"])} | {_fmt(r["angle_deg"])} | '
+                     f'{_fmt(r["q1_amplitude_m"] * 1e9, 4)} | '
+                     f'{_fmt(r["rectified_bias_deg_per_h"], 4)} | '
+                     f'{_fmt(r["rectified_bias_deg_per_s_per_g2"], 4)} | '
+                     f'{_fmt(r["rectified_quadrature_deg_per_s"], 4)} |')
+    rect = e['rectification']
+    amps = ', '.join(_fmt(x, 3) for x in rect['amplitudes_g'])
+    if rect['log_log_slope'] is not None:
+        lines += ['', f'**Rectified bias against amplitude** ({amps} g at '
+                      f'{_fmt(rect["frequency_hz"])} Hz along x): log-log slope '
+                      f'{rect["log_log_slope"]:.4f} +- '
+                      f'{rect["log_log_slope_standard_error"]:.1g} (local: '
+                      f'{", ".join(f"{x:.4f}" for x in rect["local_slopes"])}), '
+                      f'{_fmt(rect["coefficient_deg_per_s_at_1_g"] * 3600.0, 4)} deg/h at 1 g.']
+    else:
+        lines += ['', f'**Rectified bias against amplitude** ({amps} g at '
+                      f'{_fmt(rect["frequency_hz"])} Hz along x): '
+                      + ('zero at every amplitude (the mirror symmetry of a perfect ring '
+                         'about x: no slope)' if rect['zero_by_symmetry'] else
+                         'no power law (a shift changes sign or is not finite)') + '.']
+    return lines
 
 
 def _jsonable(value):

@@ -871,6 +871,50 @@ def plot_scale_factor(rate_dps, residual_ppm, error_ppm, predicted_ppm, path,
     return True
 
 
+def plot_rectification(amplitudes_g, bias_deg_per_h, path, slope=None, coefficient=None,
+                       title='Vibration rectification') -> bool:
+    """
+    Save the rectified bias against the vibration amplitude, log-log, with its power law.
+
+    Parameters
+    ----------
+    amplitudes_g : sequence of float
+        Peak amplitudes, g.
+    bias_deg_per_h : sequence of float
+        Rectified bias at each, deg/h (its magnitude is drawn; the sign is in the legend).
+    path : str or Path
+        PNG file to write.
+    slope, coefficient : float, optional
+        The fitted ``|bias| = coefficient A^slope`` (deg/h, A in g), drawn dashed.
+    title : str
+        The plot's title (the frequency and direction).
+
+    """
+    plt = _pyplot()
+    if plt is None:
+        return False
+    a = np.asarray(amplitudes_g, dtype=float)
+    y = np.asarray(bias_deg_per_h, dtype=float)
+    fig, ax = plt.subplots(figsize=(7.0, 4.2))
+    try:
+        sign = 'negative' if np.all(y < 0) else 'positive' if np.all(y > 0) else 'mixed'
+        shown = np.where(np.abs(y) > 0.0, np.abs(y), np.nan)
+        ax.loglog(a, shown, 'o', label=f'|rectified bias| (measured, {sign})')
+        if slope is not None and coefficient is not None:
+            fine = np.geomspace(a.min(), a.max(), 50)
+            ax.loglog(fine, abs(coefficient) * fine ** slope, '--', lw=1.0,
+                      label=f'fit: {abs(coefficient):.4g} deg/h x (A / 1 g)^{slope:.4f}')
+        ax.set_xlabel('vibration amplitude A (g, peak)')
+        ax.set_ylabel('|rectified bias| (deg/h)')
+        ax.set_title(title)
+        ax.grid(True, which='both', lw=0.3)
+        ax.legend(fontsize=8)
+        _save(plt, fig, path)
+    finally:
+        plt.close(fig)
+    return True
+
+
 def plot_step(t_s, response, gain, time_constant_s, path,
               predicted_time_constant_s=None) -> bool:
     """
