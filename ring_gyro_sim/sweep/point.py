@@ -44,6 +44,14 @@ three from the temperature series (``gyro.calibration.temperature_points``: the 
 all the devices of a population; the record also holds the nominal device's figures
 (``nominal``).
 
+An environment point (``kind: environment``) runs its gyroscope in its scenario's environment
+and keeps the figures of :data:`ENVIRONMENT_METRICS`: the **rectified bias** (the mean of
+``~/rate`` over the run's last ``average`` s less that of the same device without the
+environment, noise off: ``analysis.environment``), the same of the quadrature, both means, and
+the closed-form amplitude of the 1theta mode's answer. Its setup is the reference run (the
+device without the environment), one task per device and run length, whatever the
+environment of the points.
+
 Kept envelopes (a point whose spec has ``envelopes``): the record also holds
 ``envelope`` (``names``, ``window_s``, ``t_s`` and ``values``: one list per channel kept, m,
 the windows of :attr:`CaseResult.envelope`, exact) and ``outcome`` (the scalars of the
@@ -69,14 +77,15 @@ import numpy as np
 from ring_gyro_sim import __version__
 from ring_gyro_sim.analysis import cases
 from ring_gyro_sim.analysis import envelope as env
+from ring_gyro_sim.analysis import environment as environment_runs
 from ring_gyro_sim.core.gyro import calibration
 from ring_gyro_sim.core.params import SimConfig, to_flat
 from ring_gyro_sim.sweep.spec import ALL_ENVELOPES, Point
 from ring_gyro_sim.sweep.store import PointStore
 
-__all__ = ['GYRO_METRICS', 'METRICS', 'OUTCOME_FIELDS', 'SetupFailure', 'case_result',
-           'compute', 'device_figures', 'evaluate', 'failure_record', 'gyroscope_figures',
-           'kept_output', 'metric_table', 'setup_key', 'setup_task']
+__all__ = ['ENVIRONMENT_METRICS', 'GYRO_METRICS', 'METRICS', 'OUTCOME_FIELDS', 'SetupFailure',
+           'case_result', 'compute', 'device_figures', 'evaluate', 'failure_record',
+           'gyroscope_figures', 'kept_output', 'metric_table', 'setup_key', 'setup_task']
 
 METRICS: Dict[str, tuple] = OrderedDict([
     ('final_branch', ('str', '', "branch q2 ends on: 'upper', 'lower', 'contact' ('none': "
@@ -134,9 +143,23 @@ GYRO_METRICS: Dict[str, tuple] = OrderedDict(list(FIGURES.items()) + list(DEVICE
 """Metrics of a gyroscope point (``kind: gyroscope``): its figures and its device."""
 
 
+ENVIRONMENT_METRICS: Dict[str, tuple] = OrderedDict([
+    ('rectified_bias_rad_s', ('float', 'rad/s', 'mean ~/rate over the last average s less the '
+                                                "same device's without the environment")),
+    ('rectified_bias_deg_per_h', ('float', 'deg/h', 'the rectified bias in deg/h')),
+    ('rectified_quadrature_rad_s', ('float', 'rad/s', 'the same of the quadrature channel')),
+    ('rate_rad_s', ('float', 'rad/s', 'mean ~/rate over the last average s (noise off)')),
+    ('reference_rate_rad_s', ('float', 'rad/s', 'the same without the environment')),
+    ('q1_amplitude_m', ('float', 'm', "closed-form amplitude of the 1theta mode's answer to "
+                                      'the sine, A / (omega_1^2 - omega^2) (0: none)')),
+    ('contact', ('bool', '', 'the ring touched an electrode (the run stopped: no means)')),
+])
+"""Metrics of an environment point (``kind: environment``)."""
+
+
 def metric_table(kind: str) -> Dict[str, tuple]:
     """Return the metrics of a point of ``kind`` (``case``: :data:`METRICS`)."""
-    return GYRO_METRICS if kind == 'gyroscope' else METRICS
+    return {'gyroscope': GYRO_METRICS, 'environment': ENVIRONMENT_METRICS}.get(kind, METRICS)
 
 
 SETUP_CACHE_SIZE = 32
@@ -187,6 +210,9 @@ def setup_key(point: Point) -> str:
     if point.kind == 'gyroscope':  # the nominal device's tables: one for a population
         text = json.dumps([__version__, 'gyroscope', to_flat(point.nominal_config())],
                           sort_keys=True, default=str)
+    elif point.kind == 'environment':  # the device without its environment: one per device
+        text = json.dumps([__version__, 'environment', to_flat(_reference_config(point)),
+                           point.duration_s, point.window_s], sort_keys=True, default=str)
     else:
         text = json.dumps([__version__, to_flat(_config(point))], sort_keys=True, default=str)
     return hashlib.sha256(text.encode('utf-8')).hexdigest()[:16]
@@ -209,6 +235,9 @@ def setup_task(point: Point):
     try:
         if point.kind == 'gyroscope':
             return calibration.factory_tables(point.nominal_config())
+        if point.kind == 'environment':
+            return environment_runs.mean_output(_reference_config(point), point.duration_s,
+                                                point.window_s)
         return _setup(_config(point))
     except Exception as exc:  # noqa: B902 - reported by each point of the configuration
         return SetupFailure(f'{type(exc).__name__}: {exc}', traceback.format_exc())
@@ -299,6 +328,34 @@ def _gyroscope(point: Point, nominal=None) -> Dict[str, Any]:
     return {'metrics': metrics, 'nominal': gyroscope_figures(nominal, reference)}
 
 
+def _reference_config(point: Point) -> SimConfig:
+    """Return the quiet device of an environment point without its environment."""
+    return environment_runs.quiet(environment_runs.without_environment(point.config()))
+
+
+def _environment(point: Point, reference=None) -> Dict[str, Any]:
+    """Return the :data:`ENVIRONMENT_METRICS` of an environment point."""
+    if reference is None:
+        reference = environment_runs.mean_output(_reference_config(point), point.duration_s,
+                                                 point.window_s)
+    config = environment_runs.quiet(point.config())
+    out = environment_runs.mean_output(config, point.duration_s, point.window_s)
+    r = config.run
+    amplitude = 0.0
+    if r.vibration_frequency > 0.0:
+        w1 = 2.0 * math.pi * config.modes.coordinate_frequencies()[0]
+        w = 2.0 * math.pi * r.vibration_frequency
+        amplitude = r.vibration_amplitude / (w1 * w1 - w * w)
+    bias = out['rate_rad_s'] - reference['rate_rad_s']
+    return {'rectified_bias_rad_s': bias,
+            'rectified_bias_deg_per_h': math.degrees(bias) * 3600.0,
+            'rectified_quadrature_rad_s': out['quadrature_rad_s']
+            - reference['quadrature_rad_s'],
+            'rate_rad_s': out['rate_rad_s'], 'reference_rate_rad_s': reference['rate_rad_s'],
+            'q1_amplitude_m': amplitude,
+            'contact': bool(out['contact'] or reference['contact'])}
+
+
 def evaluate(point: Point) -> Dict[str, Any]:
     """
     Run ``point`` and return its :data:`METRICS` (SI; nan where a metric does not apply).
@@ -325,6 +382,8 @@ def evaluate(point: Point) -> Dict[str, Any]:
     """
     if point.kind == 'gyroscope':
         return _gyroscope(point)['metrics']
+    if point.kind == 'environment':
+        return _environment(point)
     return metrics_of(run(point))
 
 
@@ -451,6 +510,8 @@ def _evaluated(point: Point, setup: Optional[Any]) -> Dict[str, Any]:
         if point.kind == 'gyroscope':
             kept = _gyroscope(point, setup)
             metrics = kept.pop('metrics')
+        elif point.kind == 'environment':
+            metrics, kept = _environment(point, setup), {}
         else:
             result = run(point, setup)
             metrics = metrics_of(result)

@@ -45,6 +45,14 @@ Kinds
     no run of its own (``shock.*``, ``duration``, ``output_rate``, ``envelope_window`` and
     ``envelopes`` are refused); the device is simulated as configured, output rate
     included. Without ``base`` its base is the package's defaults (the gyroscope).
+    ``kind: environment`` runs each point's gyroscope in its scenario's environment
+    (``scenario.vibration_*``, ``scenario.acceleration``: axes like any parameter) for
+    ``duration`` s, noise off, and reports its **rectified bias**: the mean of ``~/rate``
+    over the last ``average`` s (default a fifth of ``duration``) less that of the same
+    device without the environment (``analysis.environment``; the reference run is the
+    setup task, one per device). ``output_rate``, ``envelope_window``, ``envelopes`` and
+    ``shock.*`` are refused; ``gyro.enabled`` is needed, and without ``base`` the base is the
+    package's defaults.
 
 Names
     Any parameter of the table (:data:`ring_gyro_sim.core.params.SPECS`) by its ROS name;
@@ -114,12 +122,23 @@ SCENARIO_NAMES = {
     'shock.angle_deg': ('deg', 'shock direction from x towards y', 0.0),
 }
 """Scenario inputs that are not ROS parameters: name -> (unit, meaning, default)."""
-SPEC_KEYS = ('base', 'node_name', 'kind', 'duration', 'output_rate', 'envelope_window', 'set',
-             'axes', 'metrics', 'envelopes', 'plot')
-KINDS = ('case', 'gyroscope')
-"""What a point is: a paper case (a shock on the drive) or a gyroscope's datasheet figures."""
+SPEC_KEYS = ('base', 'node_name', 'kind', 'duration', 'average', 'output_rate',
+             'envelope_window', 'set', 'axes', 'metrics', 'envelopes', 'plot')
+KINDS = ('case', 'gyroscope', 'environment')
+"""What a point is: a paper case (a shock on the drive), a gyroscope's datasheet figures or
+a gyroscope's rectified bias in its environment."""
+DEVICE_KINDS = ('gyroscope', 'environment')
+"""Kinds whose points are a gyroscope as configured: no shock (``shock.*`` refused)."""
 CASE_ONLY_KEYS = ('duration', 'output_rate', 'envelope_window', 'envelopes')
 """Spec keys of a run of its own, which a gyroscope point does not have."""
+ENVIRONMENT_REFUSED_KEYS = ('output_rate', 'envelope_window', 'envelopes')
+"""Spec keys of a case's envelopes, which an environment point does not have."""
+ENVIRONMENT_DURATION_S = 10.0
+"""Default run of an environment point, s: the open-loop rate path's 1.3 s settles 5 times
+over before the default average (doc/environments.md)."""
+GYRO_CPU_S_PER_SIMULATED_S = 0.45
+"""CPU time per simulated s of the open-loop gyroscope of ``config/gyro.yaml`` (0.42 measured
+on 8 s runs): the cost estimate of an environment spec."""
 GYRO_CPU_S_PER_TABLE = 3.1
 """CPU time of one factory rate table of the default gyroscope (3.0-3.8 simulated s, each
 rate averaged until it settles), s: the cost estimate of a gyroscope spec, as measured on 100
@@ -224,7 +243,7 @@ class Point:
 
     def config(self) -> SimConfig:
         """Return the configuration the point runs (a case's: without its shock)."""
-        if self.kind == 'gyroscope':
+        if self.kind in DEVICE_KINDS:
             return paper_config(dict(self.overrides))
         return self.case_spec().config(None, self.output_rate_hz)
 
@@ -246,6 +265,9 @@ class Point:
         """Return coordinates, shock and run settings, JSON-ready (for reports)."""
         if self.kind == 'gyroscope':
             return {'coords': dict(self.coords), 'kind': self.kind}
+        if self.kind == 'environment':
+            return {'coords': dict(self.coords), 'kind': self.kind,
+                    'duration_s': self.duration_s, 'average_s': self.window_s}
         return {'coords': dict(self.coords), 'shock.peak_g': self.shock_g,
                 'shock.phase': self.shock_phase, 'shock.angle_deg': self.shock_angle_deg,
                 'duration_s': self.duration_s}
@@ -332,6 +354,16 @@ class SweepSpec:
             return Point(key=key, coords=coords, overrides=tuple(sorted(overrides.items())),
                          shock_g=0.0, shock_phase=0.0, shock_angle_deg=0.0, duration_s=0.0,
                          output_rate_hz=0.0, window_s=0.0, kind=self.kind)
+        if self.kind == 'environment':  # the device in its environment, its own run length
+            overrides = _differences(flat)
+            text = json.dumps({'version': __version__, 'kind': self.kind,
+                               'overrides': overrides, 'duration_s': self.duration_s,
+                               'average_s': self.window_s}, sort_keys=True, allow_nan=False)
+            key = hashlib.sha256(text.encode('utf-8')).hexdigest()[:KEY_DIGITS]
+            return Point(key=key, coords=coords, overrides=tuple(sorted(overrides.items())),
+                         shock_g=0.0, shock_phase=0.0, shock_angle_deg=0.0,
+                         duration_s=self.duration_s, output_rate_hz=0.0,
+                         window_s=self.window_s, kind=self.kind)
         flat['output.rate'] = self.output_rate_hz  # what the run uses (CaseSpec.config)
         overrides = _differences(flat)
         payload = {'version': __version__, 'overrides': overrides, 'shock': scenario,
@@ -402,9 +434,9 @@ def _check_name(name: Any, base: Mapping[str, Any], source: str, key: str,
     if not isinstance(name, str):
         raise SweepSpecError(f'{where}: a name must be a string, got {name!r}')
     if name in SCENARIO_NAMES:
-        if kind == 'gyroscope':
-            raise SweepSpecError(f'{where}: {name!r}: a gyroscope point has no shock (it '
-                                 f'runs the factory rate tables of its device)')
+        if kind in DEVICE_KINDS:
+            raise SweepSpecError(f'{where}: {name!r}: a {kind} point has no shock (it runs '
+                                 f'its device as configured)')
         return name
     param, index = _split(name)
     if param in RUN_KEYS:
@@ -601,6 +633,14 @@ def parse_spec(data: Any, source: str = '<text>', directory: str = '.',
             raise SweepSpecError(f'{_where(source, given[0])}: applies to kind: case only (a '
                                  f'gyroscope point runs the factory rate tables of its device '
                                  f'as configured)')
+    if kind == 'environment':
+        given = [k for k in ENVIRONMENT_REFUSED_KEYS if k in data]
+        if given:
+            raise SweepSpecError(f'{_where(source, given[0])}: applies to kind: case only (an '
+                                 f'environment point reads the mean of ~/rate, not envelopes)')
+    if kind != 'environment' and 'average' in data:
+        raise SweepSpecError(f'{_where(source, "average")}: applies to kind: environment '
+                             f'only')
     base_path = data.get('base')
     base: Dict[str, Any] = {}
     if base_path is not None:
@@ -614,14 +654,14 @@ def parse_spec(data: Any, source: str = '<text>', directory: str = '.',
         base = dict(check_params_file(base_path, node))
     elif base_params is not None:
         base = {str(k): v for k, v in base_params.items()}
-    elif kind == 'gyroscope':  # the package's defaults: the gyroscope
+    elif kind in DEVICE_KINDS:  # the package's defaults: the gyroscope
         base = {name: SPECS[name].default for name in PAPER_RESONATOR}
     try:
         base_config = paper_config(base)
     except ParameterError as exc:
         raise SweepSpecError(f'{_where(source, "base")}: {exc}') from None
-    if kind == 'gyroscope' and not base_config.gyro.enabled:
-        raise SweepSpecError(f'{_where(source, "base")}: kind gyroscope needs a gyroscope '
+    if kind in DEVICE_KINDS and not base_config.gyro.enabled:
+        raise SweepSpecError(f'{_where(source, "base")}: kind {kind} needs a gyroscope '
                              f'(gyro.enabled: true; e.g. base: default.yaml)')
     if base_config.run.shock_times:
         raise SweepSpecError(f'{_where(source, "base")}: {base_path} schedules shocks '
@@ -648,6 +688,15 @@ def parse_spec(data: Any, source: str = '<text>', directory: str = '.',
         cpu_per_point = tables * GYRO_CPU_S_PER_TABLE
         per_point = (f'{tables} rate tables per point',
                      f'{GYRO_CPU_S_PER_TABLE:g} CPU s per table of the default gyroscope')
+    elif kind == 'environment':
+        duration = _positive(data, 'duration', ENVIRONMENT_DURATION_S, source, MAX_TIME_S,
+                             SPECS['duration'].range_note)
+        window = _positive(data, 'average', duration / 5.0, source, duration,
+                           'the simulated time per point')
+        rate = 0.0
+        cpu_per_point = duration * GYRO_CPU_S_PER_SIMULATED_S
+        per_point = (f'{duration:g} s per point',
+                     f'{GYRO_CPU_S_PER_SIMULATED_S:g} CPU s per simulated s')
     else:
         duration = _positive(data, 'duration', base_config.run.duration or None, source,
                              MAX_TIME_S, SPECS['duration'].range_note)
@@ -737,10 +786,10 @@ def _check_axis_values(spec: SweepSpec) -> None:
             except ParameterError as exc:
                 raise SweepSpecError(f'{_where(spec.source, "axes")}: {axis.name} = '
                                      f'{value!r}: {exc}') from None
-            if spec.kind == 'gyroscope':
+            if spec.kind in DEVICE_KINDS:
                 if not config.gyro.enabled:
                     raise SweepSpecError(f'{_where(spec.source, "axes")}: {axis.name} = '
-                                         f'{value!r}: kind gyroscope needs gyro.enabled')
+                                         f'{value!r}: kind {spec.kind} needs gyro.enabled')
                 continue
             if point.shock_angle_deg and not config.modes.companions:
                 raise SweepSpecError(f'{_where(spec.source, "axes")}: shock.angle_deg = '
