@@ -109,12 +109,13 @@ device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
 5. Environment (12.17's environment series; issue 24): g-sensitivity (a steady 1 g, + and -
    along x and y: its odd part per g and per m/s^2, and its even part), vibration
    rectification (10 g sine along x at 100 Hz, 1 kHz and 3 kHz; at 1 kHz along 0, 22.5 and
-   45 deg) and the rectified bias against amplitude over a decade (1 to 10 g at 1 kHz along
-   x) with its log-log slope. Each is one run of 10 s / 0.3 s, noise off, from the drive
+   45 deg; a random profile, 20-2 000 Hz at 0.01 g^2/Hz, 4.45 g rms, along x) and the
+   rectified bias against amplitude over a decade (1 to 10 g at 1 kHz along x) with its
+   log-log slope. Each is one run of 10 s / 0.3 s, noise off, from the drive
    orbit with the 1theta pair on its answer to the environment, the mean of ``~/rate`` over
    the last 2 s / 0.1 s less the same without the environment (``analysis.environment``,
    :func:`_environment`; the open-loop rate path settles with 1.3 s, so ``--quick`` reads
-   low). 13 runs.
+   low). 14 runs.
 
 Loop modes: the shock table has one entry per amplitude and per mode of ``loops``:
 ``open`` (the paper's fixed drive), ``closed`` (``control.drive_loop: closed``: PLL and AGC,
@@ -127,7 +128,7 @@ Why sequential runs, not the sweep engine: a sweep point (``sweep.point.evaluate
 paper case that keeps scalar metrics of the 100 kHz modal envelopes (and, on request, the
 envelopes); these tests need the 1 kHz rate records themselves (the Allan deviation, the
 step, the error curves of the shock plot) and the electronics' calibration of each run. The
-runs are cheap beside a sweep (the full characterization is 989 simulated s with the three
+runs are cheap beside a sweep (the full characterization is 999 simulated s with the three
 loop modes, :meth:`Plan.runs`, ~17 min wall on this loaded 2-core machine), and a local Dask
 cluster here bought 1.0-1.6x (doc/sweeps.md) for a second process tree; one process keeps
 the numba kernels, the one orbit shooting per device and the progress bar in one place.
@@ -218,6 +219,8 @@ class Plan:
         frequency, and at the middle frequency at each angle (from x towards y).
     rectification_amplitudes_g : tuple of float
         The amplitude series (peak g) at the middle frequency along x: the log-log slope.
+    random_psd_frequencies_hz, random_psd_values_g2_per_hz : tuple of float
+        The random profile along x (``scenario.vibration_psd_*``; empty: no such test).
 
     """
 
@@ -243,6 +246,8 @@ class Plan:
     vibration_angles_deg: Tuple[float, ...] = (0.0, 22.5, 45.0)
     rectification_amplitudes_g: Tuple[float, ...] = (1.0, 2.154434690031884,
                                                      4.641588833612778, 10.0)
+    random_psd_frequencies_hz: Tuple[float, ...] = (20.0, 2000.0)
+    random_psd_values_g2_per_hz: Tuple[float, ...] = (0.01, 0.01)
 
     def environment_runs(self, output_rate_hz: float = 200000.0) -> List[Dict[str, Any]]:
         """
@@ -250,8 +255,8 @@ class Plan:
 
         The reference (no environment) first, then the g-sensitivity's four, then every
         distinct sine vibration of the three tests, frequencies above ``output.rate / 40``
-        (the scenario's limit) left out. A later test (a random profile's rectification,
-        shock survival with stops) adds its runs here and its entry in :func:`_environment`.
+        (the scenario's limit) left out, then the random profile. A later test (shock
+        survival with stops) adds its runs here and its entry in :func:`_environment`.
         """
         g = STANDARD_GRAVITY
         runs: List[Dict[str, Any]] = [{'test': 'reference'}]
@@ -272,6 +277,13 @@ class Plan:
                          'scenario.vibration_amplitude': amplitude * g,
                          'scenario.vibration_frequency': frequency,
                          'scenario.vibration_angle': angle})
+        if self.random_psd_frequencies_hz and \
+                self.random_psd_frequencies_hz[-1] <= output_rate_hz / 40.0:
+            runs.append({'test': 'random',
+                         'scenario.vibration_psd_frequencies': list(
+                             self.random_psd_frequencies_hz),
+                         'scenario.vibration_psd_values': list(
+                             self.random_psd_values_g2_per_hz)})
         return runs
 
     def runs(self, loops: int = 1, output_rate_hz: float = 200000.0) -> List[Tuple[str, float]]:
@@ -303,14 +315,14 @@ FULL = Plan(zero_rate_s=310.0, zero_rate_skip_s=10.0, step_rate_dps=10.0, step_s
             rate_points_dps=tuple(float(r) for r in range(-300, 301, 50)), rate_point_s=12.0,
             rate_average_s=4.0, shock_peaks_g=(1000.0, 3000.0, 10000.0), shock_rate_dps=10.0,
             shock_at_s=1.0, shock_after_s=40.0, bootstrap=50)
-"""The full characterization: 989 simulated s with the three loop modes' shocks."""
+"""The full characterization: 999 simulated s with the three loop modes' shocks."""
 QUICK = Plan(zero_rate_s=8.0, zero_rate_skip_s=2.0, step_rate_dps=10.0, step_s=2.5,
              rate_points_dps=(-300.0, -100.0, 0.0, 100.0, 300.0), rate_point_s=0.5,
              rate_average_s=0.4, shock_peaks_g=(1000.0, 10000.0), shock_rate_dps=10.0,
              shock_at_s=0.2, shock_after_s=0.6, bootstrap=200,
              temperature_points_k=(283.15, 313.15), environment_s=0.3,
              environment_average_s=0.1)
-"""``--quick``: 22.2 simulated s with the three loop modes (short records; the tests)."""
+"""``--quick``: 22.5 simulated s with the three loop modes (short records; the tests)."""
 
 
 # ----------------------------------------------------------------------------- the device
@@ -994,7 +1006,8 @@ def _environment(flat, plan: Plan, bar: _Bar, time_constant_s: float) -> Dict[st
                                                          **scenario)))
         note = ('environment: reference' if run['test'] == 'reference' else
                 f'g-sensitivity {run["sign"] * plan.g_level_g:+g} g along {run["axis"]}'
-                if run['test'] == 'g_sensitivity' else
+                if run['test'] == 'g_sensitivity' else 'random vibration along x'
+                if run['test'] == 'random' else
                 f'vibration {run["amplitude_g"]:.3g} g at {run["frequency_hz"]:g} Hz, '
                 f'{run["angle_deg"]:g} deg')
         out = env.mean_output(config, plan.environment_s, plan.environment_average_s,
@@ -1039,6 +1052,7 @@ def _environment(flat, plan: Plan, bar: _Bar, time_constant_s: float) -> Dict[st
                            [r['rectified_bias_deg_per_s'] * DEG for r in series])
     settle = plan.environment_s - plan.environment_average_s
     return {
+        'random': _random_entry(results, shift, series[0] if series else None),
         'method': 'noise off, the model readout; the mean of ~/rate over the last '
                   f'{plan.environment_average_s:g} s of {plan.environment_s:g} s runs from '
                   'the drive orbit with the 1theta pair on its linear answer to the '
@@ -1384,6 +1398,42 @@ def _markdown(sheet, pngs: Mapping[str, str]) -> str:
     return '\n'.join(lines)
 
 
+def _random_entry(results, shift, sine) -> Optional[Dict[str, Any]]:
+    """
+    Return the random profile's entry, with its shift predicted from the sine's.
+
+    What rectifies is the mean square of the 1theta answer (doc/environments.md): the
+    multisine's is ``sum_k |sinc^2(f_k / f_s) A_k H(f_k)|^2 / 2`` over its lines (exact for
+    the periodic profile, ``H = 1 / (omega_1^2 - omega^2 + i omega omega_1 / Q_1)``), the
+    sine's ``A_1^2 / 2``; the prediction is the sine's shift per mean square (the smallest
+    amplitude of the series) times the profile's.
+    """
+    from ring_gyro_sim.core.simulator import _environment_of
+    found = [(r, o, c) for r, o, c in results if r['test'] == 'random']
+    if not found:
+        return None
+    run, out, config = found[0]
+    rv = _environment_of(config).random
+    f = rv.lines * rv.df
+    w = 2.0 * math.pi * f
+    w1 = 2.0 * math.pi * config.modes.coordinate_frequencies()[0]
+    h = 1.0 / (w1 * w1 - w * w + 1j * w * w1 / config.modes.coordinate_quality_factors()[0])
+    line = rv.amplitudes * np.sinc(f / config.run.output_rate) ** 2 * np.abs(h)
+    mean_square = float(np.sum(line * line) / 2.0)
+    bias = shift(out)
+    predicted = None
+    if sine is not None:
+        predicted = sine['rectified_bias_deg_per_s'] / (sine['q1_amplitude_m'] ** 2 / 2.0) \
+            * mean_square
+    return {'psd_frequencies_hz': list(run['scenario.vibration_psd_frequencies']),
+            'psd_values_g2_per_hz': list(run['scenario.vibration_psd_values']),
+            'rms_g': rv.rms_g, 'angle_deg': 0.0, 'rectified_bias_deg_per_s': bias,
+            'rectified_bias_deg_per_h': bias * 3600.0,
+            'rectified_quadrature_deg_per_s': shift(out, 'quadrature_rad_s'),
+            'q1_rms_m': math.sqrt(mean_square),
+            'predicted_from_sine_deg_per_s': predicted}
+
+
 def _environment_markdown(e) -> List[str]:
     """Return the sheet's environment section (:func:`_environment`'s entries)."""
     g = e['g_sensitivity']
@@ -1413,6 +1463,16 @@ def _environment_markdown(e) -> List[str]:
                      f'{_fmt(r["rectified_bias_deg_per_h"], 4)} | '
                      f'{_fmt(r["rectified_bias_deg_per_s_per_g2"], 4)} | '
                      f'{_fmt(r["rectified_quadrature_deg_per_s"], 4)} |')
+    r = e.get('random')
+    if r is not None:
+        lines += ['', f'**Random vibration** (along x, {_fmt(r["rms_g"], 4)} g rms, '
+                      f'{" .. ".join(_fmt(x) for x in r["psd_frequencies_hz"])} Hz at '
+                      f'{", ".join(_fmt(x, 3) for x in r["psd_values_g2_per_hz"])} g^2/Hz, '
+                      f'log-log between): rectified bias '
+                      f'{_fmt(r["rectified_bias_deg_per_h"], 4)} deg/h (q1 rms '
+                      f'{_fmt(r["q1_rms_m"] * 1e9, 4)} nm; predicted from the sine by the mean '
+                      f'square of q1: {_fmt(_per_h(r["predicted_from_sine_deg_per_s"]), 4)} '
+                      f'deg/h).']
     rect = e['rectification']
     amps = ', '.join(_fmt(x, 3) for x in rect['amplitudes_g'])
     if rect['log_log_slope'] is not None:
@@ -1429,6 +1489,10 @@ def _environment_markdown(e) -> List[str]:
                          'about x: no slope)' if rect['zero_by_symmetry'] else
                          'no power law (a shift changes sign or is not finite)') + '.']
     return lines
+
+
+def _per_h(deg_per_s: Optional[float]) -> Optional[float]:
+    return None if deg_per_s is None else deg_per_s * 3600.0
 
 
 def _jsonable(value):

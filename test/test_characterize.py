@@ -392,8 +392,8 @@ def test_the_plan_s_total_is_the_sum_of_the_runs_simulated(sheet):
     loops = len(sheet['loops'])
     assert sheet['simulated_s'] == pytest.approx(ch.QUICK.simulated_s(loops), rel=1e-12)
     assert sheet['runs'] == len(ch.QUICK.runs(loops))
-    assert ch.QUICK.simulated_s(3) == pytest.approx(22.2, abs=1e-9)  # the docstring's
-    assert ch.FULL.simulated_s(3) == pytest.approx(989.0, abs=1e-9)
+    assert ch.QUICK.simulated_s(3) == pytest.approx(22.5, abs=1e-9)  # the docstring's
+    assert ch.FULL.simulated_s(3) == pytest.approx(999.0, abs=1e-9)
     sections = {name for name, _ in ch.QUICK.runs(loops)}
     assert sections == {'drift and step', 'rate table', 'shock', 'device as owned',
                         'environment'}
@@ -450,7 +450,7 @@ def test_a_perfect_ring_reads_nothing_along_its_axes(sheet, quick):
     for r in e['g_sensitivity']['axes']:
         assert abs(r['bias_shift_plus_deg_per_s']) < zero
         assert abs(r['bias_shift_minus_deg_per_s']) < zero
-    for p in e['vibration']['points']:  # along x
+    for p in e['vibration']['points'] + [e['random']]:  # along x
         assert abs(p['rectified_bias_deg_per_s']) < zero, p
     rect = e['rectification']
     assert rect['zero_by_symmetry'] and rect['log_log_slope'] is None
@@ -528,3 +528,15 @@ def test_the_g_sensitivity_is_even_and_twice_the_vibration_s_per_g2(imperfect):
         sine_per_square = one_g['rectified_bias_deg_per_s'] / mean_square
         assert per_square == pytest.approx(sine_per_square, rel=0.01)
     assert sine['rectified_bias_deg_per_s'] < 0.0
+
+
+def test_a_random_profile_rectifies_as_the_mean_square_of_its_answer(imperfect):
+    # The same physics: the shift is that of the 1theta answer's mean square, so the random
+    # profile's is the sine's per mean square times the multisine's (its lines through H).
+    # Over the quick run (0.3 s) the mean square of a 20-2 000 Hz answer is a sample: its
+    # relative spread is ~1 / sqrt(B T) = 1 / sqrt(1 980 Hz x 0.3 s) = 4 %; 3 of those.
+    r = imperfect['random']
+    assert r['rms_g'] == pytest.approx(math.sqrt(0.01 * 1980.0), rel=1e-9)
+    assert r['rectified_bias_deg_per_s'] < 0.0
+    assert r['rectified_bias_deg_per_s'] == pytest.approx(r['predicted_from_sine_deg_per_s'],
+                                                          rel=0.12)

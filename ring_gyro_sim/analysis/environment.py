@@ -17,12 +17,13 @@ What the environment does to the rate: a device's mean output with and without i
 
 The environment tests of ``ring_gyro characterize`` and the sweep points of ``kind:
 environment`` measure one thing, the **rectified bias**: the mean of ``~/rate`` over the end
-of a run of the device in its scenario's environment (``scenario.vibration_*``,
-``scenario.acceleration``) less the same mean of the same device without it. Both runs are
-:func:`quiet`: noise off and the model's own readout (``gyro.calibration.source: ideal``),
-so the difference is the deterministic shift the environment causes, exact in a short record
-(with noise a mean needs minutes to resolve a shift of deg/h), and whatever the device reads
-at zero rate without the environment (an imperfect ring's zero-rate output) cancels. Both
+of a run of the device in its scenario's environment (``scenario.vibration_*``, the sine and
+the random profile, ``scenario.acceleration``) less the same mean of the same device
+without it. Both runs are :func:`quiet`: noise off and the model's own readout
+(``gyro.calibration.source: ideal``), so the difference is the deterministic shift the
+environment causes, exact in a short record (with noise a mean needs minutes to resolve a
+shift of deg/h), and whatever the device reads at zero rate without the environment (an
+imperfect ring's zero-rate output) cancels. Both
 start on :func:`settled_start`: the drive's orbit (``drive.start_on``) with the 1theta pair on
 its linear answer to the environment
 (:func:`~ring_gyro_sim.core.gyro.operating_point.with_environment_response`), so the 1theta
@@ -59,9 +60,10 @@ def quiet(config: SimConfig) -> SimConfig:
 
 
 def without_environment(config: SimConfig) -> SimConfig:
-    """Return ``config`` without its sine vibration and steady acceleration."""
+    """Return ``config`` without its sine and random vibrations and steady acceleration."""
     run = replace(config.run, vibration_frequency=0.0, vibration_amplitude=0.0,
-                  vibration_angle=0.0, acceleration=())
+                  vibration_angle=0.0, vibration_psd_frequencies=(),
+                  vibration_psd_values=(), acceleration=())
     return replace(config, run=run)
 
 
