@@ -1,0 +1,408 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The averaged (slow-flow) model of the driven 2theta pair, open loop (issue 25, first step).
+
+What it is
+----------
+The 2theta pair ``q_c = q2``, ``q_s = q2s`` driven open loop at the fixed frequency and force
+of ``drive.*``, in the sensor frame turning at the scheduled rate ``scenario.rate_*``
+(``gyro.enabled``), written as two slowly varying complex envelopes in the frame that turns
+at the drive frequency ``omega = 2 pi drive.frequency``::
+
+    q_c(t) = Re(A_c(t) e^{i phi(t)}),   q_c'(t) = Re(i omega A_c(t) e^{i phi(t)})       (S1)
+
+and likewise q_s with A_s; ``phi(t) = omega t`` is the drive's phase (0 at t = 0, as in the
+full model). A = (A_c, A_s). One step of the averaged model is a step of an ODE in these 4
+real numbers whose rates are those of the envelopes (at most ``omega / Q`` and the
+detunings), not of the 15.8 kHz carrier: ``solve_ivp`` takes steps of milliseconds.
+
+What it is not (yet)
+--------------------
+The loops (PLL, AGC, force-to-rebalance), the sense electronics (pick-off, demodulator,
+filters, ``~/rate``), the noises (thermomechanical, pick-off, flicker), temperature changes
+(the device is taken at the die temperature of t = 0), the other modes (q1, q3, ...: see
+"Validity"), shocks, base acceleration, vibration and contact are not represented. It is
+the core that a later step wires into the loops, the noise and the hand-off to the full
+model (doc/averaged.md).
+
+Derivation
+----------
+(M) The modal equations of the pair, per unit modal mass (doc/physics.md eq. 28; the
+imperfect pair's matrices P2, P3 of ``structure.pair_matrices``; the rotating frame's
+terms G5, G6 of ``structure.gyroscopic_coefficient``; the drive of section 3.4)::
+
+    q'' + (C + 2 kappa Omega J) q' + (K + kappa Omega' J - Omega^2 I) q
+        = a_nl(q) + F e_c cos(phi(t)),        J = [[0, -1], [1, 0]],  kappa = 0.8
+
+K and C the 2x2 stiffness and damping of the pair (``modes.pair_matrices(2)``: diagonal
+``omega_2^2`` and ``omega_2 / Q_2`` for the perfect ring, coupled by a frequency split or
+damping mismatch off the electrodes' axes), F = ``drive.amplitude`` (m/s^2) on the cos
+coordinate only, ``a_nl`` the electrostatic force per modal mass without its folded linear
+part (eq. 21 differentiated, ``forces.nonlinear_acceleration``) restricted to the pair.
+
+(V) Variation of constants. (S1) is a change of variables from (q, q') to A with the
+constraint ``Re(A' e^{i phi}) = 0``; then ``q'' = Re((i omega A' - omega^2 A) e^{i phi})``
+and (M) becomes exactly ``Re(i omega A' e^{i phi}) = f(q, q', t)`` with f everything in (M)
+but ``q''`` plus ``omega^2 q``. The two real equations solve to ``A' = f e^{-i phi} /
+(i omega)``: exact, but with terms at 0, 2 phi, 3 phi, ...
+
+(A) First-order averaging over the fast phase keeps the mean of ``f e^{-i phi}``, that is
+half the complex first-harmonic coefficient ``f_1`` of f (``f = Re(f_1 e^{i phi}) + ...``)::
+
+    A' = -(i / (2 omega)) [ (omega^2 + Omega^2) A - K A - i omega (C + 2 kappa Omega J) A
+                            - kappa Omega' J A + N(A) + F e_c ]                       (S2)
+
+with N(A) the first-harmonic coefficient of ``a_nl(Re(A e^{i phi}))`` over one period of
+phi: the describing function of the electrostatic force, computed by
+``harmonic_balance``'s alternating-frequency-time machinery (``_Balance.nonlinear`` with
+one harmonic: the orbit sampled at N equally spaced phases, the exact quadrature force at
+each, projected on cos and sin; exact for the Taylor force since ``N > N_T``). Term by term:
+
+- ``(omega^2 - K) A - i omega C A``: detuning and damping. Kept as ``omega^2 - K`` (not
+  linearised to ``2 omega (omega - omega_2)``): the steady state of the linear part is then
+  the exact phasor ``F / (omega_2^2 - omega^2 + i omega omega_2 / Q)``. With F = 0 and
+  ``omega = omega_2`` it gives ``|A| ~ exp(-omega_2 t / (2 Q))``, the modal decay.
+- ``-2 i omega kappa Omega J A``: the Coriolis coupling; ``-(i/2omega)`` of it is the real
+  rotation ``-kappa Omega J A`` of (A_c, A_s): it conserves ``|A_c|^2 + |A_s|^2``.
+  Matched modes at resonance give the steady sense response
+  ``A_s / A_c = -2 kappa Omega Q / omega`` (doc/gyroscope.md; ``operating_point``'s
+  ``_add_sense_response`` has the same phasors).
+- ``-kappa Omega' J A``: the angular acceleration (G5, G6). A step of the rate (a delta of
+  Omega') is integrated exactly across it: ``q'`` jumps by ``-kappa dOmega J q``, that is
+  ``A -> A + (i kappa dOmega / omega) J A``.
+- ``Omega^2 A``: the centrifugal term (3e-11 of ``omega^2`` at 300 deg/s).
+- ``N(A)``: the electrostatic softening and the coupling of the pair through the force
+  (the drive's amplitude softens and pumps the sense mode: the terms of N in conj(A_s)).
+  N conserves ``|A|^2`` too: ``Im(A^H N(A)) = (2 / omega) <q' . a_nl(q)>`` = the mean
+  rate of change of the electrostatic energy over a period, 0 (``test_averaged``).
+- ``F e_c``: the drive's first harmonic.
+
+(R) The outputs: A at the requested sample times and ``q = Re(A e^{i phi})``,
+``q' = Re(i omega A e^{i phi})`` (S1). :func:`envelope_of` is the inverse map from a state
+``(q, q')`` of the full model (exact: S1 is a change of variables).
+
+Validity
+--------
+The error of first-order averaging is ``O(epsilon)`` of the envelope over times
+``O(1 / epsilon)`` (Bogoliubov-Mitropolsky; Sanders-Verhulst, ch. 2), epsilon the largest of
+the pair's slow rates over omega: ``1 / (2 Q)``, the detuning ``|omega_2 - omega| / omega``,
+``kappa |Omega| / omega``, the electrostatic frequency shift over omega and the split over
+omega. On the default device each is below 1e-4 (7.7e-6, 0 to 9e-5, 1.4e-6 at 10 deg/s,
+9e-5 at the paper's drive amplitude, 0). It needs:
+
+- slowly varying inputs: the rate's and the drive's changes slow against omega (a step of
+  the rate is handled exactly, as above);
+- no other mode near a multiple or a combination of the drive frequency: the higher modes
+  are assumed at rest. With N_R = 3 (the default) this is exact for the modes' coupling:
+  a pure 2theta displacement has no force on the 1theta and 3theta pairs (its powers hold
+  only even harmonics of theta), so q1 = q3 = 0 is invariant. From N_R = 4 the 4theta pair
+  is forced at 0 and 2 omega by ``q2^2``; its response (off resonance) is left out;
+- the higher harmonics of the pair (3 omega, ...) neglected: their feedback on the first
+  harmonic is of the second order in the nonlinearity (``test_averaged`` measures it
+  against the shooting orbit);
+- none of what is listed above as not represented: shocks, base acceleration, vibration,
+  contact, noise, loops, temperature changes.
+"""
+
+from dataclasses import dataclass
+import math
+from typing import Optional, Sequence, Tuple
+
+import numpy as np
+from ring_gyro_sim.core import harmonic_balance, structure, thermal
+from ring_gyro_sim.core.errors import ParameterError, SimulationError
+from ring_gyro_sim.core.params import SimConfig
+from scipy.integrate import solve_ivp
+from scipy.optimize import fsolve
+
+__all__ = ['AveragedModel', 'AveragedSamples', 'envelope_of', 'state_of']
+
+J = np.array([[0.0, -1.0], [1.0, 0.0]])
+"""The Coriolis coupling's matrix in (q_c, q_s) (G5, G6)."""
+
+RTOL = 1e-10
+"""Relative tolerance of ``solve_ivp`` (DOP853) on the scaled envelopes."""
+
+
+def envelope_of(q: np.ndarray, v: np.ndarray, omega: float, phase: np.ndarray) -> np.ndarray:
+    """
+    Return the complex envelopes ``A = (q - i v / omega) e^{-i phase}`` of states (S1).
+
+    Parameters
+    ----------
+    q, v : ndarray, shape (..., 2)
+        Displacements (m) and velocities (m/s) of the pair (q_c, q_s).
+    omega : float
+        The drive's angular frequency, rad/s.
+    phase : ndarray, shape (...)
+        The drive's phase at each state, rad.
+
+    Returns
+    -------
+    ndarray of complex, shape (..., 2)
+        A, m.
+
+    """
+    rot = np.exp(-1j * np.asarray(phase, dtype=float))[..., None]
+    return (np.asarray(q, dtype=float) - 1j * np.asarray(v, dtype=float) / omega) * rot
+
+
+def state_of(envelope: np.ndarray, omega: float,
+             phase: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """Return ``(q, v)`` (m, m/s) of envelopes ``A`` (m) at the drive phases (rad) (S1)."""
+    z = np.asarray(envelope) * np.exp(1j * np.asarray(phase, dtype=float))[..., None]
+    return z.real, (1j * omega * z).real
+
+
+@dataclass(frozen=True)
+class AveragedSamples:
+    """
+    Output of :meth:`AveragedModel.run`.
+
+    Attributes
+    ----------
+    t : ndarray, shape (K,)
+        Sample times, s.
+    envelope : ndarray of complex, shape (K, 2)
+        ``(A_c, A_s)`` at each sample, m (S1).
+    q, v : ndarray, shape (K, 2)
+        The reconstructed ``(q2, q2s)`` (m) and their velocities (m/s) (R).
+    rate : ndarray, shape (K,)
+        The sensor frame's rate at each sample, rad/s.
+    steps : int
+        Right-hand-side evaluations the integration took.
+
+    """
+
+    t: np.ndarray
+    envelope: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    rate: np.ndarray
+    steps: int
+
+
+class AveragedModel:
+    """
+    The slow flow (S2) of the driven 2theta pair of one configuration (module docstring).
+
+    Parameters
+    ----------
+    config : SimConfig
+        Needs ``modes.companions`` (the pair), ``modes.frequencies`` with at least the 2theta
+        mode, ``drive.frequency > 0``. Open loop: ``control.drive_loop: closed`` and
+        ``control.rebalance`` are refused (not modelled here). The rate profile is used when
+        ``gyro.enabled``.
+
+    """
+
+    def __init__(self, config: SimConfig) -> None:
+        if not config.modes.companions:
+            raise ParameterError('modes.companions: the averaged model is that of the 2theta '
+                                 'pair and needs the companions')
+        if config.modes.count < 2:
+            raise ParameterError('modes.frequencies: the averaged model needs the 2theta mode '
+                                 f'(N_R >= 2), got N_R = {config.modes.count}')
+        if config.drive.frequency <= 0.0:
+            raise ParameterError('drive.frequency: the averaged model turns at the drive '
+                                 f'frequency and needs it > 0, got {config.drive.frequency}')
+        if config.control.closed or config.control.rebalance:
+            raise ParameterError('control.drive_loop: the averaged model is open loop (the '
+                                 'PLL, AGC and force-to-rebalance are not modelled yet)')
+        # The device at the die temperature of t = 0 (core.thermal, T3-T6), as the full
+        # model starts; later temperature changes are not followed.
+        self.config = thermal.device_at(config, thermal.DieTemperature(config).kelvin)
+        m = self.config.modes.count
+        self.index = (1, m + 1)   # q2, q2s in the coordinate vector
+        self.stiffness, self.damping = self.config.modes.pair_matrices(2)
+        self.omega = 2.0 * math.pi * self.config.drive.frequency
+        self.drive = float(self.config.drive.amplitude)
+        self.kappa = float(structure.gyroscopic_coefficient(2))
+        g = self.config
+        self.rate_times = tuple(g.run.rate_times) if g.gyro.enabled else ()
+        self.rate_values = tuple(g.run.rate_values) if g.gyro.enabled else ()
+        # One harmonic of harmonic_balance's AFT: N(A) of (S2).
+        self._balance = harmonic_balance._Balance(self.config, 1, cosine_only=False,
+                                                  damped=False, drive_m_s2=0.0)
+        self._coeff = np.zeros((self._balance.n, self._balance.h))
+        self.evaluations = 0
+
+    # ------------------------------------------------------------------ the slow flow
+    def nonlinear(self, envelope: np.ndarray) -> np.ndarray:
+        """
+        Return N(A), the first harmonic of the electrostatic force on the pair (m/s^2).
+
+        ``a_nl(Re(A e^{i phi}))`` over one period of phi, as ``harmonic_balance``'s AFT
+        computes it: ``a_nl = Re(N e^{i phi}) + other harmonics``.
+
+        Raises
+        ------
+        SimulationError
+            The orbit leaves the force's range (contact, ``|w| >= d_g``).
+
+        """
+        ic, is_ = self.index
+        c = self._coeff
+        c[ic, 1], c[ic, 2] = envelope[0].real, -envelope[0].imag
+        c[is_, 1], c[is_, 2] = envelope[1].real, -envelope[1].imag
+        f, _ = self._balance.nonlinear(c, jac=False)
+        return np.array([complex(f[ic, 1], -f[ic, 2]), complex(f[is_, 1], -f[is_, 2])])
+
+    def derivative(self, envelope: np.ndarray, rate: float = 0.0,
+                   rate_dot: float = 0.0) -> np.ndarray:
+        """Return ``A'`` of (S2), m/s, at envelopes A (m), a rate (rad/s) and its slope."""
+        a = np.asarray(envelope, dtype=complex)
+        w = self.omega
+        lin = ((w * w + rate * rate) * a - self.stiffness @ a
+               - 1j * w * ((self.damping + 2.0 * self.kappa * rate * J) @ a)
+               - self.kappa * rate_dot * (J @ a))
+        total = lin + self.nonlinear(a)
+        total[0] += self.drive
+        self.evaluations += 1
+        return (-0.5j / w) * total
+
+    def steady_state(self, guess: Sequence[complex], rate: float = 0.0) -> np.ndarray:
+        """
+        Return the fixed point A (m) of (S2) at a constant rate (rad/s), Newton from ``guess``.
+
+        It is the one-harmonic balance of the pair; which branch (of a bistable drive) is the
+        guess's.
+
+        Raises
+        ------
+        SimulationError
+            No convergence.
+
+        """
+        g = np.asarray(guess, dtype=complex)
+        scale = max(float(np.max(np.abs(g))), 1e-15)
+
+        def residual(y):
+            a = np.array([complex(y[0], y[1]), complex(y[2], y[3])]) * scale
+            d = self.derivative(a, rate) * (2.0 * self.omega / (scale * self.omega ** 2))
+            return [d[0].real, d[0].imag, d[1].real, d[1].imag]
+
+        y0 = np.array([g[0].real, g[0].imag, g[1].real, g[1].imag]) / scale
+        y, _, ier, msg = fsolve(residual, y0, full_output=True, xtol=1e-14)
+        if ier != 1 and np.max(np.abs(residual(y))) > 1e-11:
+            raise SimulationError(f'averaged steady state did not converge: {msg}')
+        return np.array([complex(y[0], y[1]), complex(y[2], y[3])]) * scale
+
+    # ------------------------------------------------------------------ integration
+    def _segments(self, t0: float, t1: float):
+        """Yield ``(start, end, rate at start, slope, jump at start)`` of the rate profile."""
+        times, values = self.rate_times, self.rate_values
+        if not times:
+            yield t0, t1, 0.0, 0.0, 0.0
+            return
+        knots = sorted(set(t for t in times if t0 < t < t1))
+        edges = [t0] + knots + [t1]
+
+        def value(t, after):
+            # the profile of core.rate_profile: linear between knots, 0 before the first,
+            # held after the last, the value after a repeated time (a step) on its right
+            k = -1
+            for j, tk in enumerate(times):
+                if tk < t or (after and tk == t):
+                    k = j
+            if k < 0:
+                return 0.0
+            if k >= len(times) - 1:
+                return values[-1]
+            dt = times[k + 1] - times[k]
+            return values[k] + (values[k + 1] - values[k]) * ((t - times[k]) / dt if dt else 0)
+
+        for a, b in zip(edges[:-1], edges[1:]):
+            if b <= a:
+                continue
+            left = value(a, after=True)
+            right = value(b, after=False)
+            jump = left - value(a, after=False) if a in knots else 0.0
+            yield a, b, left, (right - left) / (b - a), jump
+
+    def run(self, duration_s: float, sample_rate_hz: float,
+            start: Optional[Sequence[complex]] = None) -> AveragedSamples:
+        """
+        Integrate (S2) from t = 0 and return the samples at ``k / sample_rate_hz``.
+
+        Parameters
+        ----------
+        duration_s : float
+            Simulated time, s (> 0).
+        sample_rate_hz : float
+            Output samples per second (> 0); the samples are at ``0, 1/rate, ...`` up to
+            ``duration_s`` inclusive.
+        start : (complex, complex) or None
+            ``(A_c, A_s)`` at t = 0, m (e.g. :func:`envelope_of` of a full model's state);
+            None: at rest.
+
+        Returns
+        -------
+        AveragedSamples
+
+        Raises
+        ------
+        ParameterError
+            A non-positive duration or sample rate.
+        SimulationError
+            The integration failed or the orbit reached the force's range.
+
+        """
+        if not duration_s > 0.0:
+            raise ParameterError(f'duration_s: must be > 0, got {duration_s}')
+        if not sample_rate_hz > 0.0:
+            raise ParameterError(f'sample_rate_hz: must be > 0, got {sample_rate_hz}')
+        n_out = int(math.floor(duration_s * sample_rate_hz + 1e-9)) + 1
+        t_out = np.arange(n_out) / sample_rate_hz
+        a = np.zeros(2, dtype=complex) if start is None else np.asarray(start, dtype=complex)
+        # The envelopes scaled to about 1 (the drive's linear peak response, or the start).
+        w2 = math.sqrt(self.stiffness[0, 0])
+        scale = max(abs(self.drive) / (w2 * self.damping[0, 0]), float(np.max(np.abs(a))),
+                    1e-15)
+        out = np.empty((n_out, 2), dtype=complex)
+        rates = np.empty(n_out)
+        first = 0
+        evaluations = self.evaluations
+        for t_a, t_b, rate0, slope, jump in self._segments(0.0, t_out[-1]):
+            if jump:
+                a = a + (1j * self.kappa * jump / self.omega) * (J @ a)
+            last = int(np.searchsorted(t_out, t_b, side='left')) if t_b < t_out[-1] else n_out
+            t_eval = t_out[first:last]
+
+            def rhs(t, y, t_a=t_a, rate0=rate0, slope=slope):
+                env = np.array([complex(y[0], y[1]), complex(y[2], y[3])]) * scale
+                d = self.derivative(env, rate0 + slope * (t - t_a), slope) / scale
+                return [d[0].real, d[0].imag, d[1].real, d[1].imag]
+
+            y0 = np.array([a[0].real, a[0].imag, a[1].real, a[1].imag]) / scale
+            extra = t_eval.size == 0 or t_eval[-1] != t_b   # the segment's end, for the next
+            sol = solve_ivp(rhs, (t_a, t_b), y0, method='DOP853',
+                            t_eval=np.append(t_eval, t_b) if extra else t_eval,
+                            rtol=RTOL, atol=RTOL * 1e-2)
+            if sol.status != 0:
+                raise SimulationError(f'averaged model: integration failed at {t_a} s: '
+                                      f'{sol.message}')
+            y = sol.y.T * scale
+            a = np.array([complex(y[-1, 0], y[-1, 1]), complex(y[-1, 2], y[-1, 3])])
+            y = y[:t_eval.size]
+            out[first:last, 0] = y[:, 0] + 1j * y[:, 1]
+            out[first:last, 1] = y[:, 2] + 1j * y[:, 3]
+            rates[first:last] = rate0 + slope * (t_eval - t_a)
+            first = last
+        phase = self.omega * t_out
+        q, v = state_of(out, self.omega, phase)
+        return AveragedSamples(t=t_out, envelope=out, q=q, v=v, rate=rates,
+                               steps=self.evaluations - evaluations)

@@ -1,0 +1,217 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The averaged (slow-flow) model of the driven 2theta pair (``core.averaged``, S1-S2).
+
+Against the periodic orbits (harmonic balance, shooting), a closed form of the linear pair,
+the full model (``Simulator``) and the conservation laws of (S2).
+"""
+
+import math
+
+import numpy as np
+import pytest
+from ring_gyro_sim.core import harmonic_balance
+from ring_gyro_sim.core.averaged import AveragedModel, envelope_of, state_of
+from ring_gyro_sim.core.errors import ParameterError
+from ring_gyro_sim.core.gyro import operating_point
+from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.core.simulator import Simulator
+
+TEN_DEG_S = math.radians(10.0)
+KAPPA = 0.8
+Q2 = 64700.0
+OPEN_LOOP = {'modes.companions': True, 'gyro.enabled': True, 'drive.amplitude': 0.0065,
+             'drive.frequency': 15800.0, 'control.drive_loop': 'open',
+             'control.rebalance': False, 'gyro.temperature': 0.0,
+             'gyro.input_noise_density': 0.0, 'gyro.calibration.source': 'ideal'}
+PAIR = [1, 4]   # q2, q2s among the coordinates of N_R = 3 with companions
+
+
+def config(**values):
+    return build_config({**OPEN_LOOP, **{k.replace('__', '.'): v for k, v in values.items()}})
+
+
+def test_the_envelope_maps_invert_each_other():
+    rng = np.random.default_rng(1)
+    a = rng.normal(size=(5, 2)) + 1j * rng.normal(size=(5, 2))
+    phase = rng.uniform(0.0, 10.0, size=5)
+    q, v = state_of(a, 1e5, phase)
+    assert np.allclose(envelope_of(q, v, 1e5, phase), a, rtol=1e-14, atol=1e-14)
+
+
+def test_the_steady_state_is_the_one_harmonic_balance_and_the_shooting_orbit():
+    # The paper's drive on its softened upper branch (q2 = 0.39 um, 3.9 % of the gap): the
+    # nonlinearity decides the amplitude (the drive is 1.4 Hz below the linear resonance,
+    # 11 half-widths).
+    cfg = config(drive__amplitude=0.065, drive__frequency=15798.6)
+    model = AveragedModel(cfg)
+    resonator = operating_point.cos_only(cfg)
+    orbit = operating_point.forced_orbit(resonator, 15798.6, 0.47e-6, 0.065)
+    w = model.omega
+    shooting = complex(orbit.initial_state[1], -orbit.initial_state[3 + 1] / w)
+    a = model.steady_state([shooting, 0.0])
+    # (1) A' = 0 of (S2) is the harmonic balance of the pair with one harmonic: the same
+    # equations, so the same orbit to the Newton tolerance.
+    guess = harmonic_balance.HarmonicOrbit(
+        frequency_hz=15798.6, amplitude_m=np.zeros(3),
+        coefficients_m=np.array([[0.0, 0.0, 0.0], [0.0, a[0].real, -a[0].imag],
+                                 [0.0, 0.0, 0.0]]))
+    hb1 = harmonic_balance.forced_orbit(resonator, 15798.6, guess)
+    one = complex(hb1.coefficients_m[1, 1], -hb1.coefficients_m[1, 2])
+    assert abs(a[0] - one) < 1e-9 * abs(one)
+    assert a[1] == 0.0   # a perfect ring at rest: no sine content
+    # (2) Against the shooting orbit (all harmonics): the one-harmonic truncation. The 3
+    # omega harmonic shifts the first harmonic's frequency by O(eps_nl^2) omega, eps_nl the
+    # electrostatic frequency shift over omega at this amplitude; on the resonance the
+    # response turns a frequency error d into an amplitude and phase error of at most
+    # 2 Q d / omega: tolerance 2 Q eps_nl^2.
+    w2 = 2.0 * math.pi * 15800.0
+    amp = abs(a[0])
+    w_nl = math.sqrt(w2 ** 2 - model.nonlinear(np.array([amp, 0.0]))[0].real / amp)
+    eps_nl = (w2 - w_nl) / w
+    tol = 2.0 * Q2 * eps_nl ** 2
+    rel = abs(a[0] - shooting) / abs(shooting)
+    dphase = abs(np.angle(a[0] / shooting))
+    print(f'|A| {amp:.6e} m, shooting {abs(shooting):.6e} m, phase {np.angle(a[0]):.6f} rad; '
+          f'difference {rel:.2e} relative, {dphase:.2e} rad (eps_nl {eps_nl:.3e}, '
+          f'tolerance {tol:.2e})')
+    assert 5e-5 < eps_nl < 2e-4   # the case is nonlinear: the drive is on the softened branch
+    assert rel < tol and dphase < tol
+
+
+def linear_closed_form(t, omega, w2, q, force, rate):
+    """A(t) of the matched, linear pair from rest (S2 in B = A_c +- i A_s)."""
+    out = np.zeros((t.size, 2), dtype=complex)
+    b = []
+    for sign in (1.0, -1.0):
+        lam = (-w2 / (2.0 * q) - 0.5j * (omega ** 2 + rate ** 2 - w2 ** 2) / omega
+               - sign * 1j * KAPPA * rate)
+        b_inf = -0.5j * force / omega / -lam
+        b.append(b_inf * (1.0 - np.exp(lam * t)))
+    out[:, 0] = 0.5 * (b[0] + b[1])
+    out[:, 1] = (b[0] - b[1]) / 2j
+    return out
+
+
+def test_the_linear_pair_follows_the_closed_form_and_its_time_constant():
+    # A drive of 6.5e-8 m/s^2 (0.4 pm), matched modes driven at resonance, 10 deg/s from
+    # t = 0, from rest. The electrostatic shift at this amplitude, eps_nl = 9e-5 (0.4 pm /
+    # 0.39 um)^2 = 1e-16 of omega, moves the resonant response by 2 Q eps_nl = 1e-11: the
+    # closed form holds to the integrator's tolerance (RTOL 1e-10).
+    force = 6.5e-8
+    cfg = config(drive__amplitude=force, drive__start_on='rest',
+                 scenario__rate_times=[0.0], scenario__rate_values=[TEN_DEG_S])
+    model = AveragedModel(cfg)
+    s = model.run(8.0, 100.0)
+    w = 2.0 * math.pi * 15800.0
+    expected = linear_closed_form(s.t, w, w, Q2, force, TEN_DEG_S)
+    scale = abs(expected[-1, 0])
+    err = np.max(np.abs(s.envelope - expected)) / scale
+    assert err < 1e-8
+    # the steady sense response of doc/gyroscope.md: |q2s| / |q2| = 2 kappa Omega Q / omega
+    a = model.steady_state(expected[-1], TEN_DEG_S)
+    ratio = abs(a[1]) / abs(a[0])
+    print(f'closed-form error {err:.1e}; |A_s|/|A_c| {ratio:.7f}, '
+          f'2 kappa Omega Q / omega {2 * KAPPA * TEN_DEG_S * Q2 / w:.7f}')
+    assert ratio == pytest.approx(2.0 * KAPPA * TEN_DEG_S * Q2 / w, rel=1e-6)
+    # the time constant 2 Q / omega (1.303 s): at zero rate the drive rises as 1 - e^{-t/tau}
+    tau = 2.0 * Q2 / w
+    rest = AveragedModel(config(drive__amplitude=force, drive__start_on='rest'))
+    r = rest.run(2.0 * tau, 1.0 / tau)
+    final = force * Q2 / (w * w)
+    assert abs(r.envelope[1, 0]) / final == pytest.approx(1.0 - math.exp(-1.0), rel=1e-7)
+    assert abs(r.envelope[2, 0]) / final == pytest.approx(1.0 - math.exp(-2.0), rel=1e-7)
+
+
+@pytest.mark.parametrize('q_pair', [2000.0, 1e15])
+def test_without_drive_the_envelope_decays_as_the_modal_damping_alone(q_pair):
+    # Drive off, a large mixed standing / travelling wave (0.3 and 0.2 um: the electrostatic
+    # force is well nonlinear), 10 deg/s: the Coriolis rotation and the averaged
+    # electrostatic force conserve |A_c|^2 + |A_s|^2 (module docstring), the damping
+    # (isotropic here) makes it decay as exp(-omega_2 t / Q) exactly; undamped it is
+    # conserved.
+    cfg = config(drive__amplitude=0.0, drive__start_on='rest',
+                 modes__quality_factors=[120000.0, q_pair, 170000.0],
+                 scenario__rate_times=[0.0], scenario__rate_values=[TEN_DEG_S])
+    model = AveragedModel(cfg)
+    start = np.array([0.3e-6, 0.2e-6j])
+    s = model.run(0.1, 1000.0, start=start)
+    w2 = 2.0 * math.pi * 15800.0
+    energy = np.sum(np.abs(s.envelope) ** 2, axis=1)
+    expected = np.sum(np.abs(start) ** 2) * np.exp(-w2 * s.t / q_pair)
+    assert np.max(np.abs(energy / expected - 1.0)) < 1e-8
+    # and the force did act: the electrostatic softening turned the envelopes' phase
+    turn = np.angle(s.envelope[-1, 0] / s.envelope[0, 0])
+    print(f'Q {q_pair:g}: |A|^2 against exp(-omega t / Q) within '
+          f'{np.max(np.abs(energy / expected - 1.0)):.1e}; phase of A_c turned {turn:.3f} rad')
+    assert abs(turn) > 0.05
+
+
+IMPERFECT = {'modes.companion_quality_factors': [120000.0, 0.9 * Q2, 170000.0],
+             'modes.damping_axes': [0.0, 22.5, 0.0],
+             'modes.companion_frequencies': [11200.0, 15800.005, 22000.0],
+             'modes.frequency_axes': [0.0, 10.0, 0.0]}
+
+
+@pytest.mark.parametrize('case', ['rate step', 'imperfect pair'])
+def test_the_sense_envelope_follows_the_full_model(case):
+    # Open loop, noise off, the default open-loop drive (0.0065 m/s^2 at 15 800 Hz, q2 =
+    # 41 nm), started on the drive orbit; 'rate step': a step to 10 deg/s at 0.05 s;
+    # 'imperfect pair': at zero rate, the damping mismatch and split of
+    # doc/imperfections.md. 0.3 s of the full model (200 kHz samples) against the averaged
+    # model started from the envelope of the same state.
+    values = ({'scenario.rate_times': [0.05, 0.05], 'scenario.rate_values': [0.0, TEN_DEG_S]}
+              if case == 'rate step' else IMPERFECT)
+    cfg = build_config({**OPEN_LOOP, **values})
+    start = operating_point.start_state(cfg)
+    full = Simulator(cfg, start_state=start, calibration=None).advance(0.3)
+    model = AveragedModel(cfg)
+    w = model.omega
+    a_full = envelope_of(full.q[:, PAIR], full.v[:, PAIR], w, full.drive_phase)
+    a0 = envelope_of(start[0][PAIR], start[1][PAIR], w, 0.0)
+    avg = model.run(0.3, cfg.run.output_rate, start=a0)
+    a_avg = avg.envelope[1:]   # the full model's samples are at k / rate, k >= 1
+    assert np.allclose(avg.t[1:], full.t, rtol=0.0, atol=1e-12)
+    # First-order averaging is exact to O(eps) of the envelope over times O(1 / eps)
+    # (module docstring, "Validity"): eps = 1 / (2 Q) = 7.7e-6 dominates here (the
+    # detunings, kappa Omega / omega = 1.4e-6 and the electrostatic shift, 1e-7, are
+    # smaller), so the error of A_s is below eps |A_c|: relative to the sense envelope at
+    # the end of the record, eps |A_c| / |A_s|.
+    eps = 1.0 / (2.0 * Q2)
+    sense = abs(a_full[-1, 1])
+    err_s = np.max(np.abs(a_full[:, 1] - a_avg[:, 1])) / sense
+    err_c = np.max(np.abs(a_full[:, 0] - a_avg[:, 0])) / abs(a_full[-1, 0])
+    err_q = np.max(np.abs(full.q[:, PAIR[1]] - avg.q[1:, 1])) / sense
+    tol = eps * abs(a_full[-1, 0]) / sense
+    print(f'{case}: |A_s| {sense:.4e} m at 0.3 s; largest error of A_s {err_s:.2e} of it, '
+          f'of q2s {err_q:.2e}, of A_c {err_c:.2e} of |A_c| (tolerance {tol:.2e}, {eps:.1e})')
+    assert sense > 1e-3 * abs(a_full[-1, 0])   # the sense mode did respond
+    assert err_s < tol and err_c < eps
+    # the reconstruction q = Re(A e^{i phi}) leaves out the 3 omega harmonic, of order
+    # eps_nl / 12 of |A_c| (1e-8 here): the same tolerance holds for q2s itself
+    assert err_q < tol
+
+
+def test_bad_configurations_are_refused_with_the_parameter():
+    with pytest.raises(ParameterError, match='modes.companions'):
+        AveragedModel(config(modes__companions=False, gyro__enabled=False))
+    with pytest.raises(ParameterError, match='control.drive_loop'):
+        AveragedModel(build_config({**OPEN_LOOP, 'control.drive_loop': 'closed'}))
+    model = AveragedModel(config())
+    with pytest.raises(ParameterError, match='duration_s'):
+        model.run(0.0, 1000.0)
+    with pytest.raises(ParameterError, match='sample_rate_hz'):
+        model.run(1.0, -1.0)
