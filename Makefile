@@ -6,7 +6,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: venv run test test-all bench bench-imperfect clean
+.PHONY: venv run test test-all bench bench-imperfect bench-averaged clean
 
 $(STAMP): requirements-ros.txt requirements-dev.txt setup.py package.xml
 	$(PYTHON) -m venv $(VENV)
@@ -36,6 +36,10 @@ bench: $(STAMP)
 
 bench-imperfect: $(STAMP)
 	$(PY) benchmarks/bench_imperfections.py
+
+# The averaged (slow-flow) model against the full one, the same open-loop case (doc/averaged.md).
+bench-averaged: $(STAMP)
+	$(PY) benchmarks/bench_averaged.py
 
 clean:
 	rm -rf $(VENV) out

@@ -1,0 +1,102 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The averaged model's speed against the full model's (issue 25): ``make bench-averaged``.
+
+One open-loop case for both: ``benchmarks/gyro.yaml``'s operating point (N_R = 3 with the
+companions, 0.0065 m/s^2 at 15 800 Hz, 10 deg/s from t = 0) without its shock and with the
+noise off (the averaged model has neither yet), started on the drive orbit. The full model
+runs through :class:`ring_gyro_sim.run.Run` in its 10 ms blocks (integration, outputs and
+the sense chain at 200 kHz); the averaged model (``core.averaged``) from the envelope of the
+same start state, its samples at 1 kHz (the rate output's rate) and at 200 kHz (the block
+topics' rate, q2 and q2s reconstructed). In alternation in this process, the construction
+(start state, compilation) not timed; printed: simulated seconds per CPU second of each,
+best of the repetitions, and the ratios. CPU time, not wall time: the host is shared. The
+averaged model computes less (the pair's envelopes only: no sense chain, no q1, q3): the
+ratio is that of this first step, not of the issue's goal (closed loop, noise, outputs).
+"""
+
+import argparse
+import math
+import os
+import sys
+import time
+
+from ring_gyro_sim.core.averaged import AveragedModel, envelope_of
+from ring_gyro_sim.core.gyro import operating_point
+from ring_gyro_sim.core.params import build_config
+from ring_gyro_sim.run import Run
+
+CASE = {'modes.companions': True, 'gyro.enabled': True, 'drive.amplitude': 0.0065,
+        'drive.frequency': 15800.0, 'drive.start_on': 'upper_branch',
+        'control.drive_loop': 'open', 'control.rebalance': False,
+        'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0,
+        'gyro.calibration.source': 'ideal', 'real_time_factor': 0.0,
+        'scenario.rate_times': [0.0], 'scenario.rate_values': [math.radians(10.0)]}
+PAIR = [1, 4]
+
+
+def _full(config, seconds: float) -> float:
+    run = Run(config)
+    blocks = int(round(seconds / config.run.block_duration))
+    start = time.process_time()
+    for _ in range(blocks):
+        run.advance(config.run.block_samples)
+    return seconds / (time.process_time() - start)
+
+
+def _averaged(config, start, seconds: float, sample_rate: float) -> float:
+    model = AveragedModel(config)
+    begin = time.process_time()
+    model.run(seconds, sample_rate, start=start)
+    return seconds / (time.process_time() - begin)
+
+
+def main(argv=None) -> int:
+    """Time both models in alternation; print their speeds and the ratios."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    parser.add_argument('--seconds', type=float, default=1.0, help='simulated s of the full')
+    parser.add_argument('--averaged-seconds', type=float, default=100.0,
+                        help='simulated s of the averaged model')
+    parser.add_argument('--repeat', type=int, default=3, help='runs of each, alternating')
+    args = parser.parse_args(argv)
+    config = build_config(CASE)
+    q, v = operating_point.start_state(config)
+    w = 2.0 * math.pi * config.drive.frequency
+    start = envelope_of(q[PAIR], v[PAIR], w, 0.0)
+    _full(config, 0.01)                      # compile: not timed
+    _averaged(config, start, 0.1, 1000.0)
+    rows = {'full (Run, 200 kHz)': 0.0, 'averaged, 1 kHz samples': 0.0,
+            'averaged, 200 kHz samples': 0.0}
+    for k in range(args.repeat):
+        rows['full (Run, 200 kHz)'] = max(rows['full (Run, 200 kHz)'],
+                                          _full(config, args.seconds))
+        rows['averaged, 1 kHz samples'] = max(
+            rows['averaged, 1 kHz samples'],
+            _averaged(config, start, args.averaged_seconds, 1000.0))
+        rows['averaged, 200 kHz samples'] = max(
+            rows['averaged, 200 kHz samples'],
+            _averaged(config, start, min(args.averaged_seconds, 10.0), 200000.0))
+        print(f'round {k + 1}/{args.repeat}', file=sys.stderr)
+    print(f'load average {os.getloadavg()[0]:.2f}; best of {args.repeat}; simulated seconds '
+          f'per CPU second (full: {args.seconds:g} s, averaged: {args.averaged_seconds:g} s)')
+    full = rows['full (Run, 200 kHz)']
+    for name, rtf in rows.items():
+        print(f'{name:28s} rtf_cpu {rtf:10.2f}   ratio to full {rtf / full:8.1f}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
