@@ -215,3 +215,5 @@ def test_bad_configurations_are_refused_with_the_parameter():
         model.run(0.0, 1000.0)
     with pytest.raises(ParameterError, match='sample_rate_hz'):
         model.run(1.0, -1.0)
+    with pytest.raises(ParameterError, match='shorter than one sample'):
+        model.run(1e-4, 1000.0)
