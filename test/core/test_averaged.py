@@ -160,6 +160,23 @@ def test_without_drive_the_envelope_decays_as_the_modal_damping_alone(q_pair):
     assert abs(turn) > 0.05
 
 
+def test_a_free_standing_wave_precesses_by_bryans_factor():
+    # Drive off, undamped, a 10 nm standing wave along theta = 0, 20 rad/s for 50 ms: the
+    # sensor turns by 1 rad and the pattern, in the sensor frame, by -2 / (n^2 + 1) = -0.4
+    # rad (doc/physics.md, Bryan's factor; the full model's test_rotation measures it).
+    # In (S2) the Coriolis term is the rotation of (A_c, A_s) by -kappa Omega t, the pattern
+    # angle half the modal angle: -kappa / 2 = -0.4 per radian of sensor rotation.
+    cfg = config(drive__amplitude=0.0, drive__start_on='rest',
+                 modes__quality_factors=[120000.0, 1e15, 170000.0],
+                 scenario__rate_times=[0.0], scenario__rate_values=[20.0])
+    s = AveragedModel(cfg).run(0.05, 1000.0, start=np.array([10e-9, 0.0]))
+    a_c, a_s = s.envelope[-1]
+    # a standing wave: both coordinates in phase (the common phase turns with the detuning)
+    assert abs((a_s * np.conj(a_c)).imag) < 1e-9 * abs(a_c) ** 2
+    angle = 0.5 * math.atan2((a_s * np.conj(a_c)).real, abs(a_c) ** 2)
+    assert angle == pytest.approx(-0.4, abs=1e-9)
+
+
 IMPERFECT = {'modes.companion_quality_factors': [120000.0, 0.9 * Q2, 170000.0],
              'modes.damping_axes': [0.0, 22.5, 0.0],
              'modes.companion_frequencies': [11200.0, 15800.005, 22000.0],
