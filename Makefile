@@ -39,7 +39,7 @@ bench-imperfect: $(STAMP)
 
 # The averaged (slow-flow) model against the full one, the same open-loop case (doc/averaged.md).
 bench-averaged: $(STAMP)
-	$(PY) benchmarks/bench_averaged.py
+	OPENBLAS_NUM_THREADS=1 $(PY) benchmarks/bench_averaged.py
 
 clean:
 	rm -rf $(VENV) out
