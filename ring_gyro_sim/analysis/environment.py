@@ -24,10 +24,10 @@ without it. Both runs are :func:`quiet`: noise off and the model's own readout
 environment causes, exact in a short record (with noise a mean needs minutes to resolve a
 shift of deg/h), and whatever the device reads at zero rate without the environment (an
 imperfect ring's zero-rate output) cancels. Both
-start on :func:`settled_start`: the drive's orbit (``drive.start_on``) with the 1theta pair on
-its linear answer to the environment
-(:func:`~ring_gyro_sim.core.gyro.operating_point.with_environment_response`), so the 1theta
-mode does not ring for its 3.4 s after the environment's step at t = 0. What still settles is
+start as every run does (:func:`~ring_gyro_sim.core.gyro.operating_point.start_state`): the
+drive's orbit (``drive.start_on``) with the 1theta pair on its linear answer to the
+environment (:func:`~ring_gyro_sim.core.gyro.operating_point.with_environment_response`), so
+the 1theta mode does not ring for its 3.4 s. What still settles is
 the rate path itself: open loop the drive and the sense mode follow a change of their
 frequencies with their own ``2 Q / omega`` (1.3 s), so a run of 10 s averaged over its last
 2 s reads the settled shift within 0.5 % and a shorter one reads it low (doc/environments.md).
@@ -38,12 +38,10 @@ import math
 from typing import Any, Callable, Dict, Optional, Sequence
 
 import numpy as np
-from ring_gyro_sim.core import thermal
-from ring_gyro_sim.core.gyro import operating_point
 from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.run import Run, Sink
 
-__all__ = ['ZERO_RAD_S', 'loglog_slope', 'mean_output', 'quiet', 'settled_start',
+__all__ = ['ZERO_RAD_S', 'loglog_slope', 'mean_output', 'quiet',
            'without_environment']
 
 ZERO_RAD_S = 1e-12
@@ -65,12 +63,6 @@ def without_environment(config: SimConfig) -> SimConfig:
                   vibration_angle=0.0, vibration_psd_frequencies=(),
                   vibration_psd_values=(), acceleration=())
     return replace(config, run=run)
-
-
-def settled_start(config: SimConfig, log: Optional[Callable[[str], None]] = None):
-    """Return the start state of ``drive.start_on`` with the 1theta pair on its answer."""
-    state = operating_point.start_state(thermal.start_state_device(config), log)
-    return operating_point.with_environment_response(config, state)
 
 
 class _Means(Sink):
@@ -96,7 +88,7 @@ def mean_output(config: SimConfig, duration_s: float, average_s: float,
                 log: Optional[Callable[[str], None]] = None,
                 progress: Optional[Callable[[float], None]] = None) -> Dict[str, Any]:
     """
-    Run ``config`` (as given: :func:`quiet` it first) from :func:`settled_start`; its means.
+    Run ``config`` (as given: :func:`quiet` it first) and return its means.
 
     Parameters
     ----------
@@ -117,7 +109,7 @@ def mean_output(config: SimConfig, duration_s: float, average_s: float,
 
     """
     means = _Means(duration_s - average_s)
-    run = Run(config, start_state=settled_start(config, log), sink=means)
+    run = Run(config, sink=means, log=log)
     total = int(round(duration_s / (config.run.output_period_ns * 1e-9)))
     block = config.run.block_samples
     done = 0

@@ -329,3 +329,23 @@ def test_the_start_on_the_environment_s_answer_does_not_ring():
     expected = steady_state_start(random, Simulator(random).random_vibration)
     assert q[0] == pytest.approx(expected[0][0], rel=1e-9)
     assert v[0] == pytest.approx(expected[1][0], rel=1e-9)
+
+
+def test_a_run_starts_on_the_environment_s_answer_and_holds_it():
+    # A run (the node, ring_gyro run, characterize, sweeps: operating_point.start_state)
+    # starts where a sensor switched on in its environment has been: q1 at the static
+    # deflection -a / k of 100 g (k = omega_1^2 less the electrostatic softening at rest, so
+    # within 1e-2 of -a / omega_1^2), and stays there: from rest it would swing to -2 a / k
+    # (test_a_step_of_the_steady_acceleration_acts_from_its_sample_and_the_mode_rings).
+    from ring_gyro_sim.core.gyro.operating_point import with_environment_response
+    a = 100.0 * STANDARD_GRAVITY
+    config = paper_config({**QUIET, 'scenario.acceleration': [a, 0.0]})
+    run = Run(config)
+    q0 = run.start_state[0][0]
+    assert q0 == with_environment_response(config, None)[0][0]
+    w1 = 2.0 * math.pi * config.modes.frequencies[0]
+    assert q0 == pytest.approx(-a / w1 ** 2, rel=1e-2)
+    q1 = run.sim.advance_samples(2000).q[:, 0]  # 10 ms: 112 periods of omega_1
+    assert np.max(np.abs(q1 / q0 - 1.0)) < 1e-3
+    quiet = Run(paper_config(QUIET))  # without an environment the start is unchanged: rest
+    assert not np.any(quiet.start_state[0])

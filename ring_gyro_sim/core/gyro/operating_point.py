@@ -504,11 +504,18 @@ def start_state(config: SimConfig,
     Return the start state ``(q m, v m/s)`` of ``drive.start_on`` (None: the ring at rest).
 
     The resting sensor's orbit (:func:`resting_orbit`, memoised) with the pair's response to
-    the rate at t = 0 (:func:`with_rate_response`, per call). ``log`` as
-    :func:`resting_orbit`.
+    the rate at t = 0 (:func:`with_rate_response`, per call) and, under a scenario's
+    environment, the 1theta pair on its answer to it (:func:`with_environment_response`): a
+    sensor switched on in a steady acceleration or a vibration has been in it, so a run does
+    not start with the step that would ring the 1theta mode for ``2 Q_1 / omega_1``. ``log``
+    as :func:`resting_orbit`.
     """
+    from ring_gyro_sim.core.simulator import _environment_of  # the simulator's own reading
     orbit = resting_orbit(config, log)
-    return None if orbit is None else with_rate_response(config, orbit)
+    state = None if orbit is None else with_rate_response(config, orbit)
+    if _environment_of(config) is None:
+        return state
+    return with_environment_response(config, state)
 
 
 def drive_operating_point(config: SimConfig, state: Optional[State]) -> Tuple[float, float]:
