@@ -110,6 +110,13 @@ def worker_of(record_path) -> int:
 class DaskCluster:
     """A ``dask scheduler`` and ``dask worker`` processes on 127.0.0.1, a free port each."""
 
+    def _address_written(self) -> bool:
+        """Tell whether the scheduler file holds its address (it is written after creation)."""
+        try:
+            return 'address' in json.loads(self.file.read_text())
+        except (OSError, ValueError):
+            return False
+
     def __init__(self, directory, workers=2, nanny=True) -> None:
         self.directory = Path(directory)
         self.file = self.directory / 'scheduler.json'
@@ -119,7 +126,8 @@ class DaskCluster:
             self.scheduler = self._start([str(DASK), 'scheduler', '--host', '127.0.0.1',
                                           '--port', '0', '--no-dashboard',
                                           '--scheduler-file', str(self.file)], 'scheduler')
-            wait_for(self.file.is_file, START_TIMEOUT_S, 'the scheduler file')
+            # the scheduler creates the file before it writes it: wait for the whole JSON
+            wait_for(self._address_written, START_TIMEOUT_S, 'the scheduler file')
             self.address = json.loads(self.file.read_text())['address']
             for i in range(workers):
                 self.workers.append(self._start(
