@@ -115,7 +115,13 @@ device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
    orbit with the 1theta pair on its answer to the environment, the mean of ``~/rate`` over
    the last 2 s / 0.1 s less the same without the environment (``analysis.environment``,
    :func:`_environment`; the open-loop rate path settles with 1.3 s, so ``--quick`` reads
-   low). 14 runs.
+   low). 14 runs. **Shock survival with stops** (:func:`_stop_shock`): the file's stops (or
+   0.6 d_g if it has none, said so), half-sines along x; the largest shock without impact,
+   predicted for the 1theta mode in closed form and bracketed by runs (2 + 7 / 2 + 4 runs of
+   20 ms / 5 ms after the shock), then per level (1 000, 10 000, 30 000 g / 1 000, 5 000 g,
+   below the impacts) one run at 100 deg/s and the same run unshocked, 30 s / 0.1 s after the
+   shock: impacts, survival, how long ``~/rate`` is not a measurement and the recovery to
+   within 1 and 0.1 deg/s of the unshocked run (``--quick`` is far too short to see it).
 
 Loop modes: the shock table has one entry per amplitude and per mode of ``loops``:
 ``open`` (the paper's fixed drive), ``closed`` (``control.drive_loop: closed``: PLL and AGC,
@@ -128,8 +134,8 @@ Why sequential runs, not the sweep engine: a sweep point (``sweep.point.evaluate
 paper case that keeps scalar metrics of the 100 kHz modal envelopes (and, on request, the
 envelopes); these tests need the 1 kHz rate records themselves (the Allan deviation, the
 step, the error curves of the shock plot) and the electronics' calibration of each run. The
-runs are cheap beside a sweep (the full characterization is 999 simulated s with the three
-loop modes, :meth:`Plan.runs`, ~17 min wall on this loaded 2-core machine), and a local Dask
+runs are cheap beside a sweep (the full characterization is 1 121 simulated s with the three
+loop modes, :meth:`Plan.runs`, ~19 min wall on this loaded 2-core machine), and a local Dask
 cluster here bought 1.0-1.6x (doc/sweeps.md) for a second process tree; one process keeps
 the numba kernels, the one orbit shooting per device and the progress bar in one place.
 """
@@ -180,6 +186,10 @@ SLOPE_ONLY_TC = 10.0
 """The plain -1/2 fit starts at this many time constants."""
 TAU_FRACTION = 8.0
 """The Allan deviation is computed up to ``record / TAU_FRACTION``."""
+STOP_THRESHOLD_AT_S = 0.001
+"""The shock time of the no-impact threshold's runs, s (they start on the drive's orbit)."""
+STOP_BRACKET = (0.5, 1.1)
+"""The threshold's first two runs, times the 1theta mode's closed form: they bracket it."""
 NEEDS = ('allantools',)
 """Libraries beyond the node's (:mod:`ring_gyro_sim.extras`), checked before anything runs."""
 
@@ -221,6 +231,19 @@ class Plan:
         The amplitude series (peak g) at the middle frequency along x: the log-log slope.
     random_psd_frequencies_hz, random_psd_values_g2_per_hz : tuple of float
         The random profile along x (``scenario.vibration_psd_*``; empty: no such test).
+    stop_test : bool
+        Whether to run the shock survival test with stops (:func:`_stop_shock`).
+    stop_gap_fraction : float
+        The stops' clearance when the file has none (``stops.gap`` 0), a fraction of d_g.
+    stop_shock_peaks_g : tuple of float
+        The shock levels of the survival test (half-sines along x), g.
+    stop_rate_dps, stop_shock_at_s, stop_shock_after_s : float
+        The rate during each level's run (deg/s), its shock time and the record after it, s.
+    stop_threshold_after_s, stop_bisections : float, int
+        The no-impact threshold's runs: the record after the shock (at 1 ms) of each, and
+        how many bisections follow the two that bracket it.
+    stop_tolerances_dps : tuple of float
+        The recovery tolerances: back within each of the unshocked reading, deg/s.
 
     """
 
@@ -248,6 +271,15 @@ class Plan:
                                                      4.641588833612778, 10.0)
     random_psd_frequencies_hz: Tuple[float, ...] = (20.0, 2000.0)
     random_psd_values_g2_per_hz: Tuple[float, ...] = (0.01, 0.01)
+    stop_test: bool = True
+    stop_gap_fraction: float = 0.6
+    stop_shock_peaks_g: Tuple[float, ...] = (1000.0, 10000.0, 30000.0)
+    stop_rate_dps: float = 100.0
+    stop_shock_at_s: float = 0.5
+    stop_shock_after_s: float = 30.0
+    stop_threshold_after_s: float = 0.02
+    stop_bisections: int = 7
+    stop_tolerances_dps: Tuple[float, ...] = (1.0, 0.1)
 
     def environment_runs(self, output_rate_hz: float = 200000.0) -> List[Dict[str, Any]]:
         """
@@ -255,8 +287,10 @@ class Plan:
 
         The reference (no environment) first, then the g-sensitivity's four, then every
         distinct sine vibration of the three tests, frequencies above ``output.rate / 40``
-        (the scenario's limit) left out, then the random profile. A later test (shock
-        survival with stops) adds its runs here and its entry in :func:`_environment`.
+        (the scenario's limit) left out, then the random profile, then the shock survival
+        test with stops (``stop_test``): the runs of its no-impact threshold (their levels
+        are found as they run, :func:`_stop_shock`), the unshocked run (``peak_g`` 0) and
+        one per shock level. Each dict has its length, ``duration_s``.
         """
         g = STANDARD_GRAVITY
         runs: List[Dict[str, Any]] = [{'test': 'reference'}]
@@ -284,6 +318,15 @@ class Plan:
                              self.random_psd_frequencies_hz),
                          'scenario.vibration_psd_values': list(
                              self.random_psd_values_g2_per_hz)})
+        for run in runs:
+            run['duration_s'] = self.environment_s
+        if self.stop_test:
+            runs += [{'test': 'stop_threshold', 'index': k,
+                      'duration_s': STOP_THRESHOLD_AT_S + self.stop_threshold_after_s}
+                     for k in range(2 + self.stop_bisections)]
+            runs += [{'test': 'stop_shock', 'peak_g': g,
+                      'duration_s': self.stop_shock_at_s + self.stop_shock_after_s}
+                     for g in (0.0,) + tuple(self.stop_shock_peaks_g)]
         return runs
 
     def runs(self, loops: int = 1, output_rate_hz: float = 200000.0) -> List[Tuple[str, float]]:
@@ -302,8 +345,8 @@ class Plan:
         out += [('shock', self.shock_at_s + self.shock_after_s)] * (
             loops * len(self.shock_peaks_g))
         out += [('device as owned', self.rate_point_s)]
-        out += [('environment', self.environment_s)] * len(self.environment_runs(
-            output_rate_hz))
+        out += [('environment', r['duration_s']) for r in self.environment_runs(
+            output_rate_hz)]
         return out
 
     def simulated_s(self, loops: int = 1, output_rate_hz: float = 200000.0) -> float:
@@ -315,14 +358,16 @@ FULL = Plan(zero_rate_s=310.0, zero_rate_skip_s=10.0, step_rate_dps=10.0, step_s
             rate_points_dps=tuple(float(r) for r in range(-300, 301, 50)), rate_point_s=12.0,
             rate_average_s=4.0, shock_peaks_g=(1000.0, 3000.0, 10000.0), shock_rate_dps=10.0,
             shock_at_s=1.0, shock_after_s=40.0, bootstrap=50)
-"""The full characterization: 999 simulated s with the three loop modes' shocks."""
+"""The full characterization: 1 121 simulated s with the three loop modes' shocks."""
 QUICK = Plan(zero_rate_s=8.0, zero_rate_skip_s=2.0, step_rate_dps=10.0, step_s=2.5,
              rate_points_dps=(-300.0, -100.0, 0.0, 100.0, 300.0), rate_point_s=0.5,
              rate_average_s=0.4, shock_peaks_g=(1000.0, 10000.0), shock_rate_dps=10.0,
              shock_at_s=0.2, shock_after_s=0.6, bootstrap=200,
              temperature_points_k=(283.15, 313.15), environment_s=0.3,
-             environment_average_s=0.1)
-"""``--quick``: 22.5 simulated s with the three loop modes (short records; the tests)."""
+             environment_average_s=0.1, stop_shock_peaks_g=(1000.0, 5000.0),
+             stop_shock_at_s=0.02, stop_shock_after_s=0.1, stop_threshold_after_s=0.005,
+             stop_bisections=4)
+"""``--quick``: 22.9 simulated s with the three loop modes (short records; the tests)."""
 
 
 # ----------------------------------------------------------------------------- the device
@@ -1000,7 +1045,11 @@ def _environment(flat, plan: Plan, bar: _Bar, time_constant_s: float) -> Dict[st
     from ring_gyro_sim.analysis import environment as env
     output_rate = build_config(flat).run.output_rate
     results = []
+    stop_runs = []
     for run in plan.environment_runs(output_rate):
+        if run['test'].startswith('stop_'):
+            stop_runs.append(run)
+            continue
         scenario = {k: v for k, v in run.items() if k.startswith('scenario.')}
         config = env.quiet(build_config(_test_parameters(flat, plan.environment_s,
                                                          **scenario)))
@@ -1052,6 +1101,7 @@ def _environment(flat, plan: Plan, bar: _Bar, time_constant_s: float) -> Dict[st
                            [r['rectified_bias_deg_per_s'] * DEG for r in series])
     settle = plan.environment_s - plan.environment_average_s
     return {
+        'stops': _stop_shock(flat, plan, bar, stop_runs) if stop_runs else None,
         'random': _random_entry(results, shift, series[0] if series else None),
         'method': 'noise off, the model readout; the mean of ~/rate over the last '
                   f'{plan.environment_average_s:g} s of {plan.environment_s:g} s runs from '
@@ -1081,6 +1131,129 @@ def _environment(flat, plan: Plan, bar: _Bar, time_constant_s: float) -> Dict[st
             'coefficient_deg_per_s_at_1_g': None if fit is None else fit['coefficient'] / DEG,
             'zero_by_symmetry': fit is None and all(
                 abs(r['rectified_bias_deg_per_s']) * DEG < env.ZERO_RAD_S for r in series)}}
+
+
+def _stop_shock(flat, plan: Plan, bar: _Bar, runs) -> Dict[str, Any]:
+    """
+    Return the shock survival test with stops: the no-impact threshold and each level.
+
+    The device of the file, quiet (``analysis.environment.quiet``: noise off, the model's
+    readout), from the drive's orbit, with the file's stops or, if it has none,
+    stops at ``plan.stop_gap_fraction`` d_g (said in ``gap_source``); half-sine shocks along
+    x of the file's ``shock.duration`` (eq. 32).
+
+    **Threshold** (at rest). The closed form (``analysis.environment.stop_threshold``) gives the
+    level at which the 1theta mode alone reaches the stop, linear and with its electrostatic
+    softening; the runs (shock at :data:`STOP_THRESHOLD_AT_S`, ``stop_threshold_after_s``
+    after it) start at :data:`STOP_BRACKET` times the latter and bisect on "impacts > 0":
+    ``no_impact_g`` is the largest level run without an impact, ``first_impact_g`` the
+    smallest with. The ring touches where its whole radial displacement ``|w|`` does, which
+    adds to the 1theta peak the 2theta and 3theta deflections the electrostatic terms drive
+    (doc/environments.md): the runs' threshold lies below the 1theta closed form.
+
+    **Levels.** One run per ``stop_shock_peaks_g`` at ``stop_rate_dps`` (a shock along x
+    leaves a perfect ring's zero-rate output at 0 by its mirror symmetry; at a rate the
+    drive knocked off its orbit shows as a scale-factor error), shock at ``stop_shock_at_s``,
+    recorded ``stop_shock_after_s`` after it: impacts, whether it survived (ran to its end free of
+    the electrodes, no NaN), how long ``~/rate`` was not a measurement (its variance
+    ``NOT_MEASURED_VARIANCE``) after the shock (None: to the end), the largest error, and
+    the recovery time to within each of ``stop_tolerances_dps`` of the unshocked reading
+    (the same run without the shock, first, sample by sample: the runs are the same up to
+    the shock; None: not back by the end of the record). The error is what ``~/rate``
+    publishes, whether or not it says it is a measurement.
+    """
+    from ring_gyro_sim.analysis import environment as env
+    from ring_gyro_sim.core.gyro.validity import NOT_MEASURED_VARIANCE
+    device = build_config(flat)
+    gap = device.stops.gap
+    source = 'params file'
+    if gap <= 0.0:
+        gap = plan.stop_gap_fraction * device.electrodes.gap
+        source = f'default: {plan.stop_gap_fraction:g} d_g (the file has stops.gap: 0)'
+
+    def config(duration_s, peak_g, at_s, rate_dps=0.0):
+        shocked = peak_g > 0.0
+        return env.quiet(build_config(_test_parameters(flat, duration_s, **{
+            'stops.gap': gap, 'scenario.shock_times': [at_s] if shocked else [],
+            'scenario.shock_peaks': [peak_g * STANDARD_GRAVITY] if shocked else [],
+            'scenario.rate_times': [0.0], 'scenario.rate_values': [rate_dps * DEG]})))
+
+    def record(run, peak_g, at_s, note, rate_dps=0.0):
+        out = env.shock_record(config(run['duration_s'], peak_g, at_s, rate_dps),
+                               run['duration_s'], log=bar.note,
+                               progress=lambda t: bar.update(t, note))
+        bar.finish_run(run['duration_s'])
+        return out
+    closed = env.stop_threshold(config(1.0, 0.0, 0.0))
+    g = STANDARD_GRAVITY
+    predicted_g = closed['electrostatic'] / g
+    tried = []
+    low = high = None
+    for run in (r for r in runs if r['test'] == 'stop_threshold'):
+        k = run['index']
+        if k < 2:
+            level = STOP_BRACKET[k] * predicted_g
+        elif low is not None and high is not None:
+            level = 0.5 * (low + high)
+        else:
+            level = (2.0 if low is not None else 0.5) * tried[-1]['peak_g']
+        out = record(run, level, STOP_THRESHOLD_AT_S, f'stops: threshold run {level:.0f} g')
+        impacts = out['impacts'] + (0 if out['survived'] else 1)
+        tried.append({'peak_g': level, 'impact_count': out['impacts'],
+                      'survived': out['survived'], 'q1_peak_m': out['q1_peak_m']})
+        if impacts == 0 and (low is None or level > low):
+            low = level
+        if impacts > 0 and (high is None or level < high):
+            high = level
+    below = next((t for t in tried if t['peak_g'] == low), None)
+    predicted_q1 = None if below is None else env.one_theta_peak(
+        closed, low * g)
+    threshold = {
+        'closed_form_linear_g': closed['linear'] / g,
+        'closed_form_electrostatic_g': predicted_g,
+        'q1_per_g_m': closed['response_s2'] * g,
+        'potential_over_linear_at_gap_ratio': closed['energy_ratio'],
+        'no_impact_g': low, 'first_impact_g': high,
+        'bracketed': low is not None and high is not None and low < high,
+        'q1_peak_at_no_impact_m': None if below is None else below['q1_peak_m'],
+        'q1_peak_closed_form_at_no_impact_m': predicted_q1,
+        'window_s': plan.stop_threshold_after_s, 'runs': tried}
+    levels = []
+    at = plan.stop_shock_at_s
+    reference = None
+    for run in (r for r in runs if r['test'] == 'stop_shock'):
+        note = f'stops: shock {run["peak_g"]:g} g' if run['peak_g'] else 'stops: unshocked'
+        out = record(run, run['peak_g'], at, note, plan.stop_rate_dps)
+        if reference is None:
+            reference = out
+            continue
+        n = min(len(out['t']), len(reference['t']))
+        t, flagged = out['t'][:n], out['variance'][:n] >= NOT_MEASURED_VARIANCE
+        error = out['rate'][:n] - reference['rate'][:n]
+        after = t > at
+        flag_after = np.flatnonzero(flagged[after])
+        not_measured = 0.0 if not flag_after.size else (
+            None if flag_after[-1] == int(np.count_nonzero(after)) - 1
+            else float(t[after][flag_after[-1]] - at))
+        levels.append({
+            'peak_g': run['peak_g'], 'impact_count': out['impacts'],
+            'survived': out['survived'] and out['finite'], 'status': out['status'],
+            'contact': out['contact'], 'q1_peak_m': out['q1_peak_m'],
+            'unshocked_reading_deg_per_s': float(np.mean(reference['rate'][:n][after]))
+            / DEG if np.any(after) else None,
+            'peak_error_deg_per_s': float(np.max(np.abs(error[after]))) / DEG
+            if np.any(after) else None,
+            'not_a_measurement_s': not_measured,
+            'recovery': [{'tolerance_deg_per_s': tol,
+                          'recovery_s': env.recovery_time(t, error / DEG, at, tol)}
+                         for tol in plan.stop_tolerances_dps]})
+    return {'gap_m': gap, 'gap_source': source, 'electrode_gap_m': device.electrodes.gap,
+            'restitution_ratio': device.stops.restitution,
+            'stiffness_n_per_m2': device.stops.stiffness,
+            'shock_duration_s': device.shock_duration_s, 'angle_deg': 0.0,
+            'rate_deg_per_s': plan.stop_rate_dps, 'shock_at_s': plan.stop_shock_at_s,
+            'record_after_s': plan.stop_shock_after_s,
+            'threshold': threshold, 'levels': levels}
 
 
 def _white_noise(sheet) -> Dict[str, Any]:
@@ -1488,7 +1661,54 @@ def _environment_markdown(e) -> List[str]:
                       + ('zero at every amplitude (the mirror symmetry of a perfect ring '
                          'about x: no slope)' if rect['zero_by_symmetry'] else
                          'no power law (a shift changes sign or is not finite)') + '.']
+    lines += _stops_markdown(e.get('stops'))
     return lines
+
+
+def _stops_markdown(s) -> List[str]:
+    """Return the sheet's shock survival with stops (:func:`_stop_shock`), [] without."""
+    if s is None:
+        return []
+    th = s['threshold']
+    tolerances = [r['tolerance_deg_per_s'] for r in
+                  (s['levels'][0]['recovery'] if s['levels'] else [])]
+    lines = ['', f'**Shock survival with stops** (stops at {_fmt(s["gap_m"] * 1e6, 3)} um = '
+                 f'{_fmt(s["gap_m"] / s["electrode_gap_m"], 3)} d_g, {s["gap_source"]}; '
+                 f'restitution {_fmt(s["restitution_ratio"], 3)}; half-sines of '
+                 f'{_fmt(s["shock_duration_s"] * 1e6, 3)} us along x; noise off, the model '
+                 f'readout; doc/environments.md). Largest shock without impact: closed form '
+                 f'of the 1theta mode alone {_fmt(th["closed_form_linear_g"], 5)} g (linear), '
+                 f'{_fmt(th["closed_form_electrostatic_g"], 5)} g (with its electrostatic '
+                 f'softening); the runs ({_fmt(th["window_s"] * 1e3, 3)} ms after the shock, '
+                 f'bisected): no impact at {_fmt(th["no_impact_g"], 5)} g, impacts at '
+                 f'{_fmt(th["first_impact_g"], 5)} g (below the closed form: the 2theta and '
+                 f'3theta deflections the electrostatic terms drive add to the 1theta peak; '
+                 f'its q1 peak there {_fmt(_times(th["q1_peak_at_no_impact_m"], 1e6), 4)} um, '
+                 f'closed form {_fmt(_times(th["q1_peak_closed_form_at_no_impact_m"], 1e6), 4)}'
+                 f' um).', '',
+             f'At {_fmt(s["rate_deg_per_s"])} deg/s, shock at {_fmt(s["shock_at_s"])} s, '
+             f'{_fmt(s["record_after_s"])} s recorded after it (recovery: back within the '
+             'tolerance of the same run without the shock for good; "not by the end": the '
+             'record is too short to see it):', '',
+             '| shock (g) | impacts | survived | ~/rate not a measurement for (s) | '
+             'largest error (deg/s) | '
+             + ' | '.join(f'recovery to {_fmt(tol)} deg/s (s)' for tol in tolerances)
+             + ' |', '|---|---|---|---|---|' + '---|' * len(tolerances)]
+
+    def until(value, end):
+        return end if value is None else _fmt(value, 3)
+    for r in s['levels']:
+        lines.append(f'| {_fmt(r["peak_g"])} | {r["impact_count"]} | '
+                     f'{"yes" if r["survived"] else "no: " + r["status"]} | '
+                     f'{until(r["not_a_measurement_s"], "to the end")} | '
+                     f'{_fmt(r["peak_error_deg_per_s"], 3)} | '
+                     + ' | '.join(until(x['recovery_s'], 'not by the end')
+                                  for x in r['recovery']) + ' |')
+    return lines
+
+
+def _times(value: Optional[float], factor: float) -> Optional[float]:
+    return None if value is None else value * factor
 
 
 def _per_h(deg_per_s: Optional[float]) -> Optional[float]:

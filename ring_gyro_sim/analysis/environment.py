@@ -41,7 +41,8 @@ import numpy as np
 from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.run import Run, Sink
 
-__all__ = ['ZERO_RAD_S', 'loglog_slope', 'mean_output', 'quiet',
+__all__ = ['ZERO_RAD_S', 'half_sine_residual', 'loglog_slope', 'mean_output',
+           'one_theta_peak', 'quiet', 'recovery_time', 'shock_record', 'stop_threshold',
            'without_environment']
 
 ZERO_RAD_S = 1e-12
@@ -158,3 +159,151 @@ def loglog_slope(amplitudes: Sequence[float], values: Sequence[float]) -> Option
     return {'slope': float(slope), 'standard_error': error,
             'coefficient': float(np.sign(y[0]) * math.exp(intercept)),
             'local_slopes': [float(v) for v in np.diff(z) / np.diff(x)]}
+
+
+def half_sine_residual(omega: float, duration_s: float) -> float:
+    """
+    Return the largest displacement of an undamped oscillator per m/s^2 of a half-sine, s^2.
+
+    ``x'' + omega^2 x = -A sin(omega_p t)`` on ``0 <= t <= T`` (eq. 27, 32; ``omega_p = pi /
+    T``), from rest: during the pulse ``x = -A (sin omega_p t - (omega_p / omega) sin omega t)
+    / (omega^2 - omega_p^2)``; after it the free oscillation of amplitude
+    ``2 A omega_p |cos(omega T / 2)| / (omega |omega_p^2 - omega^2|)`` (the residual shock
+    response spectrum). The larger of the residual and the pulse's own maximum (on a grid of
+    2 001 instants of the pulse) per unit A; ``~ 2 T / (pi omega)`` = ``delta_v / omega`` for
+    a pulse much shorter than the period. ``omega = omega_p`` is taken as its limit.
+    """
+    wp = math.pi / duration_s
+    if abs(omega - wp) < 1e-9 * wp:
+        omega = wp * (1.0 + 1e-6)
+    d = omega * omega - wp * wp
+    residual = 2.0 * wp * abs(math.cos(omega * duration_s / 2.0)) / (omega * abs(d))
+    t = np.linspace(0.0, duration_s, 2001)
+    primary = float(np.max(np.abs(np.sin(wp * t) - wp / omega * np.sin(omega * t)))) / abs(d)
+    return max(residual, primary)
+
+
+def stop_threshold(config: SimConfig) -> Dict[str, float]:
+    """
+    Return the largest half-sine shock (m/s^2) whose 1theta answer stays inside the stops.
+
+    ``linear``: the stop clearance ``g_s`` over :func:`half_sine_residual` at ``omega_1``
+    (eq. 28 without ``F_nl``). ``electrostatic``: the same with the electrostatic softening of
+    the 1theta mode alone, ``R(q) = omega_1^2 q - a_nl,1(q)`` (eq. 28, the other coordinates
+    at 0): the pulse (much shorter than the period) gives the mode the energy
+    ``A^2 S^2 omega_1^2 / 2`` of the linear answer, which reaches ``g_s`` where it equals
+    ``U(g_s) = int_0^g_s R dq``: ``A = A_linear sqrt(U(g_s) / (omega_1^2 g_s^2 / 2))``.
+    This is the 1theta mode alone: the ring touches where its whole radial displacement
+    ``|w|`` reaches ``g_s``, and the electrostatic terms (eq. 21) also drive the 2theta and
+    3theta modes with ``q1^2`` and ``q1 q2``, which add to ``|w|`` at the shock's angle (the
+    datasheet's runs measure where). ``gap_m``, ``omega_1``, ``response_s2`` (per m/s^2),
+    ``energy_ratio`` (``U(g_s)`` over its linear part) and the potential on its grid
+    (``q_m``, ``potential``, J/kg), which :func:`one_theta_peak` inverts.
+    """
+    from ring_gyro_sim.core import forces
+    gap = config.stops.gap
+    omega = 2.0 * math.pi * config.modes.coordinate_frequencies()[0]
+    s = half_sine_residual(omega, config.shock_duration_s)
+    model = forces.build_force_model(config)
+    x = np.zeros(model.n_coordinates)
+    q = np.linspace(0.0, gap, 2001)
+    r = np.empty_like(q)
+    for k, qk in enumerate(q):
+        x[0] = qk
+        r[k] = omega * omega * qk - forces.nonlinear_acceleration(x, model)[0]
+    potential = np.concatenate(([0.0], np.cumsum((r[1:] + r[:-1]) / 2.0 * np.diff(q))))
+    energy = float(potential[-1])
+    linear = gap / s
+    return {'gap_m': gap, 'omega_1': omega, 'response_s2': s, 'linear': linear,
+            'electrostatic': linear * math.sqrt(energy / (0.5 * omega * omega * gap * gap)),
+            'energy_ratio': energy / (0.5 * omega * omega * gap * gap), 'q_m': q,
+            'potential': potential}
+
+
+def one_theta_peak(threshold: Dict[str, Any], peak: float) -> Optional[float]:
+    """
+    Return the 1theta mode's peak (m) under a half-sine of ``peak`` m/s^2, softened.
+
+    The energy the pulse gives, ``(peak S omega_1)^2 / 2`` (:func:`stop_threshold`), equals
+    the potential ``U(q)`` at the peak; None beyond the stop (``q > g_s``).
+    """
+    energy = 0.5 * (peak * threshold['response_s2'] * threshold['omega_1']) ** 2
+    if energy > threshold['potential'][-1]:
+        return None
+    return float(np.interp(energy, threshold['potential'], threshold['q_m']))
+
+
+class _Trace(Sink):
+    """The rate output and whether each sample is a measurement."""
+
+    def __init__(self) -> None:
+        self.t, self.rate, self.variance = [], [], []
+
+    def block(self, block) -> None:
+        r = block.rate
+        if r is None or len(r) == 0:
+            return
+        self.t.append(np.asarray(r.t))
+        self.rate.append(np.asarray(r.rate))
+        v = r.variance if r.variance is not None else np.zeros(len(r))
+        self.variance.append(np.asarray(v))
+
+
+def shock_record(config: SimConfig, duration_s: float,
+                 log: Optional[Callable[[str], None]] = None,
+                 progress: Optional[Callable[[float], None]] = None) -> Dict[str, Any]:
+    """
+    Run ``config`` (its shocks and stops) and return its rate record.
+
+    Returns
+    -------
+    dict
+        ``t``, ``rate`` (rad/s), ``variance`` ((rad/s)^2, ``NOT_MEASURED_VARIANCE`` where
+        ``~/rate`` is not a measurement) arrays, ``impacts`` (``Simulator.impacts``),
+        ``status`` (the summary's), ``contact`` (with an electrode), ``survived`` (the run
+        reached ``duration_s`` free of the electrodes), ``finite`` (no NaN in the rate) and
+        ``q1_peak_m`` (the largest ``|q1|`` of the run), ``min_gap_m`` (the least gap to
+        an electrode, the summary's).
+
+    """
+    trace = _Trace()
+    run = Run(config, sink=trace, log=log)
+    total = int(round(duration_s / (config.run.output_period_ns * 1e-9)))
+    block = config.run.block_samples
+    done = 0
+    try:
+        while done < total and run.running:
+            count = min(block, total - done)
+            run.advance(count)
+            done += count
+            if progress is not None:
+                progress(run.sim.time_s)
+        summary = run.summary()
+        impacts = run.sim.impacts
+    finally:
+        run.close()
+    t, rate, var = (np.concatenate(x) if x else np.zeros(0)
+                    for x in (trace.t, trace.rate, trace.variance))
+    contact = bool(summary.contact)
+    return {'t': t, 'rate': rate, 'variance': var, 'impacts': int(impacts),
+            'q1_peak_m': float(summary.peak_abs_m.get('q1', math.nan)),
+            'min_gap_m': float(summary.min_gap_m),
+            'status': summary.status, 'contact': contact,
+            'survived': bool(done >= total and not contact),
+            'finite': bool(np.all(np.isfinite(rate)))}
+
+
+def recovery_time(t: np.ndarray, error: np.ndarray, at_s: float,
+                  tolerance: float) -> Optional[float]:
+    """
+    Return the time from ``at_s`` to the last sample with ``|error| > tolerance`` (s).
+
+    0 when no sample after ``at_s`` is off; None when the last one is (not back by the end).
+    """
+    after = t > at_s
+    off = np.flatnonzero(~(np.abs(error[after]) <= tolerance))
+    if not off.size:
+        return 0.0
+    if off[-1] == int(np.count_nonzero(after)) - 1:
+        return None
+    return float(t[after][off[-1]] - at_s)
