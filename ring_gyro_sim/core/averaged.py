@@ -121,24 +121,50 @@ omega. On the default device each is below 1e-4 (7.7e-6, 0 to 9e-5, 1.4e-6 at 10
   contact, noise, loops, temperature changes.
 """
 
+import cmath
 from dataclasses import dataclass
 import math
 from typing import Optional, Sequence, Tuple
 
 import numpy as np
-from ring_gyro_sim.core import harmonic_balance, structure, thermal
+from ring_gyro_sim.core import harmonic_balance, kernels, structure, thermal
 from ring_gyro_sim.core.errors import ParameterError, SimulationError
 from ring_gyro_sim.core.params import SimConfig
 from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
-__all__ = ['AveragedModel', 'AveragedSamples', 'envelope_of', 'state_of']
+__all__ = ['AveragedGyro', 'AveragedModel', 'AveragedSamples', 'GyroSamples', 'envelope_of',
+           'pair_force_arrays', 'state_of']
 
 J = np.array([[0.0, -1.0], [1.0, 0.0]])
 """The Coriolis coupling's matrix in (q_c, q_s) (G5, G6)."""
 
 RTOL = 1e-10
 """Relative tolerance of ``solve_ivp`` (DOP853) on the scaled envelopes."""
+
+
+def pair_force_arrays(model, index_c: int, index_s: int) -> Tuple[np.ndarray, ...]:
+    """
+    Return ``(fb_c, fb_s, fw_c, fw_s, dcoef)`` of (S3) from a truncated force model.
+
+    The kernel's angles at their four orbit members (``kernels.member_basis``): the pair's
+    shapes over d_g, the projections with each coordinate's parities, and ``D(s)``.
+    """
+    k = model.kernel
+    kb = k.kbasis
+    s1, s2 = k.signs[0], k.signs[1]
+
+    def weights(i):
+        p = k.projection[i]
+        return np.ascontiguousarray(np.concatenate([p, s1[i] * p, s2[i] * p,
+                                                    s1[i] * s2[i] * p]))
+    poly = np.asarray(k.poly, dtype=float)
+    dcoef = np.zeros(max(1, (poly.size + 1) // 2))
+    for order in range(1, poly.size, 2):   # (S3): odd powers only
+        dcoef[(order - 1) // 2] = (poly[order] * 2.0 ** (1 - order)
+                                   * math.comb(order, (order - 1) // 2))
+    return (np.ascontiguousarray(kb[index_c]), np.ascontiguousarray(kb[index_s]),
+            weights(index_c), weights(index_s), dcoef)
 
 
 def envelope_of(q: np.ndarray, v: np.ndarray, omega: float, phase: np.ndarray) -> np.ndarray:
@@ -238,10 +264,13 @@ class AveragedModel:
         g = self.config
         self.rate_times = tuple(g.run.rate_times) if g.gyro.enabled else ()
         self.rate_values = tuple(g.run.rate_values) if g.gyro.enabled else ()
-        # One harmonic of harmonic_balance's AFT: N(A) of (S2).
+        # One harmonic of harmonic_balance's AFT: N(A) of (S2), the reference; the
+        # closed form (S3) of the compiled kernel when the force is a truncated series.
         self._balance = harmonic_balance._Balance(self.config, 1, cosine_only=False,
                                                   damped=False, drive_m_s2=0.0)
         self._coeff = np.zeros((self._balance.n, self._balance.h))
+        self._fast = (pair_force_arrays(self._balance.model, *self.index)
+                      if self.config.electrodes.taylor_terms > 0 else None)
         self.evaluations = 0
 
     # ------------------------------------------------------------------ the slow flow
@@ -265,6 +294,27 @@ class AveragedModel:
         f, _ = self._balance.nonlinear(c, jac=False)
         return np.array([complex(f[ic, 1], -f[ic, 2]), complex(f[is_, 1], -f[is_, 2])])
 
+    def nonlinear_fast(self, envelope: np.ndarray) -> np.ndarray:
+        """
+        Return N(A) (m/s^2) by the closed form (S3) of the compiled kernel.
+
+        The same as :meth:`nonlinear` to round-off (``test_averaged``); with an untruncated
+        force (``electrodes.taylor_terms: 0``) it is :meth:`nonlinear`.
+
+        Raises
+        ------
+        SimulationError
+            The orbit leaves the series' range.
+
+        """
+        if self._fast is None:
+            return self.nonlinear(envelope)
+        n_c, n_s = kernels.force_harmonic(complex(envelope[0]), complex(envelope[1]),
+                                          *self._fast)
+        if not (cmath.isfinite(n_c) and cmath.isfinite(n_s)):
+            raise SimulationError("averaged model: the orbit left the force's range")
+        return np.array([n_c, n_s])
+
     def derivative(self, envelope: np.ndarray, rate: float = 0.0,
                    rate_dot: float = 0.0) -> np.ndarray:
         """Return ``A'`` of (S2), m/s, at envelopes A (m), a rate (rad/s) and its slope."""
@@ -273,7 +323,7 @@ class AveragedModel:
         lin = ((w * w + rate * rate) * a - self.stiffness @ a
                - 1j * w * ((self.damping + 2.0 * self.kappa * rate * J) @ a)
                - self.kappa * rate_dot * (J @ a))
-        total = lin + self.nonlinear(a)
+        total = lin + self.nonlinear_fast(a)
         total[0] += self.drive
         self.evaluations += 1
         return (-0.5j / w) * total
@@ -407,3 +457,238 @@ class AveragedModel:
         q, v = state_of(out, self.omega, phase)
         return AveragedSamples(t=t_out, envelope=out, q=q, v=v, rate=rates,
                                steps=self.evaluations - evaluations)
+
+
+@dataclass(frozen=True)
+class GyroSamples:
+    """
+    Output of :meth:`AveragedGyro.advance`: one row per ``~/rate`` sample (S8).
+
+    Attributes
+    ----------
+    t : ndarray, shape (K,)
+        Sample times, s (every ``1 / gyro.output_rate``).
+    rate, quadrature : ndarray, shape (K,)
+        ``~/rate``'s rate and quadrature, rad/s: the held calibration applied to the
+        filtered rebalance forces (K1), or without one the filtered rebalance rate and
+        quadrature (C7, E14).
+    readout : ndarray, shape (K, 2)
+        The filtered rebalance forces ``(S_c, S_s)``, m/s^2: the readout before calibration.
+    envelope : ndarray of complex, shape (K, 2)
+        ``(B_c, B_s)``, m: the pair's envelopes in the NCO's frame (S5).
+    control : ndarray, shape (K, len(control.CONTROL_CHANNELS))
+        The loops' state after the update at each sample time (``~/control``'s columns).
+    nco_phase : ndarray, shape (K,)
+        The NCO's phase at each sample time, rad: ``q = Re(B e^{i phase})`` (S5).
+
+    """
+
+    t: np.ndarray
+    rate: np.ndarray
+    quadrature: np.ndarray
+    readout: np.ndarray
+    envelope: np.ndarray
+    control: np.ndarray
+    nco_phase: np.ndarray
+
+
+MAX_ROTATION = 0.05
+"""Largest ``|lambda| h`` of an RK4 substep (S6): local error ``(lambda h)^5 / 120`` = 3e-9."""
+
+
+class AveragedGyro:
+    """
+    The closed-loop gyroscope at envelope level: the pair's slow flow and the loops (S5-S8).
+
+    What it is
+    ----------
+    The pair's envelopes of (S2) in the frame of the NCO's phase ``phi`` (the drive's),
+    ``q = Re(B e^{i phi})``, ``q' = Re(i omega_c B e^{i phi})`` (``omega_c = 2 pi
+    drive.frequency``): with ``A = B e^{i theta}``, ``theta = phi - omega_c t``, (S2) gives::
+
+        B' = -(i / (2 omega_c)) [ ... of (S2) at B ... + F_c ] - i (omega - omega_c) B  (S5)
+
+    ``omega`` the NCO's frequency of the loop period, ``F_c = (F, (S_c - i S_s)
+    e^{i eps})`` the commands in force over it: the drive ``F cos(phi)`` on q2 and the
+    rebalance ``S_c cos(phi) + S_s sin(phi)`` on q2s (``kernels.forcing``; ``eps`` =
+    ``gyro.phase_error``). N(B) is (S3), exact for the truncated force.
+
+    (S6) The step: RK4, each loop period (``1 / control.rate``) cut into the fewest equal
+    substeps with ``|lambda| h <= MAX_ROTATION``, ``|lambda|`` a bound of the flow's rates
+    (the NCO's offset, the pair's detunings from omega_c and 1e-4 omega_c for the
+    electrostatic shift, 9e-5 omega at the default drive): one substep per 1 ms period on
+    the default gyroscope, whose rates are ~10 rad/s (local error ~(0.01)^5 / 120 = 1e-12
+    of the envelope). The commands are constant over a period (C1): the step never crosses
+    a change of them. At a constant rate with the loops settled the readout is the
+    equilibrium of (S5) and the loops, which a Runge-Kutta step keeps exactly: the step
+    moves transients only.
+
+    (S7) The loops read what the full model's least-squares fit (C2) reads of a sinusoid of
+    slowly varying envelope: the first harmonic of the pick-off's voltages (S4) at the
+    period's mean envelope (the mean by the RK4 quadrature of the same step; the fit of
+    a linearly varying envelope is its value at the window's centre, to ``1 / (2 omega)``
+    of its slope). The loops' update is ``DriveLoop.update``'s (C3-C8b) compiled, from the
+    state :meth:`DriveLoop.start` gives at the start state.
+
+    (S8) The rate: the held rows (C7, C6) through the output low-pass (E14), stepped exactly
+    over each period's ``N`` samples of a held input (a linear map of its state), read at
+    the period's last sample (E4's decimation), then the held calibration (K1) when given.
+
+    What it is not: noise (thermomechanical, pick-off, flicker), temperature changes, the
+    output word (E15), the block topics and the open-loop sense readout; shocks, base
+    acceleration, vibration and contact (doc/averaged.md).
+
+    Parameters
+    ----------
+    config : SimConfig
+        ``control.drive_loop: closed`` with ``control.rebalance``, ``gyro.enabled``, the
+        companions, ``electrodes.taylor_terms > 0``, ``gyro.output_rate`` a whole fraction
+        of ``control.rate``.
+    start_state : (q, v), optional
+        The full model's start state; default that of ``run.Run``
+        (``operating_point.start_state`` of the device at the die's start temperature).
+    calibration : gyro_calibration.Calibration or None
+        The held calibration (K1) of ``~/rate``; None: the model's own rebalance readout.
+
+    """
+
+    def __init__(self, config: SimConfig, start_state=None, calibration=None) -> None:
+        from ring_gyro_sim.core.gyro import control, operating_point
+        from ring_gyro_sim.core.simulator import Simulator
+        from scipy import signal
+        if not (config.control.closed and config.control.rebalance):
+            raise ParameterError('control.rebalance: the closed-loop averaged model needs '
+                                 'control.drive_loop: closed with force-to-rebalance')
+        if not config.gyro.enabled or not config.modes.companions or config.modes.count < 2:
+            raise ParameterError('gyro.enabled: the closed-loop averaged model is the '
+                                 'gyroscope (gyro.enabled, modes.companions, N_R >= 2)')
+        if config.electrodes.taylor_terms <= 0:
+            raise ParameterError('electrodes.taylor_terms: the averaged force (S3) is that '
+                                 'of the truncated series, got 0')
+        if start_state is None:
+            start_state = operating_point.start_state(thermal.start_state_device(config))
+        sim = Simulator(config, start_state, calibration=None)
+        loop = sim.loop
+        window = loop.window
+        decimation = int(round(config.run.output_rate / config.gyro.output_rate))
+        if decimation % window:
+            raise ParameterError(f'gyro.output_rate: the averaged model outputs at loop '
+                                 f'updates; {config.gyro.output_rate} Hz is not a whole '
+                                 f'fraction of control.rate = {config.control.rate} Hz')
+        self.config = config
+        self.calibration = calibration
+        self.decimate = decimation // window
+        device = thermal.device_at(config, sim.device_temperature)
+        m = device.modes.count
+        ic, is_ = 1, m + 1
+        fb_c, fb_s, fw_c, fw_s, dcoef = pair_force_arrays(sim.model, ic, is_)
+        geometry = sim._output_geometry
+        n_k = sim.pickoff.n_electrodes
+        n_e = geometry.electrode_weights.size
+        node_electrode = np.arange(n_e) // (n_e // n_k)
+        vpf = sim.pickoff.volts_per_farad
+        node = geometry.cap_scale * geometry.electrode_weights
+        # the output low-pass over one period of a held input, as a linear map (S8)
+        sos = signal.butter(config.gyro.filter_order, config.gyro.filter_bandwidth,
+                            fs=config.run.output_rate, output='sos')
+        size = 2 * sos.shape[0]
+        f_state = np.empty((size, size))
+        out_state = np.empty(size)
+        for j in range(size):
+            zi = np.zeros(size)
+            zi[j] = 1.0
+            y, zf = signal.sosfilt(sos, np.zeros(window), zi=zi.reshape(-1, 2))
+            f_state[:, j] = zf.ravel()
+            out_state[j] = y[-1]
+        y, zf = signal.sosfilt(sos, np.ones(window), zi=np.zeros((sos.shape[0], 2)))
+        stiffness, damping = device.modes.pair_matrices(2)
+        times = np.asarray(config.run.rate_times if config.gyro.enabled else (), dtype=float)
+        values = np.asarray(config.run.rate_values if config.gyro.enabled else (),
+                            dtype=float)
+        self.model = kernels.EnvelopeModel(
+            fb_c=fb_c, fb_s=fb_s, fw_c=fw_c, fw_s=fw_s, dcoef=dcoef,
+            pb_c=np.ascontiguousarray(geometry.electrode_shapes[ic]),
+            pb_s=np.ascontiguousarray(geometry.electrode_shapes[is_]),
+            pg_drive=np.ascontiguousarray(node * vpf[node_electrode, 1]),
+            pg_sense=np.ascontiguousarray(node * vpf[node_electrode, 0]),
+            gap=float(geometry.gap), omega_c=float(loop.omega_c),
+            stiffness=np.ascontiguousarray(stiffness, dtype=float),
+            damping=np.ascontiguousarray(damping, dtype=float),
+            kappa=float(structure.gyroscopic_coefficient(2)),
+            rate_times=times, rate_values=values, window=window,
+            period=float(loop.period_s), pll_kp=float(loop.pll_gains[0]),
+            pll_ki=float(loop.pll_gains[1]), agc_kp=float(loop.agc_gains[0]),
+            agc_ki=float(loop.agc_gains[1]), rb_kp=float(loop.rebalance_gains[0]),
+            rb_ki=float(loop.rebalance_gains[1]), omega_range=float(loop.omega_range),
+            lock_threshold=float(loop.lock_threshold), drive_limit=float(loop.drive_limit),
+            setpoint=float(loop.setpoint_m), rebalance=bool(loop.rebalance),
+            sense_phase_error=float(loop.sense_phase_error),
+            drive_gain=float(loop.pickoff.drive_gain), sense_gain=float(loop.pickoff.sense_gain),
+            f_state=f_state, f_input=np.ascontiguousarray(zf.ravel()), out_state=out_state,
+            out_input=float(y[-1]), qualify=control.REBALANCE_QUALIFY,
+            disqualify=control.REBALANCE_DISQUALIFY,
+            qualify_periods=control.REBALANCE_QUALIFY_PERIODS,
+            lock_periods=control.LOCK_PERIODS, max_rotation=MAX_ROTATION)
+        # the loops' start (DriveLoop.start at the start state) and B of the start state
+        st = np.zeros(kernels.envelope.LOOP_STATE_SIZE)
+        st[:17] = (loop.pll_integral, loop.agc_integral, loop.rb_integral[0],
+                   loop.rb_integral[1], loop.omega, loop.force, loop.rebalance_force[0],
+                   loop.rebalance_force[1], loop.phase_error, loop.amplitude,
+                   loop.rebalance_rate, loop.rebalance_quadrature, float(loop.locked),
+                   float(loop.rebalance_on), 0.0, 0.0, sim.drive_phase_at_start)
+        self._loop = st
+        q, v = (np.asarray(x, dtype=float) for x in start_state)
+        self._envelope = envelope_of(q[[ic, is_]], v[[ic, is_]], loop.omega_c,
+                                     sim.drive_phase_at_start).astype(complex)
+        zi = sim.sense.electronics._zi_rb    # (sections, 2, 4): started at the loop's rows
+        self._filter = np.ascontiguousarray(np.moveaxis(zi, 2, 0).reshape(4, size))
+        self._die_temperature = sim.sense.electronics.die_temperature
+        self.period_index = 0
+
+    @property
+    def time_s(self) -> float:
+        """Return the simulated time, s."""
+        return self.period_index * self.model.period
+
+    def advance(self, seconds: float) -> GyroSamples:
+        """
+        Advance by ``seconds`` (whole ``~/rate`` periods) and return the ``~/rate`` samples.
+
+        Raises
+        ------
+        ParameterError
+            A negative or non-finite duration.
+        SimulationError
+            The orbit left the force's or the pick-off's range.
+
+        """
+        if not (math.isfinite(seconds) and seconds >= 0.0):
+            raise ParameterError(f'seconds: must be finite and >= 0, got {seconds!r}')
+        per_output = self.decimate * self.model.period
+        outputs = int(round(seconds / per_output))
+        count = outputs * self.decimate
+        t = np.empty(outputs)
+        env = np.empty((outputs, 2), dtype=complex)
+        rows = np.empty((outputs, kernels.envelope.LOOP_STATE_SIZE))
+        filtered = np.empty((outputs, 4))
+        written = kernels.run_periods(self.model, self._envelope, self._loop, self._filter,
+                                      self.period_index, count, self.decimate, t, env, rows,
+                                      filtered)
+        if written < 0:
+            self.period_index = -1 - written
+            raise SimulationError(f"averaged model: the orbit left the force's or the "
+                                  f"pick-off's range at {self.time_s:.6f} s")
+        self.period_index += count
+        e = kernels.envelope
+        control_rows = np.stack([rows[:, e.OMEGA] / (2.0 * math.pi), rows[:, e.PHASE_ERR],
+                                 rows[:, e.AMP], rows[:, e.FORCE], rows[:, e.SC],
+                                 rows[:, e.SS], rows[:, e.RB_RATE], rows[:, e.RB_QUAD],
+                                 rows[:, e.LOCKED], rows[:, e.RB_ON]], axis=1)
+        if self.calibration is not None:
+            rate, quadrature = self.calibration.apply(filtered[:, 2], filtered[:, 3],
+                                                      self._die_temperature)
+        else:
+            rate, quadrature = filtered[:, 0].copy(), filtered[:, 1].copy()
+        return GyroSamples(t=t, rate=rate, quadrature=quadrature, readout=filtered[:, 2:],
+                           envelope=env, control=control_rows,
+                           nco_phase=rows[:, e.NCO_PHASE].copy())

@@ -33,7 +33,10 @@ A package of modules by job; every public name is re-exported here, so that call
   :func:`run_samples` (:class:`Scratch`);
 - :mod:`~ring_gyro_sim.core.kernels.channels`: the output channels (:func:`output_channels`);
 - :mod:`~ring_gyro_sim.core.kernels.readout`: the read-out electronics' kernels
-  (:func:`pickoff_volts`, :func:`iq_fit`).
+  (:func:`pickoff_volts`, :func:`iq_fit`);
+- :mod:`~ring_gyro_sim.core.kernels.envelope`: the averaged model's closed-loop slow flow
+  (:class:`EnvelopeModel`, :func:`run_periods`, :func:`force_harmonic`,
+  :func:`pickoff_harmonic`).
 
 Method
 ------
@@ -146,6 +149,8 @@ angles vectorise. The measured costs, and what was tried and not kept, are in
 from ring_gyro_sim.core.kernels.channels import Channels, output_channels, OutputGeometry
 from ring_gyro_sim.core.kernels.drift import (linear_propagators, pair_propagators,
                                               pair_system)
+from ring_gyro_sim.core.kernels.envelope import (EnvelopeModel, force_harmonic,
+                                                 pickoff_harmonic, run_periods)
 from ring_gyro_sim.core.kernels.force import (estrin_layout, ESTRIN_MAX_SLOTS, Force,
                                               member_basis, NEEDS_GENERAL, nl_accel,
                                               orbit_angle)
@@ -170,4 +175,5 @@ __all__ = ['STATUS_OK', 'STATUS_OUTER_CONTACT', 'STATUS_INNER_CONTACT', 'STATUS_
            'drive_phasor', 'run_samples', 'OutputGeometry', 'Channels', 'output_channels',
            'pickoff_volts', 'iq_fit', 'Stops', 'stop_accel', 'stop_angles',
            'stop_max_substep', 'STOP_IMPACTS', 'STOP_IN_CONTACT', 'STOP_LAST_CONTACT',
-           'STOP_SUBSTEPS']
+           'STOP_SUBSTEPS', 'EnvelopeModel', 'force_harmonic', 'pickoff_harmonic',
+           'run_periods']

@@ -1,0 +1,384 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The averaged model's kernels: the pair's first harmonics and the closed-loop slow flow.
+
+Used by ``core.averaged`` (S3-S8): the first harmonics of the force and of the pick-off,
+and the closed-loop slow flow stepped loop period by loop period.
+
+First harmonics in closed form (S3, S4)
+    At a quadrature angle the displacement of the pair is ``w = Re(Z e^{i phi})`` with
+    ``Z = b_c A_c + b_s A_s`` (the mode shapes there). The first harmonic of a power
+    ``(r cos psi)^k``, k odd, is ``2^{1-k} C(k, (k-1)/2) r^k cos psi``; so the truncated
+    force ``P(u) = sum_k p_k u^k`` has the first harmonic ``Z D(|Z|^2)`` with
+    ``D(s) = sum_{k odd} p_k 2^{1-k} C(k, (k-1)/2) s^{(k-1)/2}`` (S3), exact: the
+    alternating-frequency-time sum of ``harmonic_balance`` at 16 phases gives the same to
+    round-off. The pick-off integrates ``1 / (d - w)``, whose first harmonic is
+    ``2 Z / ((d + s) s)``, ``s = sqrt(d^2 - |Z|^2)`` (the generating function of the
+    Chebyshev series of ``1 / (d - r cos psi)``) (S4): exact for the same quadrature nodes
+    as the full model's capacitances.
+"""
+
+import math
+from typing import NamedTuple
+
+from numba import njit
+import numpy as np
+
+__all__ = ['EnvelopeModel', 'force_harmonic', 'pickoff_harmonic', 'run_periods',
+           'LOOP_STATE_SIZE']
+
+
+class EnvelopeModel(NamedTuple):
+    """
+    The closed-loop slow flow as :func:`run_periods` takes it (built by ``core.averaged``).
+
+    Attributes
+    ----------
+    fb_c, fb_s : ndarray, shape (M,)
+        The pair's mode shapes at the force's M quadrature angles, over d_g.
+    fw_c, fw_s : ndarray, shape (M,)
+        The projections onto q2 and q2s (weights, parities and modal masses), rad/kg.
+    dcoef : ndarray, shape (D,)
+        ``D(s)`` of (S3), coefficients of ``s^0, s^1, ...``, N/rad.
+    pb_c, pb_s : ndarray, shape (P,)
+        The pair's mode shapes at the electrodes' quadrature nodes, m/m.
+    pg_drive, pg_sense : ndarray, shape (P,)
+        Volts per farad of each node's electrode times its weight and ``eps eps_0 l r_o``.
+    gap : float
+        d_g, m.
+    omega_c : float
+        ``2 pi drive.frequency``, rad/s: the frame of the envelopes' velocity (S1).
+    stiffness, damping : ndarray, shape (2, 2)
+        K and C of the pair (S2).
+    kappa : float
+        The Coriolis coefficient.
+    rate_times, rate_values : ndarray
+        The rate profile's knots (``scenario.rate_*``), s and rad/s.
+    window : int
+        Output samples per loop period (``N`` of C1).
+    period : float
+        The loop period, s.
+    pll_kp, pll_ki, agc_kp, agc_ki, rb_kp, rb_ki : float
+        The loops' gains (C3, C5, C6).
+    omega_range, lock_threshold, drive_limit, setpoint : float
+        ``2 pi control.pll_range``, rad; ``control.lock_threshold``; ``control.drive_limit``;
+        the AGC's set-point, m.
+    rebalance : bool
+        ``control.rebalance``.
+    sense_phase_error : float
+        ``gyro.phase_error``, rad.
+    drive_gain, sense_gain : float
+        The held amplifiers' gains at rest, V/m.
+    f_state, f_input, out_state, out_input : ndarray
+        The output low-pass over one loop period of a held input (a linear map of its
+        state ``(S,)``: ``state' = f_state @ state + f_input u``, output at the period's
+        last sample ``out_state @ state + out_input u``).
+    qualify, disqualify : float
+        ``REBALANCE_QUALIFY``, ``REBALANCE_DISQUALIFY`` (C8b).
+    qualify_periods, lock_periods : int
+        ``REBALANCE_QUALIFY_PERIODS``, ``LOCK_PERIODS`` (C4, C8b).
+    max_rotation : float
+        Largest ``|lambda| h`` of a Runge-Kutta step (S6).
+
+    """
+
+    fb_c: np.ndarray
+    fb_s: np.ndarray
+    fw_c: np.ndarray
+    fw_s: np.ndarray
+    dcoef: np.ndarray
+    pb_c: np.ndarray
+    pb_s: np.ndarray
+    pg_drive: np.ndarray
+    pg_sense: np.ndarray
+    gap: float
+    omega_c: float
+    stiffness: np.ndarray
+    damping: np.ndarray
+    kappa: float
+    rate_times: np.ndarray
+    rate_values: np.ndarray
+    window: int
+    period: float
+    pll_kp: float
+    pll_ki: float
+    agc_kp: float
+    agc_ki: float
+    rb_kp: float
+    rb_ki: float
+    omega_range: float
+    lock_threshold: float
+    drive_limit: float
+    setpoint: float
+    rebalance: bool
+    sense_phase_error: float
+    drive_gain: float
+    sense_gain: float
+    f_state: np.ndarray
+    f_input: np.ndarray
+    out_state: np.ndarray
+    out_input: np.ndarray
+    qualify: float
+    disqualify: float
+    qualify_periods: int
+    lock_periods: int
+    max_rotation: float
+
+
+# The loops' state (C3-C8b), one float array.
+PLL_I, AGC_I, RB_IC, RB_IS, OMEGA, FORCE, SC, SS, PHASE_ERR, AMP, RB_RATE, RB_QUAD, \
+    LOCKED, RB_ON, LOCKING, QUALIFYING, NCO_PHASE = range(17)
+LOOP_STATE_SIZE = 17
+
+
+@njit(cache=True)
+def force_harmonic(a_c, a_s, fb_c, fb_s, fw_c, fw_s, dcoef):
+    """
+    Return N(A) of the pair, ``(N_c, N_s)`` m/s^2, by (S3); NaN when out of range.
+
+    ``fb_*`` at the 4 R angles in the force kernel's member order, ``fw_*`` (4 R,) the
+    projections times the members' parities: summed per representative as the force
+    kernel sums, ``(h0 + s1 h1) + s2 (h2 + s1 h3)``, so that what is zero by symmetry (the
+    sine force of a state without sine content) is exactly 0.0.
+    """
+    n_c = 0j
+    n_s = 0j
+    nd = dcoef.size
+    r = fb_c.size // 4
+    h = np.empty(4, dtype=np.complex128)
+    for j in range(r):
+        for k in range(4):
+            col = k * r + j
+            z = fb_c[col] * a_c + fb_s[col] * a_s
+            s = z.real * z.real + z.imag * z.imag
+            if s >= 1.0:
+                return complex(np.nan, np.nan), complex(np.nan, np.nan)
+            d = dcoef[nd - 1]
+            for i in range(nd - 2, -1, -1):
+                d = d * s + dcoef[i]
+            h[k] = z * d
+        n_c += (fw_c[j] * h[0] + fw_c[r + j] * h[1]) + (fw_c[2 * r + j] * h[2]
+                                                        + fw_c[3 * r + j] * h[3])
+        n_s += (fw_s[j] * h[0] + fw_s[r + j] * h[1]) + (fw_s[2 * r + j] * h[2]
+                                                        + fw_s[3 * r + j] * h[3])
+    return n_c, n_s
+
+
+@njit(cache=True)
+def pickoff_harmonic(a_c, a_s, pb_c, pb_s, pg_drive, pg_sense, gap):
+    """Return the amplifiers' first harmonics ``(V_drive, V_sense)``, V, by (S4)."""
+    v_d = 0j
+    v_s = 0j
+    d2 = gap * gap
+    for j in range(pb_c.size):
+        z = pb_c[j] * a_c + pb_s[j] * a_s
+        r2 = z.real * z.real + z.imag * z.imag
+        if r2 >= d2:
+            return complex(np.nan, np.nan), complex(np.nan, np.nan)
+        s = math.sqrt(d2 - r2)
+        h = 2.0 * z / ((gap + s) * s)
+        v_d += pg_drive[j] * h
+        v_s += pg_sense[j] * h
+    return v_d, v_s
+
+
+@njit(cache=True)
+def _rate(t, times, values):
+    """Return the rate profile's value (rad/s) and slope at t (``core.rate_profile``)."""
+    n = times.size
+    if n == 0:
+        return 0.0, 0.0
+    k = np.searchsorted(times, t, side='right') - 1
+    if k < 0:
+        return 0.0, 0.0
+    if k >= n - 1:
+        return values[n - 1], 0.0
+    slope = (values[k + 1] - values[k]) / (times[k + 1] - times[k])
+    return values[k] + slope * (t - times[k]), slope
+
+
+@njit(cache=True)
+def _derivative(m, t, b_c, b_s, delta, f_c, f_s):
+    """Return B' of (S5) in the NCO's frame: the slow flow (S2) less ``i delta B``."""
+    w = m.omega_c
+    rate, slope = _rate(t, m.rate_times, m.rate_values)
+    k = m.stiffness
+    c = m.damping
+    n_c, n_s = force_harmonic(b_c, b_s, m.fb_c, m.fb_s, m.fw_c, m.fw_s, m.dcoef)
+    kr = m.kappa * rate
+    # (omega^2 + Omega^2) B - K B - i omega (C + 2 kappa Omega J) B - kappa Omega' J B,
+    # J = [[0, -1], [1, 0]]
+    diag = w * w + rate * rate
+    t_c = (diag * b_c - k[0, 0] * b_c - k[0, 1] * b_s
+           - 1j * w * (c[0, 0] * b_c + c[0, 1] * b_s - 2.0 * kr * b_s)
+           + m.kappa * slope * b_s + n_c + f_c)
+    t_s = (diag * b_s - k[1, 0] * b_c - k[1, 1] * b_s
+           - 1j * w * (c[1, 0] * b_c + c[1, 1] * b_s + 2.0 * kr * b_c)
+           - m.kappa * slope * b_c + n_s + f_s)
+    g = -0.5j / w
+    return g * t_c - 1j * delta * b_c, g * t_s - 1j * delta * b_s
+
+
+@njit(cache=True)
+def _update(m, st, x_c, x_s, y_c, y_s):
+    """One loop update from the period's measurements, as ``DriveLoop.update`` (C3-C8b)."""
+    dt = m.period
+    e = math.atan2(x_c, x_s)
+    st[PLL_I] += m.pll_ki * e * dt
+    st[PLL_I] = min(max(st[PLL_I], -m.omega_range), m.omega_range)
+    offset = m.pll_kp * e + st[PLL_I]
+    clamped = abs(offset) >= m.omega_range
+    st[OMEGA] = m.omega_c + min(max(offset, -m.omega_range), m.omega_range)
+    st[PHASE_ERR] = e
+    if st[LOCKED] > 0.5:
+        locked = abs(e) < m.lock_threshold and not clamped
+        st[LOCKING] = 0.0
+    else:
+        if abs(e) < 0.5 * m.lock_threshold and not clamped:
+            st[LOCKING] += 1.0
+        else:
+            st[LOCKING] = 0.0
+        locked = st[LOCKING] >= m.lock_periods
+    st[LOCKED] = 1.0 if locked else 0.0
+    amp = math.hypot(x_c, x_s)
+    st[AMP] = amp
+    err = m.setpoint - amp
+    raw = m.agc_kp * err + st[AGC_I] + m.agc_ki * err * dt
+    if not ((raw > m.drive_limit and err > 0.0) or (raw < 0.0 and err < 0.0)):
+        st[AGC_I] += m.agc_ki * err * dt
+    st[FORCE] = min(max(m.agc_kp * err + st[AGC_I], 0.0), m.drive_limit)
+    if st[RB_ON] > 0.5:
+        on = locked and amp >= m.disqualify * m.setpoint
+        st[QUALIFYING] = 0.0
+    elif m.rebalance:
+        if locked and amp >= m.qualify * m.setpoint:
+            st[QUALIFYING] += 1.0
+        else:
+            st[QUALIFYING] = 0.0
+        on = st[QUALIFYING] >= m.qualify_periods
+    else:
+        on = False
+    st[RB_ON] = 1.0 if on else 0.0
+    if m.rebalance and not on:
+        st[SC] = st[SS] = st[RB_RATE] = st[RB_QUAD] = 0.0
+    elif m.rebalance:
+        if m.sense_phase_error != 0.0:
+            ce, se = math.cos(m.sense_phase_error), math.sin(m.sense_phase_error)
+            y_c, y_s = y_c * ce - y_s * se, y_c * se + y_s * ce
+        lim = m.drive_limit
+        i_c = min(max(st[RB_IC] - m.rb_ki * y_s * dt, -lim), lim)
+        i_s = min(max(st[RB_IS] + m.rb_ki * y_c * dt, -lim), lim)
+        st[RB_IC] = i_c
+        st[RB_IS] = i_s
+        st[SC] = min(max(i_c - m.rb_kp * y_s, -lim), lim)
+        st[SS] = min(max(i_s + m.rb_kp * y_c, -lim), lim)
+        scale = 2.0 * m.kappa * st[OMEGA] * amp
+        st[RB_RATE] = st[SC] / scale if amp > 0.0 else 0.0
+        st[RB_QUAD] = st[SS] / scale if amp > 0.0 else 0.0
+
+
+@njit(cache=True)
+def run_periods(m, env, st, filt, first_period, count, decimate, out_t, out_env, out_loop,
+                out_filtered):
+    """
+    Advance the slow flow and the loops by ``count`` loop periods (S5-S8).
+
+    ``env`` (2,) complex: B in the NCO's frame (S5); ``st`` the loops' state
+    (:data:`LOOP_STATE_SIZE`); ``filt`` (4, S) the output low-pass's state of the four
+    rebalance channels (rate, quadrature, S_c, S_s); ``first_period`` the index of the
+    first period (period p ends at ``(p + 1) T``). Every ``decimate``-th period end is an
+    output (row r: the time, B, the loops' state after the update, the filtered channels at
+    the period's last sample). Returns the number of outputs written, or ``-1 - p`` when
+    period p left the force's range (NaN).
+    """
+    h_period = m.period
+    written = 0
+    u = np.empty(4)
+    for p in range(count):
+        index = first_period + p
+        t0 = index * h_period
+        delta = st[OMEGA] - m.omega_c
+        # the commands of this period (C6): the drive on q2, the rebalance on q2s
+        f_c = complex(st[FORCE], 0.0)
+        f_s = complex(st[SC], -st[SS])
+        if m.sense_phase_error != 0.0:
+            f_s *= complex(math.cos(m.sense_phase_error), math.sin(m.sense_phase_error))
+        # (S6) RK4 substeps: |lambda| h below max_rotation
+        b_c = env[0]
+        b_s = env[1]
+        scale = abs(delta) + abs(m.omega_c - math.sqrt(m.stiffness[0, 0])) \
+            + abs(m.omega_c - math.sqrt(m.stiffness[1, 1])) + 1e-3 * m.omega_c
+        sub = max(1, int(math.ceil(scale * h_period / m.max_rotation)))
+        h = h_period / sub
+        mean_c = 0j
+        mean_s = 0j
+        for k in range(sub):
+            t = t0 + k * h
+            k1c, k1s = _derivative(m, t, b_c, b_s, delta, f_c, f_s)
+            y2c = b_c + 0.5 * h * k1c
+            y2s = b_s + 0.5 * h * k1s
+            k2c, k2s = _derivative(m, t + 0.5 * h, y2c, y2s, delta, f_c, f_s)
+            y3c = b_c + 0.5 * h * k2c
+            y3s = b_s + 0.5 * h * k2s
+            k3c, k3s = _derivative(m, t + 0.5 * h, y3c, y3s, delta, f_c, f_s)
+            y4c = b_c + h * k3c
+            y4s = b_s + h * k3s
+            k4c, k4s = _derivative(m, t + h, y4c, y4s, delta, f_c, f_s)
+            # (S7) the period's mean of B by the same quadrature (the integral of B as a
+            # state of the same Runge-Kutta step)
+            mean_c += (b_c + 2.0 * y2c + 2.0 * y3c + y4c) / (6.0 * sub)
+            mean_s += (b_s + 2.0 * y2s + 2.0 * y3s + y4s) / (6.0 * sub)
+            b_c = b_c + h * (k1c + 2.0 * k2c + 2.0 * k3c + k4c) / 6.0
+            b_s = b_s + h * (k1s + 2.0 * k2s + 2.0 * k3s + k4s) / 6.0
+        if not (math.isfinite(b_c.real + b_c.imag + b_s.real + b_s.imag)):
+            return -1 - index
+        env[0] = b_c
+        env[1] = b_s
+        # the NCO's phase at the period's end (the simulator's re-phasing, C3)
+        st[NCO_PHASE] = np.fmod(st[OMEGA] * h_period + st[NCO_PHASE], 2.0 * math.pi)
+        # (S8) the output low-pass over the period's held rows, before the update
+        u[0] = st[RB_RATE]
+        u[1] = st[RB_QUAD]
+        u[2] = st[SC]
+        u[3] = st[SS]
+        is_out = (index + 1) % decimate == 0
+        for ch in range(4):
+            if is_out:
+                y = m.out_input * u[ch]
+                for i in range(filt.shape[1]):
+                    y += m.out_state[i] * filt[ch, i]
+                out_filtered[written, ch] = y
+            new = m.f_input * u[ch]
+            for i in range(filt.shape[1]):
+                for j in range(filt.shape[1]):
+                    new[i] += m.f_state[i, j] * filt[ch, j]
+            filt[ch, :] = new
+        # (S7) the measurement: the pick-off's first harmonics of the period's mean,
+        # fitted as x_c cos(phi) + x_s sin(phi) (C2): x_c = Re, x_s = -Im
+        v_d, v_s = pickoff_harmonic(mean_c, mean_s, m.pb_c, m.pb_s, m.pg_drive, m.pg_sense,
+                                    m.gap)
+        if not math.isfinite(v_d.real + v_s.real):
+            return -1 - index
+        _update(m, st, v_d.real / m.drive_gain, -v_d.imag / m.drive_gain,
+                v_s.real / m.sense_gain, -v_s.imag / m.sense_gain)
+        if is_out:
+            out_t[written] = (index + 1) * h_period
+            out_env[written, 0] = b_c
+            out_env[written, 1] = b_s
+            for i in range(LOOP_STATE_SIZE):
+                out_loop[written, i] = st[i]
+            written += 1
+    return written
