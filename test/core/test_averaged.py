@@ -279,3 +279,26 @@ def test_the_closed_loop_averaged_gyroscope_refuses_an_open_loop():
     from ring_gyro_sim.core.averaged import AveragedGyro
     with pytest.raises(ParameterError, match='control.rebalance'):
         AveragedGyro(config())
+
+
+def test_the_pickoffs_first_harmonic_is_that_of_the_full_models_volts():
+    # (S4) against the amplifiers of the full model (PickOff.clean_volts of the published
+    # capacitances) along one period of q = Re(A e^{i phi}) at 3.9 % and 30 % of the gap,
+    # projected on e^{-i phi} at 64 phases: the same quadrature nodes, so equal to the
+    # aliasing of the harmonics 63 and 65 (below round-off) and round-off.
+    from ring_gyro_sim.core import kernels
+    from ring_gyro_sim.core.averaged import AveragedGyro
+    cfg = build_config({'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0})
+    model = AveragedGyro(cfg)
+    sim = Simulator(cfg, calibration=None)
+    m = model.model
+    phase = 2.0 * math.pi * np.arange(64) / 64
+    for a in (np.array([-0.394e-6j, 0.02e-6 + 0.01e-6j]), np.array([2.5e-6, 1.5e-6j])):
+        q = np.zeros((64, 6))
+        q[:, PAIR] = (a[None, :] * np.exp(1j * phase)[:, None]).real
+        volts = sim.pickoff.clean_volts(sim.outputs_for(q).capacitance)
+        first = 2.0 * np.mean(volts * np.exp(-1j * phase)[:, None], axis=0)  # sense, drive
+        drive, sense = kernels.pickoff_harmonic(a[0], a[1], m.pb_c, m.pb_s, m.pg_drive,
+                                                m.pg_sense, m.gap)
+        assert abs(drive - first[1]) < 1e-11 * abs(first[1])
+        assert abs(sense - first[0]) < 1e-11 * abs(first[1])
