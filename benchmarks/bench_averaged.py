@@ -29,6 +29,14 @@ CPU time, not wall time: the host is shared (``make bench-averaged`` runs it wit
 OpenBLAS thread: the dense output's matrix products otherwise count idle threads). The
 averaged model computes less (the pair's envelopes only: no sense chain, no q1, q3): the
 ratio is that of this first step, not of the issue's goal (closed loop, noise, outputs).
+
+The closed loop (``--closed``, run by default after the open loop): the default gyroscope
+(``config/default.yaml``: PLL, AGC, force-to-rebalance, the factory calibration) with the
+noise off at a constant 10 deg/s, through ``Run`` and through ``core.averaged.AveragedGyro``
+(its ``~/rate`` samples at ``gyro.output_rate``, 1 kHz, with the same held calibration),
+both from the Run's start state; printed likewise, with the largest difference of the two
+``~/rate`` records over the full model's stretch after its first 50 ms, relative to the
+reading.
 """
 
 import argparse
@@ -37,7 +45,8 @@ import os
 import sys
 import time
 
-from ring_gyro_sim.core.averaged import AveragedModel, envelope_of
+import numpy as np
+from ring_gyro_sim.core.averaged import AveragedGyro, AveragedModel, envelope_of
 from ring_gyro_sim.core.gyro import operating_point
 from ring_gyro_sim.core.params import build_config
 from ring_gyro_sim.run import Run
@@ -49,6 +58,8 @@ CASE = {'modes.companions': True, 'gyro.enabled': True, 'drive.amplitude': 0.006
         'gyro.calibration.source': 'ideal', 'real_time_factor': 0.0,
         'scenario.rate_times': [0.0], 'scenario.rate_values': [math.radians(10.0)]}
 PAIR = [1, 4]
+CLOSED = {'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0, 'real_time_factor': 0.0,
+          'scenario.rate_times': [0.0], 'scenario.rate_values': [math.radians(10.0)]}
 
 
 def _full(config, seconds: float) -> float:
@@ -67,6 +78,54 @@ def _averaged(config, start, seconds: float, sample_rate: float) -> float:
     return seconds / (time.process_time() - begin)
 
 
+def _full_closed(run, seconds: float):
+    blocks = int(round(seconds / run.config.run.block_duration))
+    t, rate = [], []
+    start = time.process_time()
+    for _ in range(blocks):
+        samples = run.advance(run.config.run.block_samples)
+        t.append(samples.rate.t)
+        rate.append(samples.rate.rate)
+    return seconds / (time.process_time() - start), np.concatenate(t), np.concatenate(rate)
+
+
+def _averaged_closed(config, start, calibration, seconds: float):
+    model = AveragedGyro(config, start, calibration=calibration)
+    begin = time.process_time()
+    out = model.advance(seconds)
+    return seconds / (time.process_time() - begin), out
+
+
+def closed(args) -> None:
+    """Time the closed-loop default gyroscope in both models; print speeds, ratio, agreement."""
+    config = build_config(CLOSED)
+    run = Run(config)                        # the factory calibration: not timed
+    start = run.start_state
+    calibration = run.calibration
+    _averaged_closed(config, start, calibration, 0.01)   # compile: not timed
+    run.advance(config.run.block_samples)
+    full = averaged = 0.0
+    worst = 0.0
+    for k in range(args.repeat):
+        run = Run(config, start_state=start, calibration=calibration)
+        rtf, t, rate = _full_closed(run, args.seconds)
+        full = max(full, rtf)
+        rtf, _ = _averaged_closed(config, start, calibration, args.averaged_seconds)
+        averaged = max(averaged, rtf)
+        _, out = _averaged_closed(config, start, calibration, args.seconds)
+        late = t >= 0.05
+        worst = float(np.max(np.abs(out.rate[:t.size][late] - rate[late])
+                             / np.abs(rate[late])))
+        print(f'closed loop round {k + 1}/{args.repeat}', file=sys.stderr)
+    print(f'closed loop, default gyroscope, 10 deg/s, noise off: load average '
+          f'{os.getloadavg()[0]:.2f}; best of {args.repeat}; simulated s per CPU s')
+    print(f'{"full (Run, 200 kHz)":28s} rtf_cpu {full:10.2f}')
+    print(f'{"averaged, ~/rate at 1 kHz":28s} rtf_cpu {averaged:10.2f}   ratio to full '
+          f'{averaged / full:8.1f}')
+    print(f'~/rate, averaged against full after 50 ms: largest difference {worst:.2e} of '
+          f'the reading')
+
+
 def main(argv=None) -> int:
     """Time both models in alternation; print their speeds and the ratios."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
@@ -74,7 +133,12 @@ def main(argv=None) -> int:
     parser.add_argument('--averaged-seconds', type=float, default=100.0,
                         help='simulated s of the averaged model')
     parser.add_argument('--repeat', type=int, default=3, help='runs of each, alternating')
+    parser.add_argument('--closed-only', action='store_true',
+                        help='only the closed-loop default gyroscope')
     args = parser.parse_args(argv)
+    if args.closed_only:
+        closed(args)
+        return 0
     config = build_config(CASE)
     q, v = operating_point.start_state(config)
     w = 2.0 * math.pi * config.drive.frequency
@@ -99,6 +163,7 @@ def main(argv=None) -> int:
     full = rows['full (Run, 200 kHz)']
     for name, rtf in rows.items():
         print(f'{name:28s} rtf_cpu {rtf:10.2f}   ratio to full {rtf / full:8.1f}')
+    closed(args)
     return 0
 
 

@@ -270,17 +270,23 @@ def _derivative(m, rate, slope, b_c, b_s, delta, f_c, f_s):
     c = m.damping
     n_c, n_s = force_harmonic(b_c, b_s, m.fb_c, m.fb_s, m.fw_c, m.fw_s, m.dcoef)
     kr = m.kappa * rate
-    # (omega^2 + Omega^2) B - K B - i omega (C + 2 kappa Omega J) B - kappa Omega' J B,
-    # J = [[0, -1], [1, 0]]
+    ks = m.kappa * slope
+    # (S2) less i delta B, in real arithmetic: the bracket is X - i omega Y with
+    # X = (omega^2 + Omega^2 - K) B - kappa Omega' J B + N + F and Y = (C + 2 kappa Omega J) B,
+    # J = [[0, -1], [1, 0]]; B' = -(i / (2 omega)) X - Y / 2 - i delta B
     diag = w * w + rate * rate
-    t_c = (diag * b_c - k[0, 0] * b_c - k[0, 1] * b_s
-           - 1j * w * (c[0, 0] * b_c + c[0, 1] * b_s - 2.0 * kr * b_s)
-           + m.kappa * slope * b_s + n_c + f_c)
-    t_s = (diag * b_s - k[1, 0] * b_c - k[1, 1] * b_s
-           - 1j * w * (c[1, 0] * b_c + c[1, 1] * b_s + 2.0 * kr * b_c)
-           - m.kappa * slope * b_c + n_s + f_s)
-    g = -0.5j / w
-    return g * t_c - 1j * delta * b_c, g * t_s - 1j * delta * b_s
+    cr, ci, sr, si = b_c.real, b_c.imag, b_s.real, b_s.imag
+    xcr = (diag - k[0, 0]) * cr - k[0, 1] * sr + ks * sr + n_c.real + f_c.real
+    xci = (diag - k[0, 0]) * ci - k[0, 1] * si + ks * si + n_c.imag + f_c.imag
+    xsr = (diag - k[1, 1]) * sr - k[1, 0] * cr - ks * cr + n_s.real + f_s.real
+    xsi = (diag - k[1, 1]) * si - k[1, 0] * ci - ks * ci + n_s.imag + f_s.imag
+    ycr = c[0, 0] * cr + (c[0, 1] - 2.0 * kr) * sr
+    yci = c[0, 0] * ci + (c[0, 1] - 2.0 * kr) * si
+    ysr = c[1, 1] * sr + (c[1, 0] + 2.0 * kr) * cr
+    ysi = c[1, 1] * si + (c[1, 0] + 2.0 * kr) * ci
+    half = 0.5 / w
+    return (complex(half * xci - 0.5 * ycr + delta * ci, -half * xcr - 0.5 * yci - delta * cr),
+            complex(half * xsi - 0.5 * ysr + delta * si, -half * xsr - 0.5 * ysi - delta * sr))
 
 
 @njit(cache=True, inline='always')
