@@ -29,14 +29,21 @@ full model). A = (A_c, A_s). One step of the averaged model is a step of an ODE 
 real numbers whose rates are those of the envelopes (at most ``omega / Q`` and the
 detunings), not of the 15.8 kHz carrier: ``solve_ivp`` takes steps of milliseconds.
 
+The closed-loop gyroscope
+-------------------------
+:class:`AveragedGyro` closes the PLL, the AGC and force-to-rebalance on these envelopes, in
+the frame of the NCO's phase, with the pick-off's first harmonic and the output filter of
+``~/rate`` (its docstring: S5-S8); the averaged force of both is the closed form (S3) of
+``kernels.envelope``.
+
 What it is not (yet)
 --------------------
-The loops (PLL, AGC, force-to-rebalance), the sense electronics (pick-off, demodulator,
-filters, ``~/rate``), the noises (thermomechanical, pick-off, flicker), temperature changes
-(the device is taken at the die temperature of t = 0), the other modes (q1, q3, ...: see
-"Validity"), shocks, base acceleration, vibration and contact are not represented. It is
-the core that a later step wires into the loops, the noise and the hand-off to the full
-model (doc/averaged.md).
+In :class:`AveragedModel`: the loops and the sense electronics (:class:`AveragedGyro` has
+them). In both: the open-loop sense readout of ``~/rate``, ``~/demodulator``, the noises
+(thermomechanical, pick-off, flicker), temperature changes (the device is taken at the die
+temperature of t = 0), the other modes (q1, q3, ...: see "Validity"), shocks, base
+acceleration, vibration and contact are not represented. A later step wires them in with
+the hand-off to the full model (doc/averaged.md).
 
 Derivation
 ----------
