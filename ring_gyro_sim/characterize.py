@@ -518,15 +518,8 @@ def _simulate(values: Mapping[str, Any], duration_s: float, bar: _Bar, note: str
     with warnings.catch_warnings():
         warnings.simplefilter('ignore', RuntimeWarning)  # unstable to the companions
         run = Run(config, sink=trace, log=bar.note)  # one shooting per device and drive
-    total = int(round(duration_s / (config.run.output_period_ns * 1e-9)))
-    block = config.run.block_samples
-    done = 0
     try:
-        while done < total and run.running:
-            count = min(block, total - done)
-            run.advance(count)
-            done += count
-            bar.update(run.sim.time_s, note)
+        run.advance_for(duration_s, lambda t: bar.update(t, note))
         summary = run.summary()
     finally:
         run.close()

@@ -778,6 +778,25 @@ class Run:
         self.lost[topic] = self.lost.get(topic, 0) + int(count)
 
     # ------------------------------------------------------------------ advancing
+    def advance_for(self, duration_s: float,
+                    progress: Optional[Callable[[float], None]] = None) -> bool:
+        """
+        Advance by ``duration_s`` (whole output periods) in blocks; stop early at contact.
+
+        ``progress`` is called with the simulated time (s) after each block. Returns whether
+        the whole duration was simulated.
+        """
+        total = int(round(duration_s / (self.config.run.output_period_ns * 1e-9)))
+        block = self.config.run.block_samples
+        done = 0
+        while done < total and self.running:
+            count = min(block, total - done)
+            self.advance(count)
+            done += count
+            if progress is not None:
+                progress(self.sim.time_s)
+        return done >= total
+
     def advance(self, n_samples: int,
                 between: Optional[Callable[[], None]] = None) -> Block:
         """

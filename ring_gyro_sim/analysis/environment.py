@@ -111,16 +111,8 @@ def mean_output(config: SimConfig, duration_s: float, average_s: float,
     """
     means = _Means(duration_s - average_s)
     run = Run(config, sink=means, log=log)
-    total = int(round(duration_s / (config.run.output_period_ns * 1e-9)))
-    block = config.run.block_samples
-    done = 0
     try:
-        while done < total and run.running:
-            count = min(block, total - done)
-            run.advance(count)
-            done += count
-            if progress is not None:
-                progress(run.sim.time_s)
+        run.advance_for(duration_s, progress)
         contact = not run.running
     finally:
         run.close()
@@ -268,16 +260,8 @@ def shock_record(config: SimConfig, duration_s: float,
     """
     trace = _Trace()
     run = Run(config, sink=trace, log=log)
-    total = int(round(duration_s / (config.run.output_period_ns * 1e-9)))
-    block = config.run.block_samples
-    done = 0
     try:
-        while done < total and run.running:
-            count = min(block, total - done)
-            run.advance(count)
-            done += count
-            if progress is not None:
-                progress(run.sim.time_s)
+        complete = run.advance_for(duration_s, progress)
         summary = run.summary()
         impacts = run.sim.impacts
     finally:
@@ -289,7 +273,7 @@ def shock_record(config: SimConfig, duration_s: float,
             'q1_peak_m': float(summary.peak_abs_m.get('q1', math.nan)),
             'min_gap_m': float(summary.min_gap_m),
             'status': summary.status, 'contact': contact,
-            'survived': bool(done >= total and not contact),
+            'survived': bool(complete and not contact),
             'finite': bool(np.all(np.isfinite(rate)))}
 
 
