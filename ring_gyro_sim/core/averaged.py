@@ -520,9 +520,11 @@ class AveragedGyro:
     rebalance ``S_c cos(phi) + S_s sin(phi)`` on q2s (``kernels.forcing``; ``eps`` =
     ``gyro.phase_error``). N(B) is (S3), exact for the truncated force.
 
-    (S6) The step: RK4, each loop period (``1 / control.rate``) cut into the fewest equal
-    substeps with ``|lambda| h <= MAX_ROTATION``, ``|lambda|`` a bound of the flow's rates
-    (the NCO's offset, the pair's detunings from omega_c and 1e-4 omega_c for the
+    (S6) The step: RK4, each loop period (``1 / control.rate``) cut at the rate profile's
+    knots (each stage takes the profile's value at its time, the last stage its left limit:
+    a step of the rate acts from its time on, as in the full model) and each piece into the
+    fewest equal substeps with ``|lambda| h <= MAX_ROTATION``, ``|lambda|`` a bound of the
+    flow's rates (the NCO's offset, the pair's detunings from omega_c and 1e-4 omega_c for the
     electrostatic shift, 9e-5 omega at the default drive): one substep per 1 ms period on
     the default gyroscope, whose rates are ~10 rad/s (local error ~(0.01)^5 / 120 = 1e-12
     of the envelope). The commands are constant over a period (C1): the step never crosses

@@ -263,6 +263,35 @@ def _rate(t, times, values):
 
 
 @njit(cache=True, inline='always')
+def _rate_before(t, times, values):
+    """
+    Return the rate profile's left limit (rad/s) and slope at t.
+
+    The value an RK4 step ending at t takes for its last stage: a step of the profile at t
+    acts from t on (``kernels.forcing._rate_at``), not over the step that ends there.
+    """
+    n = times.size
+    if n == 0:
+        return 0.0, 0.0
+    if t > times[n - 1]:
+        return values[n - 1], 0.0
+    k = np.searchsorted(times, t, side='left') - 1
+    if k < 0:
+        return 0.0, 0.0
+    slope = (values[k + 1] - values[k]) / (times[k + 1] - times[k])
+    return values[k] + slope * (t - times[k]), slope
+
+
+@njit(cache=True, inline='always')
+def _next_knot(t, end, times):
+    """Return the first knot of the rate profile after t and before ``end``, else ``end``."""
+    k = np.searchsorted(times, t, side='right')
+    if k < times.size and times[k] < end:
+        return times[k]
+    return end
+
+
+@njit(cache=True, inline='always')
 def _derivative(m, rate, slope, b_c, b_s, delta, f_c, f_s):
     """Return B' of (S5) in the NCO's frame: the slow flow (S2) less ``i delta B``."""
     w = m.omega_c
@@ -374,36 +403,43 @@ def run_periods(m, env, st, filt, first_period, count, decimate, out_t, out_env,
         f_s = complex(st[SC], -st[SS])
         if m.sense_phase_error != 0.0:
             f_s *= complex(math.cos(m.sense_phase_error), math.sin(m.sense_phase_error))
-        # (S6) RK4 substeps: |lambda| h below max_rotation
+        # (S6) RK4 substeps: |lambda| h below max_rotation, cut at the rate profile's
+        # knots (a step or a kink inside an RK4 step would be smeared over its stages)
         b_c = env[0]
         b_s = env[1]
         scale = abs(delta) + abs(m.omega_c - math.sqrt(m.stiffness[0, 0])) \
             + abs(m.omega_c - math.sqrt(m.stiffness[1, 1])) + 1e-4 * m.omega_c
-        sub = max(1, int(math.ceil(scale * h_period / m.max_rotation)))
-        h = h_period / sub
         mean_c = 0j
         mean_s = 0j
-        for k in range(sub):
-            t = t0 + k * h
-            r1, g1 = _rate(t, m.rate_times, m.rate_values)
-            r2, g2 = _rate(t + 0.5 * h, m.rate_times, m.rate_values)
-            r4, g4 = _rate(t + h, m.rate_times, m.rate_values)
-            k1c, k1s = _derivative(m, r1, g1, b_c, b_s, delta, f_c, f_s)
-            y2c = b_c + 0.5 * h * k1c
-            y2s = b_s + 0.5 * h * k1s
-            k2c, k2s = _derivative(m, r2, g2, y2c, y2s, delta, f_c, f_s)
-            y3c = b_c + 0.5 * h * k2c
-            y3s = b_s + 0.5 * h * k2s
-            k3c, k3s = _derivative(m, r2, g2, y3c, y3s, delta, f_c, f_s)
-            y4c = b_c + h * k3c
-            y4s = b_s + h * k3s
-            k4c, k4s = _derivative(m, r4, g4, y4c, y4s, delta, f_c, f_s)
-            # (S7) the period's mean of B by the same quadrature (the integral of B as a
-            # state of the same Runge-Kutta step)
-            mean_c += (b_c + 2.0 * y2c + 2.0 * y3c + y4c) / (6.0 * sub)
-            mean_s += (b_s + 2.0 * y2s + 2.0 * y3s + y4s) / (6.0 * sub)
-            b_c = b_c + h * (k1c + 2.0 * k2c + 2.0 * k3c + k4c) / 6.0
-            b_s = b_s + h * (k1s + 2.0 * k2s + 2.0 * k3s + k4s) / 6.0
+        t_end = t0 + h_period
+        a = t0
+        while a < t_end:
+            piece_end = _next_knot(a, t_end, m.rate_times)
+            sub = max(1, int(math.ceil(scale * (piece_end - a) / m.max_rotation)))
+            h = (piece_end - a) / sub
+            for k in range(sub):
+                t = a + k * h
+                t_next = piece_end if k == sub - 1 else t + h
+                r1, g1 = _rate(t, m.rate_times, m.rate_values)
+                r2, g2 = _rate(t + 0.5 * h, m.rate_times, m.rate_values)
+                r4, g4 = _rate_before(t_next, m.rate_times, m.rate_values)
+                k1c, k1s = _derivative(m, r1, g1, b_c, b_s, delta, f_c, f_s)
+                y2c = b_c + 0.5 * h * k1c
+                y2s = b_s + 0.5 * h * k1s
+                k2c, k2s = _derivative(m, r2, g2, y2c, y2s, delta, f_c, f_s)
+                y3c = b_c + 0.5 * h * k2c
+                y3s = b_s + 0.5 * h * k2s
+                k3c, k3s = _derivative(m, r2, g2, y3c, y3s, delta, f_c, f_s)
+                y4c = b_c + h * k3c
+                y4s = b_s + h * k3s
+                k4c, k4s = _derivative(m, r4, g4, y4c, y4s, delta, f_c, f_s)
+                # (S7) the period's mean of B by the same quadrature (the integral of B as a
+                # state of the same Runge-Kutta step)
+                mean_c += (b_c + 2.0 * y2c + 2.0 * y3c + y4c) * (h / (6.0 * h_period))
+                mean_s += (b_s + 2.0 * y2s + 2.0 * y3s + y4s) * (h / (6.0 * h_period))
+                b_c = b_c + h * (k1c + 2.0 * k2c + 2.0 * k3c + k4c) / 6.0
+                b_s = b_s + h * (k1s + 2.0 * k2s + 2.0 * k3s + k4s) / 6.0
+            a = piece_end
         if not (math.isfinite(b_c.real + b_c.imag + b_s.real + b_s.imag)):
             return -1 - index
         env[0] = b_c
