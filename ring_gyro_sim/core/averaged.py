@@ -39,9 +39,10 @@ the frame of the NCO's phase, with the pick-off's first harmonic and the output 
 What it is not (yet)
 --------------------
 In :class:`AveragedModel`: the loops and the sense electronics (:class:`AveragedGyro` has
-them). In both: the open-loop sense readout of ``~/rate``, ``~/demodulator``, the noises
-(thermomechanical, pick-off, flicker), temperature changes (the device is taken at the die
-temperature of t = 0), the other modes (q1, q3, ...: see "Validity"), shocks, base
+them). :class:`AveragedModel` takes the device at the die temperature of t = 0;
+:class:`AveragedGyro` follows the die (S9). In both: the open-loop sense readout of
+``~/rate``, ``~/demodulator``, the noises (thermomechanical, pick-off, flicker), the other
+modes (q1, q3, ...: see "Validity"), shocks, base
 acceleration, vibration and contact are not represented. A later step wires them in with
 the hand-off to the full model (doc/averaged.md).
 
@@ -543,7 +544,19 @@ class AveragedGyro:
     over each period's ``N`` samples of a held input (a linear map of its state), read at
     the period's last sample (E4's decimation), then the held calibration (K1) when given.
 
-    What it is not: noise (thermomechanical, pick-off, flicker), temperature changes, the
+    (S9) Temperature: the die (T2, ``thermal.DieTemperature``) is followed as the full model
+    follows it: every ``THERMAL_UPDATE_S`` the die's sensor (the calibration's
+    compensation, K3) reads it, and once it has moved ``THERMAL_STEP_K`` from the device's
+    temperature the pair's K and C (T3-T5) and the amplifiers' volts per farad (T6) are
+    rebuilt; the loops keep their designed gains. The frame of (S5) turns at
+    ``omega_frame = omega_c (1 + alpha dT)`` (T3), the drive mode's frequency on that die:
+    held at ``omega_c``, the averaging's error ``(omega - omega_frame) / omega`` would be
+    the NCO's offset, 6e-4 at 20 K, against 1 / (2 Q) = 7.7e-6. On a change of frame, B
+    is rescaled to the slow part of the same oscillation at the NCO's omega:
+    ``(q - i q' / w) e^{-i phi}`` of an oscillation of amplitude X at omega has the slow
+    part ``X (1 + omega / w) / 2``.
+
+    What it is not: noise (thermomechanical, pick-off, flicker), the
     output word (E15), the block topics and the open-loop sense readout; shocks, base
     acceleration, vibration and contact (doc/averaged.md).
 
@@ -611,6 +624,9 @@ class AveragedGyro:
             out_state[j] = y[-1]
         y, zf = signal.sosfilt(sos, np.ones(window), zi=np.zeros((sos.shape[0], 2)))
         stiffness, damping = device.modes.pair_matrices(2)
+        # (S9) the frame turns at the drive mode's frequency on this die: the NCO's centre
+        # moved with the frequencies (T3), as the full model starts the NCO
+        frame = float(loop.omega_c * thermal.frequency_scale(config, sim.device_temperature))
         times = np.asarray(config.run.rate_times if config.gyro.enabled else (), dtype=float)
         values = np.asarray(config.run.rate_values if config.gyro.enabled else (),
                             dtype=float)
@@ -620,7 +636,7 @@ class AveragedGyro:
             pb_s=np.ascontiguousarray(geometry.electrode_shapes[is_]),
             pg_drive=np.ascontiguousarray(node * vpf[node_electrode, 1]),
             pg_sense=np.ascontiguousarray(node * vpf[node_electrode, 0]),
-            gap=float(geometry.gap), omega_c=float(loop.omega_c),
+            gap=float(geometry.gap), omega_c=float(loop.omega_c), omega_frame=frame,
             stiffness=np.ascontiguousarray(stiffness, dtype=float),
             damping=np.ascontiguousarray(damping, dtype=float),
             kappa=float(structure.gyroscopic_coefficient(2)),
@@ -647,12 +663,51 @@ class AveragedGyro:
                    float(loop.rebalance_on), 0.0, 0.0, sim.drive_phase_at_start)
         self._loop = st
         q, v = (np.asarray(x, dtype=float) for x in start_state)
-        self._envelope = envelope_of(q[[ic, is_]], v[[ic, is_]], loop.omega_c,
+        self._envelope = envelope_of(q[[ic, is_]], v[[ic, is_]], frame,
                                      sim.drive_phase_at_start).astype(complex)
         zi = sim.sense.electronics._zi_rb    # (sections, 2, 4): started at the loop's rows
         self._filter = np.ascontiguousarray(np.moveaxis(zi, 2, 0).reshape(4, size))
         self._die_temperature = sim.sense.electronics.die_temperature
+        # (S9) the die temperature, followed as the full model follows it (T2): every
+        # THERMAL_UPDATE_S, the device rebuilt once the die has moved THERMAL_STEP_K
+        self.die = thermal.DieTemperature(config)
+        self.device_temperature = sim.device_temperature
+        self._thermal_live = bool(config.run.temperature_times)
+        self._thermal_periods = max(1, int(round(sim._thermal_window / window)))
+        # the amplifiers' volts per farad scale as 1 / feedback capacitance (T6)
+        self._feedback = float(device.gyro.feedback_capacitance)
         self.period_index = 0
+
+    def _follow_die(self) -> None:
+        """
+        Advance the die to now; rebuild the pair and the amplifiers if it moved enough (S9).
+
+        As ``Simulator._follow_die``: the die's sensor (the calibration's compensation)
+        follows every update; the pair's K and C (T3-T5) and the amplifiers' volts per
+        farad (T6) are rebuilt once the die has moved ``THERMAL_STEP_K`` from the
+        temperature they were built at. The loops keep the gains they were designed with.
+        """
+        from ring_gyro_sim.core.simulator import THERMAL_STEP_K
+        kelvin = self.die.advance_to(self.time_s)
+        self._die_temperature = kelvin
+        if abs(kelvin - self.device_temperature) < THERMAL_STEP_K:
+            return
+        self.device_temperature = kelvin
+        device = thermal.device_at(self.config, kelvin)
+        stiffness, damping = device.modes.pair_matrices(2)
+        gain = self._feedback / float(device.gyro.feedback_capacitance)
+        self._feedback = float(device.gyro.feedback_capacitance)
+        m = self.model
+        # the frame follows the frequencies (T3); B of the same oscillation at the NCO's
+        # omega in the new frame: the slow part of (q - i q' / w) e^{-i phi} is
+        # X (1 + omega / w) / 2 for an amplitude X, so B scales by the ratio of those
+        frame = float(m.omega_c * thermal.frequency_scale(self.config, kelvin))
+        omega = self._loop[kernels.envelope.OMEGA]
+        self._envelope *= (m.omega_frame * (frame + omega)) / (frame * (m.omega_frame + omega))
+        self.model = m._replace(stiffness=np.ascontiguousarray(stiffness, dtype=float),
+                                damping=np.ascontiguousarray(damping, dtype=float),
+                                pg_drive=m.pg_drive * gain, pg_sense=m.pg_sense * gain,
+                                omega_frame=frame)
 
     @property
     def time_s(self) -> float:
@@ -680,22 +735,33 @@ class AveragedGyro:
         env = np.empty((outputs, 2), dtype=complex)
         rows = np.empty((outputs, kernels.envelope.LOOP_STATE_SIZE))
         filtered = np.empty((outputs, 4))
-        written = kernels.run_periods(self.model, self._envelope, self._loop, self._filter,
-                                      self.period_index, count, self.decimate, t, env, rows,
-                                      filtered)
-        if written < 0:
-            self.period_index = -1 - written
-            raise SimulationError(f"averaged model: the orbit left the force's or the "
-                                  f"pick-off's range at {self.time_s:.6f} s")
-        self.period_index += count
+        die = np.empty(outputs)
+        written = done = 0
+        while done < count:
+            stop = count - done
+            if self._thermal_live:   # (S9) at the die's update times, as the full model (T2)
+                since = self.period_index % self._thermal_periods
+                if since == 0:
+                    self._follow_die()
+                stop = min(stop, self._thermal_periods - since)
+            n = kernels.run_periods(self.model, self._envelope, self._loop, self._filter,
+                                    self.period_index, stop, self.decimate, t[written:],
+                                    env[written:], rows[written:], filtered[written:])
+            if n < 0:
+                self.period_index = -1 - n
+                raise SimulationError(f"averaged model: the orbit left the force's or the "
+                                      f"pick-off's range at {self.time_s:.6f} s")
+            die[written:written + n] = self._die_temperature
+            written += n
+            done += stop
+            self.period_index += stop
         e = kernels.envelope
         control_rows = np.stack([rows[:, e.OMEGA] / (2.0 * math.pi), rows[:, e.PHASE_ERR],
                                  rows[:, e.AMP], rows[:, e.FORCE], rows[:, e.SC],
                                  rows[:, e.SS], rows[:, e.RB_RATE], rows[:, e.RB_QUAD],
                                  rows[:, e.LOCKED], rows[:, e.RB_ON]], axis=1)
         if self.calibration is not None:
-            rate, quadrature = self.calibration.apply(filtered[:, 2], filtered[:, 3],
-                                                      self._die_temperature)
+            rate, quadrature = self.calibration.apply(filtered[:, 2], filtered[:, 3], die)
         else:
             rate, quadrature = filtered[:, 0].copy(), filtered[:, 1].copy()
         return GyroSamples(t=t, rate=rate, quadrature=quadrature, readout=filtered[:, 2:],

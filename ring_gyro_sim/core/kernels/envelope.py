@@ -60,7 +60,10 @@ class EnvelopeModel(NamedTuple):
     gap : float
         d_g, m.
     omega_c : float
-        ``2 pi drive.frequency``, rad/s: the frame of the envelopes' velocity (S1).
+        ``2 pi drive.frequency``, rad/s: the NCO's centre (C3).
+    omega_frame : float
+        The frame frequency of the envelopes' velocity, rad/s (S1, S5, S9): ``omega_c``
+        times the frequencies' factor at the device's temperature.
     stiffness, damping : ndarray, shape (2, 2)
         K and C of the pair (S2).
     kappa : float
@@ -106,6 +109,7 @@ class EnvelopeModel(NamedTuple):
     pg_sense: np.ndarray
     gap: float
     omega_c: float
+    omega_frame: float
     stiffness: np.ndarray
     damping: np.ndarray
     kappa: float
@@ -294,7 +298,7 @@ def _next_knot(t, end, times):
 @njit(cache=True, inline='always')
 def _derivative(m, rate, slope, b_c, b_s, delta, f_c, f_s):
     """Return B' of (S5) in the NCO's frame: the slow flow (S2) less ``i delta B``."""
-    w = m.omega_c
+    w = m.omega_frame
     k = m.stiffness
     c = m.damping
     n_c, n_s = force_harmonic(b_c, b_s, m.fb_c, m.fb_s, m.fw_c, m.fw_s, m.dcoef)
@@ -397,7 +401,7 @@ def run_periods(m, env, st, filt, first_period, count, decimate, out_t, out_env,
     for p in range(count):
         index = first_period + p
         t0 = index * h_period
-        delta = st[OMEGA] - m.omega_c
+        delta = st[OMEGA] - m.omega_frame
         # the commands of this period (C6): the drive on q2, the rebalance on q2s
         f_c = complex(st[FORCE], 0.0)
         f_s = complex(st[SC], -st[SS])
@@ -407,8 +411,8 @@ def run_periods(m, env, st, filt, first_period, count, decimate, out_t, out_env,
         # knots (a step or a kink inside an RK4 step would be smeared over its stages)
         b_c = env[0]
         b_s = env[1]
-        scale = abs(delta) + abs(m.omega_c - math.sqrt(m.stiffness[0, 0])) \
-            + abs(m.omega_c - math.sqrt(m.stiffness[1, 1])) + 1e-4 * m.omega_c
+        scale = abs(delta) + abs(m.omega_frame - math.sqrt(m.stiffness[0, 0])) \
+            + abs(m.omega_frame - math.sqrt(m.stiffness[1, 1])) + 1e-4 * m.omega_frame
         mean_c = 0j
         mean_s = 0j
         t_end = t0 + h_period
