@@ -130,6 +130,7 @@ omega. On the default device each is below 1e-4 (7.7e-6, 0 to 9e-5, 1.4e-6 at 10
 """
 
 import cmath
+import copy
 from dataclasses import dataclass
 import math
 from typing import Optional, Sequence, Tuple
@@ -141,8 +142,9 @@ from ring_gyro_sim.core.params import SimConfig
 from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
-__all__ = ['AveragedGyro', 'AveragedModel', 'AveragedSamples', 'GyroSamples', 'envelope_of',
-           'pair_force_arrays', 'state_of']
+__all__ = ['AveragedGyro', 'AveragedModel', 'AveragedSamples', 'GyroSamples',
+           'HAND_BACK_THRESHOLD', 'envelope_of', 'fast_mode_amplitude', 'pair_force_arrays',
+           'state_of']
 
 J = np.array([[0.0, -1.0], [1.0, 0.0]])
 """The Coriolis coupling's matrix in (q_c, q_s) (G5, G6)."""
@@ -203,6 +205,35 @@ def state_of(envelope: np.ndarray, omega: float,
     """Return ``(q, v)`` (m, m/s) of envelopes ``A`` (m) at the drive phases (rad) (S1)."""
     z = np.asarray(envelope) * np.exp(1j * np.asarray(phase, dtype=float))[..., None]
     return z.real, (1j * omega * z).real
+
+
+HAND_BACK_THRESHOLD = 1e-3
+"""
+Largest amplitude of the modes other than the driven pair, over d_g, at a hand-off to the
+averaged model (S10). After a 10 000 g shock on the default gyroscope (they reach 0.53 d_g and
+ring down over ~20 s), the readout after the hand-off against the full model's: at 3e-2 of
+d_g 11 % of the reading, 1e-2 2.7 %, 3e-3 6.1e-4, 1e-3 1.4e-5, 3e-4 1.2e-5 (doc/averaged.md).
+"""
+
+
+def fast_mode_amplitude(sim) -> float:
+    """
+    Return the largest amplitude of the modes the averaged model leaves out, over d_g (S10).
+
+    ``sqrt(q^2 + (q' / omega_n)^2)`` of every coordinate of a full model (``Simulator``)
+    but the driven pair's (q2, q2s): what a shock or vibration left ringing, which the
+    averaged model takes at rest.
+    """
+    config = sim.config
+    m = config.modes.count
+    pair = (1, m + 1) if config.modes.companions else (1,)
+    omega = 2.0 * math.pi * np.asarray(config.modes.coordinate_frequencies(), dtype=float)
+    others = np.ones(omega.size, dtype=bool)
+    others[list(pair)] = False
+    if not np.any(others):
+        return 0.0
+    amplitude = np.hypot(sim.q[others], sim.v[others] / omega[others])
+    return float(np.max(amplitude) / config.electrodes.gap)
 
 
 @dataclass(frozen=True)
@@ -556,6 +587,16 @@ class AveragedGyro:
     ``(q - i q' / w) e^{-i phi}`` of an oscillation of amplitude X at omega has the slow
     part ``X (1 + omega / w) / 2``.
 
+    (S10) The hand-off from the full model (``simulator``): at a loop update the state maps
+    exactly. The pair's envelopes are ``(q - i q' / omega_frame) e^{-i phi}`` of the full
+    model's state at the NCO's phase ``phi`` now (S1, an exact change of variables); the
+    loops' state is the one their last update left (C3-C8b, the lock and qualification
+    counters included); the output filter's state and the die's are copied. The averaged
+    model then drops what averaging drops: the envelope's ripple at ``2 omega`` (of
+    relative size ``(omega - omega_frame) / omega`` and ``kappa Omega / omega``) and the
+    other modes, which the caller hands off only once they have rung down
+    (:func:`fast_mode_amplitude`).
+
     What it is not: noise (thermomechanical, pick-off, flicker), the
     output word (E15), the block topics and the open-loop sense readout; shocks, base
     acceleration, vibration and contact (doc/averaged.md).
@@ -571,10 +612,15 @@ class AveragedGyro:
         (``operating_point.start_state`` of the device at the die's start temperature).
     calibration : gyro_calibration.Calibration or None
         The held calibration (K1) of ``~/rate``; None: the model's own rebalance readout.
+    simulator : Simulator, optional
+        A running full model of ``config`` to continue from (S10, the hand-off to the
+        averaged model): its state at its current time, which must be a loop update (a
+        whole number of loop periods); ``start_state`` is then not used.
 
     """
 
-    def __init__(self, config: SimConfig, start_state=None, calibration=None) -> None:
+    def __init__(self, config: SimConfig, start_state=None, calibration=None,
+                 simulator=None) -> None:
         from ring_gyro_sim.core.gyro import control, operating_point
         from ring_gyro_sim.core.simulator import Simulator
         from scipy import signal
@@ -587,9 +633,17 @@ class AveragedGyro:
         if config.electrodes.taylor_terms <= 0:
             raise ParameterError('electrodes.taylor_terms: the averaged force (S3) is that '
                                  'of the truncated series, got 0')
-        if start_state is None:
-            start_state = operating_point.start_state(thermal.start_state_device(config))
-        sim = Simulator(config, start_state, calibration=None)
+        if simulator is not None:
+            sim = simulator
+            if sim.loop is None or sim.sample_index % sim.loop.window:
+                raise ParameterError(f'simulator: the hand-off is at a loop update; sample '
+                                     f'{sim.sample_index} is not a whole number of loop '
+                                     f'periods')
+            start_state = (sim.q.copy(), sim.v.copy())
+        else:
+            if start_state is None:
+                start_state = operating_point.start_state(thermal.start_state_device(config))
+            sim = Simulator(config, start_state, calibration=None)
         loop = sim.loop
         window = loop.window
         decimation = int(round(config.run.output_rate / config.gyro.output_rate))
@@ -654,29 +708,34 @@ class AveragedGyro:
             disqualify=control.REBALANCE_DISQUALIFY,
             qualify_periods=control.REBALANCE_QUALIFY_PERIODS,
             lock_periods=control.LOCK_PERIODS, max_rotation=MAX_ROTATION)
-        # the loops' start (DriveLoop.start at the start state) and B of the start state
+        # the loops' state (DriveLoop.start at the start state, or the running loops'
+        # after their last update, S10) and B of the state now at the NCO's phase now
+        d = sim._drive
+        phase = math.fmod(d.omega * (sim.time_s - d.t_ref) + d.phase, 2.0 * math.pi)
         st = np.zeros(kernels.envelope.LOOP_STATE_SIZE)
         st[:17] = (loop.pll_integral, loop.agc_integral, loop.rb_integral[0],
                    loop.rb_integral[1], loop.omega, loop.force, loop.rebalance_force[0],
                    loop.rebalance_force[1], loop.phase_error, loop.amplitude,
                    loop.rebalance_rate, loop.rebalance_quadrature, float(loop.locked),
-                   float(loop.rebalance_on), 0.0, 0.0, sim.drive_phase_at_start)
+                   float(loop.rebalance_on), float(loop._locking), float(loop._qualifying),
+                   phase)
         self._loop = st
         q, v = (np.asarray(x, dtype=float) for x in start_state)
-        self._envelope = envelope_of(q[[ic, is_]], v[[ic, is_]], frame,
-                                     sim.drive_phase_at_start).astype(complex)
-        zi = sim.sense.electronics._zi_rb    # (sections, 2, 4): started at the loop's rows
-        self._filter = np.ascontiguousarray(np.moveaxis(zi, 2, 0).reshape(4, size))
+        self._envelope = envelope_of(q[[ic, is_]], v[[ic, is_]], frame, phase).astype(complex)
+        # the filter's state now, (sections, 2, 4); a copy: the kernel writes its own (a
+        # view would be the running full model's, which sosfilt may leave in this layout)
+        zi = sim.sense.electronics._zi_rb
+        self._filter = np.array(np.moveaxis(zi, 2, 0).reshape(4, size), order='C', copy=True)
         self._die_temperature = sim.sense.electronics.die_temperature
         # (S9) the die temperature, followed as the full model follows it (T2): every
         # THERMAL_UPDATE_S, the device rebuilt once the die has moved THERMAL_STEP_K
-        self.die = thermal.DieTemperature(config)
+        self.die = copy.deepcopy(sim.die)
         self.device_temperature = sim.device_temperature
         self._thermal_live = bool(config.run.temperature_times)
         self._thermal_periods = max(1, int(round(sim._thermal_window / window)))
         # the amplifiers' volts per farad scale as 1 / feedback capacitance (T6)
         self._feedback = float(device.gyro.feedback_capacitance)
-        self.period_index = 0
+        self.period_index = sim.sample_index // window
 
     def _follow_die(self) -> None:
         """
