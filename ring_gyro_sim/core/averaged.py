@@ -33,16 +33,17 @@ The closed-loop gyroscope
 -------------------------
 :class:`AveragedGyro` closes the PLL, the AGC and force-to-rebalance on these envelopes, in
 the frame of the NCO's phase, with the pick-off's first harmonic and the output filter of
-``~/rate`` (its docstring: S5-S8); the averaged force of both is the closed form (S3) of
+``~/rate`` (its docstring: S5-S8), and the noises of the full model as their baseband
+equivalents (S9-S11); the averaged force of both is the closed form (S3) of
 ``kernels.envelope``.
 
 What it is not (yet)
 --------------------
 In :class:`AveragedModel`: the loops and the sense electronics (:class:`AveragedGyro` has
-them). :class:`AveragedModel` takes the device at the die temperature of t = 0;
-:class:`AveragedGyro` follows the die (S9). In both: the open-loop sense readout of
-``~/rate``, ``~/demodulator``, the noises (thermomechanical, pick-off, flicker), the other
-modes (q1, q3, ...: see "Validity"), shocks, base
+them), the noises (:class:`AveragedGyro` has them, S9-S11). :class:`AveragedModel` takes
+the device at the die temperature of t = 0; :class:`AveragedGyro` follows the die (S12). In
+both: the open-loop sense readout of ``~/rate``, ``~/demodulator``, the other modes (q1, q3,
+...: see "Validity"), shocks, base
 acceleration, vibration and contact are not represented. A later step wires them in with
 the hand-off to the full model (doc/averaged.md).
 
@@ -126,7 +127,7 @@ omega. On the default device each is below 1e-4 (7.7e-6, 0 to 9e-5, 1.4e-6 at 10
   harmonic is of the second order in the nonlinearity (``test_averaged`` measures it
   against the shooting orbit);
 - none of what is listed above as not represented: shocks, base acceleration, vibration,
-  contact, noise, loops, temperature changes.
+  contact, noise (in :class:`AveragedModel`), loops, temperature changes.
 """
 
 import cmath
@@ -136,9 +137,9 @@ import math
 from typing import Optional, Sequence, Tuple
 
 import numpy as np
-from ring_gyro_sim.core import harmonic_balance, kernels, structure, thermal
+from ring_gyro_sim.core import harmonic_balance, kernels, noise, structure, thermal
 from ring_gyro_sim.core.errors import ParameterError, SimulationError
-from ring_gyro_sim.core.params import SimConfig
+from ring_gyro_sim.core.params import BOLTZMANN, SimConfig
 from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
@@ -210,7 +211,7 @@ def state_of(envelope: np.ndarray, omega: float,
 HAND_BACK_THRESHOLD = 1e-3
 """
 Largest amplitude of the modes other than the driven pair, over d_g, at a hand-off to the
-averaged model (S10). After a 10 000 g shock on the default gyroscope (they reach 0.53 d_g and
+averaged model (S13). After a 10 000 g shock on the default gyroscope (they reach 0.53 d_g and
 ring down over ~20 s), the readout after the hand-off against the full model's: at 3e-2 of
 d_g 11 % of the reading, 1e-2 2.7 %, 3e-3 6.1e-4, 1e-3 1.4e-5, 3e-4 1.2e-5 (doc/averaged.md).
 """
@@ -218,7 +219,7 @@ d_g 11 % of the reading, 1e-2 2.7 %, 3e-3 6.1e-4, 1e-3 1.4e-5, 3e-4 1.2e-5 (doc/
 
 def fast_mode_amplitude(sim) -> float:
     """
-    Return the largest amplitude of the modes the averaged model leaves out, over d_g (S10).
+    Return the largest amplitude of the modes the averaged model leaves out, over d_g (S13).
 
     ``sqrt(q^2 + (q' / omega_n)^2)`` of every coordinate of a full model (``Simulator``)
     but the driven pair's (q2, q2s): what a shock or vibration left ringing, which the
@@ -531,13 +532,15 @@ class GyroSamples:
     nco_phase: np.ndarray
 
 
+_NO_NOISE = np.zeros((0, 8))
+
 MAX_ROTATION = 0.05
 """Largest ``|lambda| h`` of an RK4 substep (S6): local error ``(lambda h)^5 / 120`` = 3e-9."""
 
 
 class AveragedGyro:
     """
-    The closed-loop gyroscope at envelope level: the pair's slow flow and the loops (S5-S8).
+    The closed-loop gyroscope at envelope level: the pair's slow flow and the loops (S5-S11).
 
     What it is
     ----------
@@ -575,7 +578,47 @@ class AveragedGyro:
     over each period's ``N`` samples of a held input (a linear map of its state), read at
     the period's last sample (E4's decimation), then the held calibration (K1) when given.
 
-    (S9) Temperature: the die (T2, ``thermal.DieTemperature``) is followed as the full model
+    The noises: the full model's three (``gyro.temperature``, ``gyro.input_noise_density``,
+    ``gyro.bias_instability``), each as the baseband noise with the same statistics, drawn
+    per loop period from counter-based streams of ``gyro.noise_seed`` (``core.noise``: a
+    run cut into calls of any length draws the same numbers). All three off, the
+    arithmetic is that of the noiseless model, bit for bit.
+
+    (S9) The thermomechanical force. The full model's is white, of two-sided acceleration
+    density (a 2x2 matrix on the pair) ``S = 2 k_B T_n C / m`` (``T_n`` =
+    ``gyro.temperature``, C the pair's damping per unit modal mass, m the modal mass of q2:
+    fluctuation-dissipation, ``Simulator._build_rotation``). In (V) it is part of f: a force
+    ``xi`` adds ``xi e^{-i phi} / (i omega)`` to A', whose increment over a period T,
+    ``dA = -(i / omega) int xi e^{-i phi} dt``, has real and imaginary parts of covariance
+    ``S T / (2 omega^2)`` each and uncorrelated (``int cos^2 = int sin^2 = T / 2``,
+    ``int cos sin = 0``, to ``1 / (omega T)`` = 6e-4): a circular complex Gaussian, the same
+    in any frame that turns with phi (B's). The model holds over each period a first
+    harmonic ``f_n`` with real and imaginary parts each ``N(0, 2 S / T)``
+    (``= 4 k_B T_n C / (m T)``, by its Cholesky factor), added to the commands ``F_c`` of
+    (S5): the increment ``-(i / (2 omega_c)) f_n T`` has the covariance above. Within a
+    period the noise's time structure is not kept (the loops read once a period); the
+    stationary state of the undriven pair is equipartition, ``E(|B_c|^2 + |B_s|^2) = 4 k_B
+    T_n / (m omega_c^2)``, i.e. ``<q^2> = k_B T_n / (m omega^2)`` per coordinate (the
+    Lyapunov equation of (S5): the detunings and the Coriolis term rotate B, C dissipates
+    what the noise brings; the increment's first-order error in ``gamma T``, gamma =
+    ``omega / (2 Q)``, cancels in the stationary variance to ``(gamma T)^2`` = 6e-7).
+
+    (S10) The pick-off noise after the fit. The full model adds white noise of standard
+    deviation ``sigma = e_o sqrt(f_s / 2)`` to each amplifier's samples (E2, ``e_o`` the
+    output-referred density); the fit of C2 on ``cos, sin, 1`` over the period's
+    ``N = f_s T`` samples has coefficient errors of covariance ``sigma^2 (X^T X)^{-1}``,
+    ``(2 sigma^2 / N) I`` on cos and sin to ``O(1 / (N sin(omega / f_s)))`` (within 1.1 %
+    at a given window phase, 3e-4 on average; correlation within 1 %). So each component of
+    each amplifier's first harmonic, as the loops read it, gets ``N(0, e_o^2 / T)`` per
+    period, independent across components, amplifiers and periods. It reaches ``~/rate`` as
+    in the full model: through the loops (the rebalance force and the measured amplitude
+    that scales it, C7); the sense chain's own reading (``~/demodulator``) is not built.
+
+    (S11) The flicker: the full model's bank (E13, ``electronics.FlickerNoise``, the same
+    seed and rate-sample indices), added to ``~/rate`` after the calibration as E13 adds it:
+    the same samples.
+
+    (S12) Temperature: the die (T2, ``thermal.DieTemperature``) is followed as the full model
     follows it: every ``THERMAL_UPDATE_S`` the die's sensor (the calibration's
     compensation, K3) reads it, and once it has moved ``THERMAL_STEP_K`` from the device's
     temperature the pair's K and C (T3-T5) and the amplifiers' volts per farad (T6) are
@@ -587,7 +630,7 @@ class AveragedGyro:
     ``(q - i q' / w) e^{-i phi}`` of an oscillation of amplitude X at omega has the slow
     part ``X (1 + omega / w) / 2``.
 
-    (S10) The hand-off from the full model (``simulator``): at a loop update the state maps
+    (S13) The hand-off from the full model (``simulator``): at a loop update the state maps
     exactly. The pair's envelopes are ``(q - i q' / omega_frame) e^{-i phi}`` of the full
     model's state at the NCO's phase ``phi`` now (S1, an exact change of variables); the
     loops' state is the one their last update left (C3-C8b, the lock and qualification
@@ -597,9 +640,8 @@ class AveragedGyro:
     other modes, which the caller hands off only once they have rung down
     (:func:`fast_mode_amplitude`).
 
-    What it is not: noise (thermomechanical, pick-off, flicker), the
-    output word (E15), the block topics and the open-loop sense readout; shocks, base
-    acceleration, vibration and contact (doc/averaged.md).
+    What it is not: the output word (E15), the block topics and the open-loop sense
+    readout; shocks, base acceleration, vibration and contact (doc/averaged.md).
 
     Parameters
     ----------
@@ -613,7 +655,7 @@ class AveragedGyro:
     calibration : gyro_calibration.Calibration or None
         The held calibration (K1) of ``~/rate``; None: the model's own rebalance readout.
     simulator : Simulator, optional
-        A running full model of ``config`` to continue from (S10, the hand-off to the
+        A running full model of ``config`` to continue from (S13, the hand-off to the
         averaged model): its state at its current time, which must be a loop update (a
         whole number of loop periods); ``start_state`` is then not used.
 
@@ -621,7 +663,7 @@ class AveragedGyro:
 
     def __init__(self, config: SimConfig, start_state=None, calibration=None,
                  simulator=None) -> None:
-        from ring_gyro_sim.core.gyro import control, operating_point
+        from ring_gyro_sim.core.gyro import control, electronics, operating_point
         from ring_gyro_sim.core.simulator import Simulator
         from scipy import signal
         if not (config.control.closed and config.control.rebalance):
@@ -678,7 +720,7 @@ class AveragedGyro:
             out_state[j] = y[-1]
         y, zf = signal.sosfilt(sos, np.ones(window), zi=np.zeros((sos.shape[0], 2)))
         stiffness, damping = device.modes.pair_matrices(2)
-        # (S9) the frame turns at the drive mode's frequency on this die: the NCO's centre
+        # (S12) the frame turns at the drive mode's frequency on this die: the NCO's centre
         # moved with the frequencies (T3), as the full model starts the NCO
         frame = float(loop.omega_c * thermal.frequency_scale(config, sim.device_temperature))
         times = np.asarray(config.run.rate_times if config.gyro.enabled else (), dtype=float)
@@ -709,7 +751,7 @@ class AveragedGyro:
             qualify_periods=control.REBALANCE_QUALIFY_PERIODS,
             lock_periods=control.LOCK_PERIODS, max_rotation=MAX_ROTATION)
         # the loops' state (DriveLoop.start at the start state, or the running loops'
-        # after their last update, S10) and B of the state now at the NCO's phase now
+        # after their last update, S13) and B of the state now at the NCO's phase now
         d = sim._drive
         phase = math.fmod(d.omega * (sim.time_s - d.t_ref) + d.phase, 2.0 * math.pi)
         st = np.zeros(kernels.envelope.LOOP_STATE_SIZE)
@@ -727,7 +769,7 @@ class AveragedGyro:
         zi = sim.sense.electronics._zi_rb
         self._filter = np.array(np.moveaxis(zi, 2, 0).reshape(4, size), order='C', copy=True)
         self._die_temperature = sim.sense.electronics.die_temperature
-        # (S9) the die temperature, followed as the full model follows it (T2): every
+        # (S12) the die temperature, followed as the full model follows it (T2): every
         # THERMAL_UPDATE_S, the device rebuilt once the die has moved THERMAL_STEP_K
         self.die = copy.deepcopy(sim.die)
         self.device_temperature = sim.device_temperature
@@ -735,11 +777,32 @@ class AveragedGyro:
         self._thermal_periods = max(1, int(round(sim._thermal_window / window)))
         # the amplifiers' volts per farad scale as 1 / feedback capacitance (T6)
         self._feedback = float(device.gyro.feedback_capacitance)
+        
         self.period_index = sim.sample_index // window
+        # (S9) the force noise's first harmonics per period: re and im each N(0, 2 S / T),
+        # S = 2 k_B T_n C / m the pair's two-sided acceleration density (the full model's)
+        g = config.gyro
+        self.noise_seed = int(g.noise_seed)
+        self.force_noise_factor = None
+        if g.temperature > 0.0:
+            mass = float(device.modal_masses()[ic])
+            self.force_noise_factor = np.linalg.cholesky(
+                4.0 * BOLTZMANN * g.temperature * damping / (mass * loop.period_s))
+        # (S10) the fit's error per component: e_o sqrt(f_s / N) (drive, sense amplifiers)
+        po = sim.pickoff
+        self.pickoff_noise_std = None
+        if po.noisy:
+            density = np.asarray(po.output_noise_density, dtype=float)
+            self.pickoff_noise_std = density[[1, 0]] * math.sqrt(po.sample_rate_hz / window)
+        # (S11) the flicker of ~/rate: the full model's bank, the same samples
+        self.flicker = electronics.FlickerNoise(
+            electronics.deg_per_h_to_rad_per_s(g.bias_instability), g.output_rate,
+            self.noise_seed)
+
 
     def _follow_die(self) -> None:
         """
-        Advance the die to now; rebuild the pair and the amplifiers if it moved enough (S9).
+        Advance the die to now; rebuild the pair and the amplifiers if it moved enough (S12).
 
         As ``Simulator._follow_die``: the die's sensor (the calibration's compensation)
         follows every update; the pair's K and C (T3-T5) and the amplifiers' volts per
@@ -768,6 +831,32 @@ class AveragedGyro:
                                 pg_drive=m.pg_drive * gain, pg_sense=m.pg_sense * gain,
                                 omega_frame=frame)
 
+    def _noise(self, count: int) -> np.ndarray:
+        """
+        Return the noise of the next ``count`` periods as ``run_periods`` takes it (S9, S10).
+
+        Rows of :data:`noise.STREAM_ENVELOPE_FORCE` and :data:`noise.STREAM_ENVELOPE_PICKOFF`
+        addressed by period index, so that a run cut into calls of any length draws the same
+        numbers; ``(0, 8)`` with both noises off.
+        """
+        if self.force_noise_factor is None and self.pickoff_noise_std is None:
+            return _NO_NOISE
+        out = np.zeros((count, 8))
+        if count == 0:
+            return out
+        if self.force_noise_factor is not None:
+            z = noise.block_normals(self.noise_seed, noise.STREAM_ENVELOPE_FORCE,
+                                    self.period_index, count, 4)
+            factor = self.force_noise_factor
+            out[:, 0:4:2] = z[:, 0:2] @ factor.T   # re of (f_c, f_s)
+            out[:, 1:4:2] = z[:, 2:4] @ factor.T   # im of (f_c, f_s)
+        if self.pickoff_noise_std is not None:
+            z = noise.block_normals(self.noise_seed, noise.STREAM_ENVELOPE_PICKOFF,
+                                    self.period_index, count, 4)
+            out[:, 4:6] = z[:, 0:2] * self.pickoff_noise_std[0]
+            out[:, 6:8] = z[:, 2:4] * self.pickoff_noise_std[1]
+        return out
+
     @property
     def time_s(self) -> float:
         """Return the simulated time, s."""
@@ -795,17 +884,19 @@ class AveragedGyro:
         rows = np.empty((outputs, kernels.envelope.LOOP_STATE_SIZE))
         filtered = np.empty((outputs, 4))
         die = np.empty(outputs)
+        first_output = self.period_index // self.decimate
         written = done = 0
         while done < count:
             stop = count - done
-            if self._thermal_live:   # (S9) at the die's update times, as the full model (T2)
+            if self._thermal_live:   # (S12) at the die's update times, as the full model (T2)
                 since = self.period_index % self._thermal_periods
                 if since == 0:
                     self._follow_die()
                 stop = min(stop, self._thermal_periods - since)
             n = kernels.run_periods(self.model, self._envelope, self._loop, self._filter,
-                                    self.period_index, stop, self.decimate, t[written:],
-                                    env[written:], rows[written:], filtered[written:])
+                                    self.period_index, stop, self.decimate, self._noise(stop),
+                                    t[written:], env[written:], rows[written:],
+                                    filtered[written:])
             if n < 0:
                 self.period_index = -1 - n
                 raise SimulationError(f"averaged model: the orbit left the force's or the "
@@ -823,6 +914,8 @@ class AveragedGyro:
             rate, quadrature = self.calibration.apply(filtered[:, 2], filtered[:, 3], die)
         else:
             rate, quadrature = filtered[:, 0].copy(), filtered[:, 1].copy()
+        if self.flicker.sigma > 0.0:  # (S11) after the calibration, as E13
+            rate += self.flicker.samples(first_output, outputs)
         return GyroSamples(t=t, rate=rate, quadrature=quadrature, readout=filtered[:, 2:],
                            envelope=env, control=control_rows,
                            nco_phase=rows[:, e.NCO_PHASE].copy())

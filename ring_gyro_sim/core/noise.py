@@ -74,7 +74,8 @@ import numpy as np
 from ring_gyro_sim.core.errors import InputError
 
 __all__ = ['STREAM_BROWNIAN', 'STREAM_PICKOFF', 'STREAM_FLICKER', 'STREAM_DEVICE',
-           'STREAM_VIBRATION', 'MAX_KEY_WORD', 'normals', 'block_normals']
+           'STREAM_VIBRATION', 'STREAM_ENVELOPE_FORCE', 'STREAM_ENVELOPE_PICKOFF',
+           'MAX_KEY_WORD', 'normals', 'block_normals']
 
 STREAM_BROWNIAN = 1
 """Thermomechanical force noise of the modes (simulator kernel): width = coordinates x steps."""
@@ -86,6 +87,12 @@ STREAM_DEVICE = 4
 """The draw of a device from its manufacturing spread (core/device.py, D1): one row of 7."""
 STREAM_VIBRATION = 5
 """The phases of the random vibration's lines (core/vibration.py): row k, width 2."""
+STREAM_ENVELOPE_FORCE = 6
+"""The averaged model's thermomechanical force (core/averaged.py, S9): row = loop period,
+width 4 (the real parts of the pair's first harmonics, then their imaginary parts)."""
+STREAM_ENVELOPE_PICKOFF = 7
+"""The averaged model's pick-off noise after the fit (core/averaged.py, S10): row = loop
+period, width 4 (drive cos, drive sin, sense cos, sense sin)."""
 
 MAX_KEY_WORD = 2 ** 64 - 1
 """Largest seed and stream: each is one 64-bit word of the Philox key."""

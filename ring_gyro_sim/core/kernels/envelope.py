@@ -15,7 +15,7 @@
 """
 The averaged model's kernels: the pair's first harmonics and the closed-loop slow flow.
 
-Used by ``core.averaged`` (S3-S8): the first harmonics of the force and of the pick-off,
+Used by ``core.averaged`` (S3-S10): the first harmonics of the force and of the pick-off,
 and the closed-loop slow flow stepped loop period by loop period.
 
 First harmonics in closed form (S3, S4)
@@ -62,7 +62,7 @@ class EnvelopeModel(NamedTuple):
     omega_c : float
         ``2 pi drive.frequency``, rad/s: the NCO's centre (C3).
     omega_frame : float
-        The frame frequency of the envelopes' velocity, rad/s (S1, S5, S9): ``omega_c``
+        The frame frequency of the envelopes' velocity, rad/s (S1, S5, S12): ``omega_c``
         times the frequencies' factor at the device's temperature.
     stiffness, damping : ndarray, shape (2, 2)
         K and C of the pair (S2).
@@ -381,18 +381,22 @@ def _update(m, st, x_c, x_s, y_c, y_s):
 
 
 @njit(cache=True)
-def run_periods(m, env, st, filt, first_period, count, decimate, out_t, out_env, out_loop,
-                out_filtered):
+def run_periods(m, env, st, filt, first_period, count, decimate, noise, out_t, out_env,
+                out_loop, out_filtered):
     """
-    Advance the slow flow and the loops by ``count`` loop periods (S5-S8).
+    Advance the slow flow and the loops by ``count`` loop periods (S5-S10).
 
     ``env`` (2,) complex: B in the NCO's frame (S5); ``st`` the loops' state
     (:data:`LOOP_STATE_SIZE`); ``filt`` (4, S) the output low-pass's state of the four
     rebalance channels (rate, quadrature, S_c, S_s); ``first_period`` the index of the
     first period (period p ends at ``(p + 1) T``). Every ``decimate``-th period end is an
     output (row r: the time, B, the loops' state after the update, the filtered channels at
-    the period's last sample). Returns the number of outputs written, or ``-1 - p`` when
-    period p left the force's range (NaN).
+    the period's last sample). ``noise`` (count, 8): per period, the thermomechanical
+    force's first harmonics on q2 and q2s (re, im, re, im; m/s^2, S9), held over the period
+    and added to the commands, and the fit's errors on the drive and sense amplifiers' first
+    harmonics (re, im, re, im; V, S10), added to what the loops read; ``(0, 8)``: no noise
+    (the arithmetic of a noiseless run unchanged). Returns the number of outputs written, or
+    ``-1 - p`` when period p left the force's range (NaN).
     """
     h_period = m.period
     written = 0
@@ -407,6 +411,10 @@ def run_periods(m, env, st, filt, first_period, count, decimate, out_t, out_env,
         f_s = complex(st[SC], -st[SS])
         if m.sense_phase_error != 0.0:
             f_s *= complex(math.cos(m.sense_phase_error), math.sin(m.sense_phase_error))
+        noisy = noise.shape[0] > 0
+        if noisy:  # (S9) the force noise's first harmonics over this period
+            f_c += complex(noise[p, 0], noise[p, 1])
+            f_s += complex(noise[p, 2], noise[p, 3])
         # (S6) RK4 substeps: |lambda| h below max_rotation, cut at the rate profile's
         # knots (a step or a kink inside an RK4 step would be smeared over its stages)
         b_c = env[0]
@@ -475,6 +483,9 @@ def run_periods(m, env, st, filt, first_period, count, decimate, out_t, out_env,
                                     m.gap)
         if not math.isfinite(v_d.real + v_s.real):
             return -1 - index
+        if noisy:  # (S10) the fit's errors from the amplifiers' noise
+            v_d += complex(noise[p, 4], noise[p, 5])
+            v_s += complex(noise[p, 6], noise[p, 7])
         _update(m, st, v_d.real / m.drive_gain, -v_d.imag / m.drive_gain,
                 v_s.real / m.sense_gain, -v_s.imag / m.sense_gain)
         if is_out:
