@@ -591,8 +591,9 @@ class AveragedGyro:
     ``xi`` adds ``xi e^{-i phi} / (i omega)`` to A', whose increment over a period T,
     ``dA = -(i / omega) int xi e^{-i phi} dt``, has real and imaginary parts of covariance
     ``S T / (2 omega^2)`` each and uncorrelated (``int cos^2 = int sin^2 = T / 2``,
-    ``int cos sin = 0``, to ``1 / (omega T)`` = 6e-4): a circular complex Gaussian, the same
-    in any frame that turns with phi (B's). The model holds over each period a first
+    ``int cos sin = 0``, to ``1 / (2 omega T)`` = 0.5 % in a given period, which averages
+    out as the period's start phase moves): a circular complex Gaussian, the same in any
+    frame that turns with phi (B's). The model holds over each period a first
     harmonic ``f_n`` with real and imaginary parts each ``N(0, 2 S / T)``
     (``= 4 k_B T_n C / (m T)``, by its Cholesky factor), added to the commands ``F_c`` of
     (S5): the increment ``-(i / (2 omega_c)) f_n T`` has the covariance above. Within a
