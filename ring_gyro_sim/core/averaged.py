@@ -511,7 +511,7 @@ class GyroSamples:
     rate, quadrature : ndarray, shape (K,)
         ``~/rate``'s rate and quadrature, rad/s: the held calibration applied to the
         filtered rebalance forces (K1), or without one the filtered rebalance rate and
-        quadrature (C7, E14).
+        quadrature (C7, E14); the rate plus the flicker (S11).
     readout : ndarray, shape (K, 2)
         The filtered rebalance forces ``(S_c, S_s)``, m/s^2: the readout before calibration.
     envelope : ndarray of complex, shape (K, 2)
