@@ -664,7 +664,7 @@ class AveragedGyro:
 
     def __init__(self, config: SimConfig, start_state=None, calibration=None,
                  simulator=None) -> None:
-        from ring_gyro_sim.core.gyro import control, electronics, operating_point
+        from ring_gyro_sim.core.gyro import control, operating_point
         from ring_gyro_sim.core.simulator import Simulator
         from scipy import signal
         if not (config.control.closed and config.control.rebalance):
@@ -778,28 +778,39 @@ class AveragedGyro:
         self._thermal_periods = max(1, int(round(sim._thermal_window / window)))
         # the amplifiers' volts per farad scale as 1 / feedback capacitance (T6)
         self._feedback = float(device.gyro.feedback_capacitance)
-        
         self.period_index = sim.sample_index // window
-        # (S9) the force noise's first harmonics per period: re and im each N(0, 2 S / T),
-        # S = 2 k_B T_n C / m the pair's two-sided acceleration density (the full model's)
-        g = config.gyro
-        self.noise_seed = int(g.noise_seed)
+        # (S9, S10) the noises' scales, of the device at the die's temperature (T5, T6)
+        self.noise_seed = int(config.gyro.noise_seed)
+        self._modal_mass = float(device.modal_masses()[ic])
+        self._input_capacitance = np.asarray(sim.pickoff.input_capacitance, dtype=float)
+        self._pickoff_noisy = bool(sim.pickoff.noisy)
+        self._set_noise(device)
+        # (S11) the flicker of ~/rate: the full model's bank (E13), so the same samples
+        # (from a running full model, its bank's state now)
+        self.flicker = copy.deepcopy(sim.sense.electronics.flicker)
+
+    def _set_noise(self, device: SimConfig) -> None:
+        """
+        Set the noises' scales of the device (its die temperature's, T5, T6; S9, S10).
+
+        (S9) re and im of the force's first harmonic per period each ``N(0, 2 S / T)``,
+        ``S = 2 k_B T_n C / m`` the pair's two-sided acceleration density (the full model's,
+        ``T_n`` the device's ``gyro.temperature``). (S10) the fit's error per component,
+        ``e_o sqrt(f_s / N)``, of the amplifiers' output-referred density at the device's
+        feedback capacitance (E2; drive, sense).
+        """
+        g = device.gyro
+        _, damping = device.modes.pair_matrices(2)
         self.force_noise_factor = None
         if g.temperature > 0.0:
-            mass = float(device.modal_masses()[ic])
             self.force_noise_factor = np.linalg.cholesky(
-                4.0 * BOLTZMANN * g.temperature * damping / (mass * loop.period_s))
-        # (S10) the fit's error per component: e_o sqrt(f_s / N) (drive, sense amplifiers)
-        po = sim.pickoff
+                4.0 * BOLTZMANN * g.temperature * damping / (self._modal_mass * self.model.period))
         self.pickoff_noise_std = None
-        if po.noisy:
-            density = np.asarray(po.output_noise_density, dtype=float)
-            self.pickoff_noise_std = density[[1, 0]] * math.sqrt(po.sample_rate_hz / window)
-        # (S11) the flicker of ~/rate: the full model's bank, the same samples
-        self.flicker = electronics.FlickerNoise(
-            electronics.deg_per_h_to_rad_per_s(g.bias_instability), g.output_rate,
-            self.noise_seed)
-
+        if self._pickoff_noisy:
+            density = g.input_noise_density * (1.0 + self._input_capacitance
+                                               / g.feedback_capacitance)
+            self.pickoff_noise_std = density[[1, 0]] * math.sqrt(
+                self.config.run.output_rate / self.model.window)
 
     def _follow_die(self) -> None:
         """
@@ -831,6 +842,7 @@ class AveragedGyro:
                                 damping=np.ascontiguousarray(damping, dtype=float),
                                 pg_drive=m.pg_drive * gain, pg_sense=m.pg_sense * gain,
                                 omega_frame=frame)
+        self._set_noise(device)
 
     def _noise(self, count: int) -> np.ndarray:
         """

@@ -454,3 +454,32 @@ def test_after_a_10000_g_shock_the_averaged_model_takes_over_as_the_full_one_goe
     reference = np.concatenate([full.advance_samples(2000).rate_output.rate
                                 for _ in range(100)])
     assert np.max(np.abs(averaged - reference)) < 1e-3 * hundred
+
+
+def test_the_averaged_noises_follow_the_die():
+    # (S9, S10 at S12's die) the force noise's density 2 k_B T_n C / m with the device's
+    # T_n and C at the die temperature (T4, T5), the pick-off's output density with its
+    # feedback capacitance (T6), as the full model rebuilds them: after a 20 K step of the
+    # ambient (the die at once) the scales are those of the device at 318.15 K.
+    from ring_gyro_sim.core import thermal
+    from ring_gyro_sim.core.averaged import AveragedGyro
+    from ring_gyro_sim.core.params import BOLTZMANN
+    cfg = build_config({'thermal.time_constant': 0.0,
+                        'scenario.temperature_times': [0.0, 0.005, 0.005],
+                        'scenario.temperature_values': [298.15, 298.15, 318.15]})
+    model = AveragedGyro(cfg)
+    cold = model.force_noise_factor @ model.force_noise_factor.T
+    model.advance(0.02)
+    assert model.device_temperature == 318.15
+    hot_device = thermal.device_at(cfg, 318.15)
+    _, damping = hot_device.modes.pair_matrices(2)
+    expected = (4.0 * BOLTZMANN * hot_device.gyro.temperature * damping
+                / (hot_device.modal_masses()[1] * model.model.period))
+    hot = model.force_noise_factor @ model.force_noise_factor.T
+    assert np.allclose(hot, expected, rtol=1e-12, atol=0.0)
+    assert not np.allclose(hot, cold, rtol=1e-3, atol=0.0)
+    sim = Simulator(hot_device, calibration=None)
+    density = np.asarray(sim.pickoff.output_noise_density)[[1, 0]]
+    assert np.allclose(model.pickoff_noise_std,
+                       density * math.sqrt(cfg.run.output_rate / model.model.window),
+                       rtol=1e-12, atol=0.0)
