@@ -357,7 +357,7 @@ def test_the_imperfect_averaged_gyroscope_follows_a_temperature_ramp_as_the_full
     # The must-show: an imperfect ring (5 % damping mismatch on axes at 22.5 deg, a 20 mHz
     # split at 10 deg: its bias is -0.0252 rad/s) under a 20 K ramp of the ambient over 2 s,
     # the die behind it by 0.2 s, noise off. The averaged model follows the die as the full
-    # model does (S9: every 10 ms, the device rebuilt each 0.01 K) and turns its frame with
+    # model does (S12: every 10 ms, the device rebuilt each 0.01 K) and turns its frame with
     # the frequencies: with the frame held at drive.frequency the averaging's error
     # (omega - omega_frame) / omega = 6e-4 at 20 K made the bias change 0.98 % off. The bias
     # change (the rebalance readout at zero rate, 2.8-3 s against 0.3-0.5 s) within 1 % of
@@ -394,7 +394,7 @@ def test_the_imperfect_averaged_gyroscope_follows_a_temperature_ramp_as_the_full
 
 
 def test_the_averaged_gyroscope_continues_a_running_full_model():
-    # (S10) the hand-off to the averaged model: from a full model at a loop update (0.3 s
+    # (S13) the hand-off to the averaged model: from a full model at a loop update (0.3 s
     # at 10 deg/s, noise off) the averaged one takes the pair's state (its envelopes at the
     # NCO's phase now), the loops' state after their last update, the output filter's and
     # the die's. Its first ~/rate sample is the full model's (the filter state carries it:
@@ -426,7 +426,7 @@ def test_the_averaged_gyroscope_continues_a_running_full_model():
 def test_after_a_10000_g_shock_the_averaged_model_takes_over_as_the_full_one_goes_on():
     # The must-show of the hand-back: a 10 000 g half-sine along x at 50 ms on the default
     # gyroscope at 100 deg/s (noise off) leaves the other modes at 0.53 d_g; the full model
-    # runs until they have rung down below HAND_BACK_THRESHOLD (S10: checked at each 10 ms,
+    # runs until they have rung down below HAND_BACK_THRESHOLD (S13: checked at each 10 ms,
     # measured at 20.7 s), identical to a full-only run by construction, then the averaged
     # model continues. Its readout at every 1 kHz sample of the next second against the
     # full-only run's: within 0.1 % of the reading. Measured 1.4e-5 (3e-3 of d_g: 6.1e-4,
