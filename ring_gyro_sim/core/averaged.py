@@ -641,6 +641,14 @@ class AveragedGyro:
     other modes, which the caller hands off only once they have rung down
     (:func:`fast_mode_amplitude`).
 
+    (S14) The hand-back to the full model (:meth:`resume_state`, ``Simulator.resume``): at
+    a loop update the pair's coordinates and velocities are those of the envelopes at the
+    NCO's phase (S1, exact for the averaged state) and the other modes at rest; the loops,
+    the output filter, the die and the flicker bank carry over; the demodulator's low-pass
+    (E3, not in the averaged model) restarts in its periodic steady state under the mixers'
+    products of the amplifiers' first harmonics (S4), the constant and the ``2 omega`` terms.
+    The full model's clock jumps; its noises are addressed by sample index and go on.
+
     What it is not: the output word (E15), the block topics and the open-loop sense
     readout; shocks, base acceleration, vibration and contact (doc/averaged.md).
 
@@ -788,6 +796,11 @@ class AveragedGyro:
         # (S11) the flicker of ~/rate: the full model's bank (E13), so the same samples
         # (from a running full model, its bank's state now)
         self.flicker = copy.deepcopy(sim.sense.electronics.flicker)
+        # for the hand-back (S14): the coordinates' layout, the demodulator's references
+        el = sim.sense.electronics
+        self._pair = (ic, is_)
+        self._n_coordinates = int(sim.model.n_coordinates)
+        self._latest = (float(el._latest_rate), float(el._latest_quadrature))
 
     def _set_noise(self, device: SimConfig) -> None:
         """
@@ -875,6 +888,45 @@ class AveragedGyro:
         """Return the simulated time, s."""
         return self.period_index * self.model.period
 
+    def resume_state(self):
+        """
+        Return the state now for a full model to go on from (S14, the hand-back).
+
+        The pair's coordinates and velocities of the envelopes at the NCO's phase (S1: the
+        other modes at rest), the loops' state, the output filter's, the demodulator's
+        channels (the pick-off's first harmonics, S4, mixed with the sense chain's
+        references, E3), the die and the flicker bank: ``Simulator.resume`` takes it.
+        """
+        from ring_gyro_sim.core.simulator import ResumeState
+        e = kernels.envelope
+        st = self._loop
+        m = self.model
+        phase = float(st[e.NCO_PHASE])
+        pair_q, pair_v = state_of(self._envelope, m.omega_frame, np.float64(phase))
+        q = np.zeros(self._n_coordinates)
+        v = np.zeros(self._n_coordinates)
+        q[list(self._pair)] = pair_q
+        v[list(self._pair)] = pair_v
+        loop = {'pll_integral': st[e.PLL_I], 'agc_integral': st[e.AGC_I],
+                'rb_integral': st[[e.RB_IC, e.RB_IS]], 'omega': st[e.OMEGA],
+                'force': st[e.FORCE], 'rebalance_force': st[[e.SC, e.SS]],
+                'phase_error': st[e.PHASE_ERR], 'amplitude': st[e.AMP],
+                'rebalance_rate': st[e.RB_RATE], 'rebalance_quadrature': st[e.RB_QUAD],
+                'locked': st[e.LOCKED] > 0.5, 'rebalance_on': st[e.RB_ON] > 0.5,
+                '_locking': int(st[e.LOCKING]), '_qualifying': int(st[e.QUALIFYING])}
+        # the amplifiers' first harmonics (S4), from which the demodulator restarts (E3)
+        v_d, v_s = kernels.pickoff_harmonic(self._envelope[0], self._envelope[1], m.pb_c,
+                                            m.pb_s, m.pg_drive, m.pg_sense, m.gap)
+        size = self._filter.shape[1]
+        rebalance = np.moveaxis(self._filter.reshape(4, size // 2, 2), 0, 2).copy()
+        die = copy.deepcopy(self.die)
+        die.advance_to(self.time_s)
+        return ResumeState(sample_index=self.period_index * m.window, q=q, v=v, loop=loop,
+                           nco_phase=phase, harmonics=np.array([v_s, v_d]),
+                           rebalance_state=rebalance,
+                           latest_rate=self._latest[0], latest_quadrature=self._latest[1],
+                           die=die, flicker=copy.deepcopy(self.flicker))
+
     def advance(self, seconds: float) -> GyroSamples:
         """
         Advance by ``seconds`` (whole ``~/rate`` periods) and return the ``~/rate`` samples.
@@ -927,8 +979,11 @@ class AveragedGyro:
             rate, quadrature = self.calibration.apply(filtered[:, 2], filtered[:, 3], die)
         else:
             rate, quadrature = filtered[:, 0].copy(), filtered[:, 1].copy()
+        if outputs:   # what the sense chain holds as its latest sample (before the flicker)
+            self._latest = (float(rate[-1]), float(quadrature[-1]))
+        flicker = self.flicker.samples(first_output, outputs)   # the bank's index moves on
         if self.flicker.sigma > 0.0:  # (S11) after the calibration, as E13
-            rate += self.flicker.samples(first_output, outputs)
+            rate += flicker
         return GyroSamples(t=t, rate=rate, quadrature=quadrature, readout=filtered[:, 2:],
                            envelope=env, control=control_rows,
                            nco_phase=rows[:, e.NCO_PHASE].copy())

@@ -69,7 +69,7 @@ import bisect
 from dataclasses import dataclass, replace
 import enum
 import math
-from typing import Any, Callable, List, Mapping, Optional, Tuple
+from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple
 import warnings
 
 import numpy as np
@@ -93,7 +93,7 @@ _NO_NOISE = np.empty((0, 1))
 
 __all__ = ['STEPS_PER_PERIOD', 'STEP_HARMONICS', 'PULSE_SUBSTEPS_PER_DURATION',
            'GAP_GRID_POINTS_PER_MODE', 'ELECTRODE_GAUSS_POINTS', 'GAP_FLOOR_RATIO', 'Status',
-           'default_max_step', 'Samples', 'Simulator']
+           'default_max_step', 'ResumeState', 'Samples', 'Simulator']
 
 STEPS_PER_PERIOD = 8
 """Default steps per period of the fastest step-setting mode (see :func:`default_max_step`)."""
@@ -291,6 +291,50 @@ def _hold_last(arr: np.ndarray, first: int) -> None:
 def _kernel_status(status: int) -> Status:
     """Translate a kernel's integer status (``kernels.STATUS_*``, not OK) to a :class:`Status`."""
     return Status.FAILED if status == kernels.STATUS_NONFINITE else Status.CONTACT
+
+
+@dataclass(frozen=True)
+class ResumeState:
+    """
+    The gyroscope's state at a loop update, taken outside the full model (a hand-back).
+
+    What :meth:`Simulator.resume` takes (``core.averaged.AveragedGyro.resume_state``, S14).
+
+    Attributes
+    ----------
+    sample_index : int
+        The global sample index now: a whole number of loop periods.
+    q, v : ndarray, shape (n,)
+        Coordinates (m) and velocities (m/s), columns as :attr:`Simulator.coordinates`.
+    loop : dict
+        The loops' state after their last update: ``DriveLoop`` attribute -> value.
+    nco_phase : float
+        The NCO's phase now, rad.
+    harmonics : ndarray of complex, shape (2,)
+        The sense and drive amplifiers' first harmonics now, V (``volts = Re(V e^{i phi})``,
+        phi the NCO's phase).
+    rebalance_state : ndarray
+        The rebalance output's low-pass state (E14), as ``SenseElectronics`` holds it.
+    latest_rate, latest_quadrature : float
+        The last ``~/rate`` sample's rate and quadrature before the flicker, rad/s.
+    die : thermal.DieTemperature
+        The die, at the time of ``sample_index``.
+    flicker : electronics.FlickerNoise or None
+        The flicker bank's state (None: the simulator's own goes on).
+
+    """
+
+    sample_index: int
+    q: np.ndarray
+    v: np.ndarray
+    loop: Dict[str, Any]
+    nco_phase: float
+    harmonics: np.ndarray
+    rebalance_state: np.ndarray
+    latest_rate: float
+    latest_quadrature: float
+    die: Any
+    flicker: Any = None
 
 
 @dataclass(frozen=True)
@@ -951,6 +995,65 @@ class Simulator:
                                                 self._start_omega())
             self._drive_t_ref = 0.0
             self._drive = self._drive_args()
+
+    def resume(self, state: ResumeState) -> None:
+        """
+        Go on from a state taken outside the full model at a later loop update (a hand-back).
+
+        The clock jumps to ``state.sample_index``; the coordinates, the loops, the drive's
+        phase reference (the NCO's phase now), the sense chain's filters, the die and the
+        flicker bank take the given state. The noises are addressed by sample index, so
+        they go on as if the stretch had been simulated. Nothing the skipped stretch would
+        have acted on may be pending in it.
+
+        Raises
+        ------
+        InputError
+            Not the closed-loop gyroscope, not running, not at a loop update (now or at
+            ``state.sample_index``), an index before now, or a scheduled input, shock,
+            streamed base acceleration or environment in the skipped stretch.
+
+        """
+        loop, sense = self.loop, self.sense
+        if loop is None or sense is None or not loop.rebalance:
+            raise InputError('resume: a hand-back needs the closed-loop gyroscope with '
+                             'force-to-rebalance')
+        if self.status != Status.RUNNING or self.in_stop_contact:
+            raise InputError(f'resume: the run is {self.status.value}, not free and running')
+        index = int(state.sample_index)
+        if index < self.sample_index or index % loop.window or self.sample_index % loop.window:
+            raise InputError(f'resume: sample {index} must be a loop update at or after now '
+                             f'(sample {self.sample_index})')
+        end_s = index * self.period_s
+        skipped = ([at for at, _, _ in self._events if at < index]
+                   + [t0 for t0, dur, _, _ in self._pulses   # dur is set at its start
+                      if t0 < end_s and (t0 >= self.time_s or t0 + dur > self.time_s)]
+                   + [at for at in self._profile_t[self._profile_head:]
+                      if at < index * self.period_ns])
+        if skipped or self._environment is not None:
+            raise InputError('resume: an input, a shock, a base acceleration or an '
+                             'environment acts in the skipped stretch; the full model must '
+                             'simulate it')
+        self.sample_index = index
+        self.die = state.die
+        self._follow_die()
+        self._set_state(state.q, state.v)
+        for name, value in state.loop.items():
+            if not hasattr(loop, name):
+                raise InputError(f'resume: the loops have no state {name!r}')
+            current = getattr(loop, name)
+            if isinstance(current, np.ndarray):
+                current[:] = value
+            else:
+                setattr(loop, name, type(current)(value))
+        self._drive_phase = math.fmod(float(state.nco_phase), 2.0 * math.pi)
+        self._drive_t_ref = self.time_s
+        self._drive = self._drive_args()
+        # the next sample's phase: the kernels' phase at sample i is that of (i + 1) T
+        step = self._drive.omega * self.period_s
+        sense.electronics.resume(index, state.harmonics, self._drive_phase + step, step,
+                                 state.rebalance_state, state.latest_rate,
+                                 state.latest_quadrature, state.flicker)
 
     def _refresh_acceleration(self) -> None:
         self._acc[:] = forces.nonlinear_acceleration(self.q, self.model)

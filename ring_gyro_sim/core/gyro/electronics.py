@@ -232,6 +232,7 @@ Output word: resolution and range (E15)
     word did not saturate).
 """
 
+import cmath
 from dataclasses import dataclass
 import importlib
 import math
@@ -374,6 +375,27 @@ def _check_array(name: str, value, shape) -> np.ndarray:
         raise InputError(f'{name}: must be finite, got {arr[tuple(first)]!r} at index '
                          f'{tuple(int(i) for i in first)}')
     return arr
+
+
+def _periodic_state(sos: np.ndarray, amplitude: complex, theta: float) -> np.ndarray:
+    """
+    Return the state of second-order sections under ``x[n] = a e^{i theta n}`` at n = 0.
+
+    Complex, shape (sections, 2), in ``scipy.signal.sosfilt``'s transposed direct form II
+    (``y = b0 x + z0``, ``z0' = b1 x - a1 y + z1``, ``z1' = b2 x - a2 y``): with ``h`` the
+    section's response at ``theta``, ``z0 = (h - b0) x`` and
+    ``z1 = (b2 - a2 h) e^{-i theta} x``; each section's input the previous one's output. At
+    ``theta = 0`` it is ``sosfilt_zi`` times the input.
+    """
+    out = np.empty((sos.shape[0], 2), dtype=complex)
+    back = cmath.exp(-1j * theta)
+    x = complex(amplitude)
+    for k, (b0, b1, b2, _, a1, a2) in enumerate(sos):
+        h = (b0 + b1 * back + b2 * back * back) / (1.0 + a1 * back + a2 * back * back)
+        out[k, 0] = (h - b0) * x
+        out[k, 1] = (b2 - a2 * h) * back * x
+        x = h * x
+    return out
 
 
 class FlickerNoise:
@@ -815,6 +837,52 @@ class SenseElectronics:
         self.readout_reference_v = previous.readout_reference_v
         self.die_temperature = previous.die_temperature
         self.saturated_samples = previous.saturated_samples
+
+    def resume(self, next_index: int, harmonics: np.ndarray, next_phase: float,
+               phase_step: float, rebalance_state: np.ndarray, latest_rate: float,
+               latest_quadrature: float, flicker: Optional['FlickerNoise'] = None) -> None:
+        """
+        Go on at a later sample from a state taken outside the full model (a hand-back).
+
+        ``harmonics``: the sense and drive amplifiers' first harmonics ``V`` (complex, V;
+        ``volts = Re(V e^{i phi})``) at the NCO's phase ``phi``, which is ``next_phase`` at
+        the next sample and moves by ``phase_step`` a sample. The mixers (E3) make of each
+        a constant and a ``2 phi`` term: ``2 Re(V e^{i phi}) cos(phi + psi) = Re(V e^{-i psi})
+        + Re(V e^{i psi} e^{2 i phi})`` and with ``sin``, ``-Im(V e^{-i psi})`` and
+        ``Re(-i V e^{i psi} e^{2 i phi})``; the low-pass starts in its periodic steady state
+        under both (:func:`_periodic_state`: starting it at the constant alone leaves a
+        transient of 1.2e-3 of the drive channel 5 ms on). The rebalance output's low-pass
+        takes ``rebalance_state`` (its own state, (sections, 2, 4)); the flicker bank, given,
+        continues from its state.
+        """
+        harmonics = np.asarray(harmonics, dtype=complex)
+        if harmonics.shape != (2,) or not np.all(np.isfinite(harmonics)):
+            raise InputError('harmonics: two finite complex first harmonics expected')
+        v_s, v_d = harmonics
+        refs = ((v_s, self.drive_phase_rad + self.phase_error),
+                (v_d, self.drive_phase_rad))
+        zi = np.empty_like(self._zi)
+        latest = np.empty(4)
+        ripple_at = cmath.exp(2j * next_phase)
+        for k, (v, psi) in enumerate(refs):
+            mixed = (((v * cmath.exp(-1j * psi)).real, v * cmath.exp(1j * psi)),
+                     (-(v * cmath.exp(-1j * psi)).imag, -1j * v * cmath.exp(1j * psi)))
+            for j, (dc, ripple) in enumerate(mixed):
+                ch = 2 * k + j
+                zi[:, :, ch] = (_periodic_state(self._sos, dc, 0.0).real
+                                + _periodic_state(self._sos, ripple * ripple_at,
+                                                  2.0 * phase_step).real)
+                latest[ch] = dc
+        self._zi = zi
+        self._latest = latest
+        self._zi_rb = _check_array('rebalance_state', rebalance_state,
+                                   self._zi_rb.shape).copy()
+        self._latest_rate = float(latest_rate)
+        self._latest_quadrature = float(latest_quadrature)
+        if self._next_index is not None:
+            self._next_index = int(next_index)
+        if flicker is not None:
+            self.flicker = flicker
 
     def rate_variance(self) -> float:
         """

@@ -385,3 +385,29 @@ def test_bad_inputs_name_the_argument():
     plain = paper_config({'modes.companions': False})
     with pytest.raises(InputError, match='^config: '):
         SenseElectronics(plain, Simulator(plain), amplitude, 0.0)
+
+
+def test_the_periodic_state_of_the_low_pass_is_where_sosfilt_settles():
+    # (S14's restart of the demodulator) the state of the E3 Butterworth under a constant
+    # plus a 2 omega product, in closed form, against sosfilt run from rest until its
+    # transient has died (~250 time constants of its slowest pole): each section's state to
+    # 1e-10 of its size (measured 3e-12). The 2 omega product's part is 2.3e-5 of the first
+    # section's state, which the filter's near-unit poles turn into a 1.2e-3 transient of
+    # its output if it is left out.
+    from ring_gyro_sim.core.gyro.electronics import _periodic_state
+    from scipy import signal
+    sos = signal.butter(4, 100.0, fs=200000.0, output='sos')
+    theta = 2.0 * 2.0 * np.pi * 15800.0 / 200000.0
+    n = np.arange(200000)
+    dc, ripple = 0.3, 0.7 * np.exp(0.4j)
+    x = dc + (ripple * np.exp(1j * theta * n)).real
+    _, zf = signal.sosfilt(sos, x, zi=np.zeros((sos.shape[0], 2)))
+    expected = (_periodic_state(sos, dc, 0.0).real
+                + _periodic_state(sos, ripple * np.exp(1j * theta * n.size), theta).real)
+    size = np.max(np.abs(zf), axis=1, keepdims=True)
+    assert np.all(np.abs(zf - expected) < 1e-10 * size)
+    constant_only = _periodic_state(sos, dc, 0.0).real
+    assert np.max(np.abs(zf - constant_only)[0]) > 1e-6 * size[0, 0]
+    # at theta = 0 it is sosfilt_zi's steady state (a linear solve: to 1e-9)
+    assert np.allclose(_periodic_state(sos, 2.0, 0.0).real, 2.0 * signal.sosfilt_zi(sos),
+                       rtol=1e-9, atol=0.0)
