@@ -735,13 +735,19 @@ class AveragedGyro:
         times = np.asarray(config.run.rate_times if config.gyro.enabled else (), dtype=float)
         values = np.asarray(config.run.rate_values if config.gyro.enabled else (),
                             dtype=float)
+        pb_c = np.ascontiguousarray(geometry.electrode_shapes[ic])
+        pb_s = np.ascontiguousarray(geometry.electrode_shapes[is_])
+        pg_drive = np.ascontiguousarray(node * vpf[node_electrode, 1])
+        pg_sense = np.ascontiguousarray(node * vpf[node_electrode, 0])
+        gap = float(geometry.gap)
+        # (S3) and (S4)'s sums over angles with the symmetric angles merged
+        groups = kernels.envelope.harmonic_groups
+        fgroups = groups(fb_c, fb_s, fw_c, fw_s)
+        pgroups = groups(pb_c / gap, pb_s / gap, pg_drive / gap, pg_sense / gap)
         self.model = kernels.EnvelopeModel(
-            fb_c=fb_c, fb_s=fb_s, fw_c=fw_c, fw_s=fw_s, dcoef=dcoef,
-            pb_c=np.ascontiguousarray(geometry.electrode_shapes[ic]),
-            pb_s=np.ascontiguousarray(geometry.electrode_shapes[is_]),
-            pg_drive=np.ascontiguousarray(node * vpf[node_electrode, 1]),
-            pg_sense=np.ascontiguousarray(node * vpf[node_electrode, 0]),
-            gap=float(geometry.gap), omega_c=float(loop.omega_c), omega_frame=frame,
+            fb_c=fb_c, fb_s=fb_s, fw_c=fw_c, fw_s=fw_s, dcoef=dcoef, fgroups=fgroups,
+            pb_c=pb_c, pb_s=pb_s, pg_drive=pg_drive, pg_sense=pg_sense, pgroups=pgroups,
+            gap=gap, omega_c=float(loop.omega_c), omega_frame=frame,
             stiffness=np.ascontiguousarray(stiffness, dtype=float),
             damping=np.ascontiguousarray(damping, dtype=float),
             kappa=float(structure.gyroscopic_coefficient(2)),
@@ -851,10 +857,12 @@ class AveragedGyro:
         frame = float(m.omega_c * thermal.frequency_scale(self.config, kelvin))
         omega = self._loop[kernels.envelope.OMEGA]
         self._envelope *= (m.omega_frame * (frame + omega)) / (frame * (m.omega_frame + omega))
+        pgroups = m.pgroups.copy()
+        pgroups[:, 3:] *= gain    # (S4)'s merged weights: the amplifiers' volts per farad
         self.model = m._replace(stiffness=np.ascontiguousarray(stiffness, dtype=float),
                                 damping=np.ascontiguousarray(damping, dtype=float),
                                 pg_drive=m.pg_drive * gain, pg_sense=m.pg_sense * gain,
-                                omega_frame=frame)
+                                pgroups=pgroups, omega_frame=frame)
         self._set_noise(device)
 
     def _noise(self, count: int) -> np.ndarray:

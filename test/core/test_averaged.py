@@ -304,6 +304,52 @@ def test_the_pickoffs_first_harmonic_is_that_of_the_full_models_volts():
         assert abs(sense - first[0]) < 1e-11 * abs(first[1])
 
 
+def test_the_merged_angles_give_the_per_angle_force_and_pickoff():
+    # The closed loop's N(A) and pick-off harmonics (kernels.envelope.force_grouped,
+    # pickoff_grouped: the symmetric angles merged, one D(s) per group) against the per-angle
+    # sums they replace (force_harmonic, pickoff_harmonic, each tested above against AFT and
+    # the full model's volts): the same sums regrouped, so equal to round-off of the sums
+    # (1e-13 of the largest component: 36 and 64 terms of alternating sign at ~1e-16, and
+    # the groups' keys equal to GROUP_TOLERANCE = 1e-14), on random envelopes up to 2.5 um
+    # (a quarter of the gap: the pick-off's closed form beyond 0.22 of it, its series
+    # below); NaN, as the per-angle sum, at and beyond contact.
+    from ring_gyro_sim.core import kernels
+    from ring_gyro_sim.core.averaged import AveragedGyro
+    env = kernels.envelope
+    cfg = build_config({'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0})
+    m = AveragedGyro(cfg).model
+    assert m.fgroups.shape[0] < m.fb_c.size and m.pgroups.shape[0] < m.pb_c.size
+    rng = np.random.default_rng(5)
+    series = 0
+    worst_force = worst_pickoff = 0.0
+    for _ in range(200):
+        a = (rng.normal(size=2) + 1j * rng.normal(size=2)) * 1e-6 * rng.uniform(0.01, 2.5)
+        reference = np.array(kernels.force_harmonic(a[0], a[1], m.fb_c, m.fb_s, m.fw_c,
+                                                    m.fw_s, m.dcoef))
+        fast = np.array(env.force_grouped(a[0], a[1], m.fgroups, m.dcoef))
+        worst_force = max(worst_force, float(np.max(np.abs(fast - reference))
+                                             / np.max(np.abs(reference))))
+        reference = np.array(kernels.pickoff_harmonic(a[0], a[1], m.pb_c, m.pb_s, m.pg_drive,
+                                                      m.pg_sense, m.gap))
+        fast = np.array(env.pickoff_grouped(a[0], a[1], m.pgroups, m.pb_c, m.pb_s,
+                                            m.pg_drive, m.pg_sense, m.gap))
+        worst_pickoff = max(worst_pickoff, float(np.max(np.abs(fast - reference))
+                                                 / np.max(np.abs(reference))))
+        series += (abs(a[0]) + abs(a[1])) ** 2 < env.PICKOFF_SERIES_REACH * m.gap ** 2
+    assert 20 < series < 180          # both branches of the pick-off
+    assert worst_force < 1e-13
+    assert worst_pickoff < 1e-13
+    # the default drive's orbit (no sine content): the sine force zero by symmetry, to
+    # the round-off of the mirror groups' sum (not exactly, as force_harmonic's member
+    # order keeps it)
+    n_c, n_s = env.force_grouped(-0.394e-6j, 0j, m.fgroups, m.dcoef)
+    assert abs(n_s) < 1e-15 * abs(n_c) and n_c.real == 0.0
+    for a in ((1.01 * m.gap + 0j, 0j), (0.75 * m.gap + 0j, 0.75 * m.gap + 0j), (0j, 1.2j * m.gap)):
+        assert all(np.isnan(np.array(kernels.force_harmonic(*a, m.fb_c, m.fb_s, m.fw_c,
+                                                            m.fw_s, m.dcoef))))
+        assert all(np.isnan(np.array(env.force_grouped(*a, m.fgroups, m.dcoef))))
+
+
 def test_the_closed_loop_averaged_gyroscope_follows_a_rate_ramp_as_the_full_model():
     # The rate profile's slope enters (S5) through kappa Omega' and the Coriolis term: a
     # ramp 0 -> 20 deg/s from 20 to 120 ms, noise off, from the Run's start state. The

@@ -29,6 +29,15 @@ First harmonics in closed form (S3, S4)
     ``2 Z / ((d + s) s)``, ``s = sqrt(d^2 - |Z|^2)`` (the generating function of the
     Chebyshev series of ``1 / (d - r cos psi)``) (S4): exact for the same quadrature nodes
     as the full model's capacitances.
+
+The sums over angles, merged (the closed loop's speed)
+    With real shapes, ``|Z|^2 = a^2 |B_c|^2 + 2 a b Re(B_c conj B_s) + b^2 |B_s|^2`` at
+    every angle: the angles that the ring's symmetry maps onto each other share
+    ``(a^2, 2 a b, b^2)``, so one ``D(s)`` per group serves them, with their weights summed
+    (:func:`harmonic_groups`; 36 force angles in 8 groups, 64 pick-off nodes in 16, on the
+    default gyroscope). :func:`force_grouped` and :func:`pickoff_grouped` are the closed
+    loop's; :func:`force_harmonic` and :func:`pickoff_harmonic`, the per-angle sums, their
+    reference (``test_averaged``: equal to round-off).
 """
 
 import math
@@ -37,8 +46,8 @@ from typing import NamedTuple
 from numba import njit
 import numpy as np
 
-__all__ = ['EnvelopeModel', 'force_harmonic', 'pickoff_harmonic', 'run_periods',
-           'LOOP_STATE_SIZE']
+__all__ = ['EnvelopeModel', 'force_grouped', 'force_harmonic', 'harmonic_groups',
+           'pickoff_grouped', 'pickoff_harmonic', 'run_periods', 'LOOP_STATE_SIZE']
 
 
 class EnvelopeModel(NamedTuple):
@@ -53,10 +62,16 @@ class EnvelopeModel(NamedTuple):
         The projections onto q2 and q2s (weights, parities and modal masses), rad/kg.
     dcoef : ndarray, shape (D,)
         ``D(s)`` of (S3), coefficients of ``s^0, s^1, ...``, N/rad.
+    fgroups : ndarray, shape (G, 7)
+        The force's angles merged by symmetry (:func:`harmonic_groups` of ``fb_*``,
+        ``fw_*``).
     pb_c, pb_s : ndarray, shape (P,)
         The pair's mode shapes at the electrodes' quadrature nodes, m/m.
     pg_drive, pg_sense : ndarray, shape (P,)
         Volts per farad of each node's electrode times its weight and ``eps eps_0 l r_o``.
+    pgroups : ndarray, shape (H, 7)
+        The electrodes' nodes merged by symmetry (:func:`harmonic_groups` of ``pb_* / d_g``,
+        ``pg_* / d_g``).
     gap : float
         d_g, m.
     omega_c : float
@@ -103,10 +118,12 @@ class EnvelopeModel(NamedTuple):
     fw_c: np.ndarray
     fw_s: np.ndarray
     dcoef: np.ndarray
+    fgroups: np.ndarray
     pb_c: np.ndarray
     pb_s: np.ndarray
     pg_drive: np.ndarray
     pg_sense: np.ndarray
+    pgroups: np.ndarray
     gap: float
     omega_c: float
     omega_frame: float
@@ -146,6 +163,83 @@ class EnvelopeModel(NamedTuple):
 PLL_I, AGC_I, RB_IC, RB_IS, OMEGA, FORCE, SC, SS, PHASE_ERR, AMP, RB_RATE, RB_QUAD, \
     LOCKED, RB_ON, LOCKING, QUALIFYING, NCO_PHASE = range(17)
 LOOP_STATE_SIZE = 17
+
+
+GROUP_TOLERANCE = 1e-14
+"""Angles whose ``(a^2, 2 a b, b^2)`` agree to this (relative to the largest) share one
+``D(s)`` in :func:`harmonic_groups`: the ring's symmetric angles, whose shapes differ by the
+round-off of their cosines."""
+
+
+def harmonic_groups(shape_c, shape_s, weight_c, weight_s) -> np.ndarray:
+    """
+    Return the angles of (S3) or (S4) merged by their ``|Z|^2``, rows (G, 7).
+
+    Row ``(alpha, beta, gamma, W_ca, W_cb, W_sa, W_sb)``: a group's ``|Z|^2 = alpha P +
+    beta Q + gamma R`` and its members' summed weights.
+
+    ``sum_m w_m Z_m D(|Z_m|^2)`` with ``Z_m = a_m B_c + b_m B_s`` (``a``, ``b`` real shapes,
+    ``w`` real weights) is ``B_c G_a + B_s G_b``, ``G_x = sum_m w_m x_m D(s_m)``, and
+    ``s_m = a_m^2 P + 2 a_m b_m Q + b_m^2 R`` with ``P = |B_c|^2``, ``Q = Re(B_c conj B_s)``,
+    ``R = |B_s|^2`` (|Z|^2 of real shapes), exact. The angles that the ring's symmetry maps
+    onto each other (the force's four members, the electrodes' mirror nodes) have the same
+    ``(a^2, 2 a b, b^2)`` up to :data:`GROUP_TOLERANCE`: one ``D(s)`` serves them all,
+    with the sums of their ``w x`` (``math.fsum``; a sum within 1e-13 of its terms'
+    magnitudes is round-off of one the symmetry makes zero: 0.0). 36 force angles make 8
+    groups, 64 pick-off nodes 16, on the default gyroscope. What the symmetry makes zero
+    across groups (the sine force of a state without sine content, from mirror groups of
+    opposite weights) is zero to the round-off of their sum (~1e-17 of the force), not
+    exactly as :func:`force_harmonic`'s member order keeps it.
+    """
+    a = np.asarray(shape_c, dtype=float)
+    b = np.asarray(shape_s, dtype=float)
+    key = np.stack([a * a, 2.0 * a * b, b * b], axis=1)
+    tol = GROUP_TOLERANCE * float(np.max(np.abs(key)))
+    free = np.ones(a.size, dtype=bool)
+    rows = []
+    for m in range(a.size):
+        if not free[m]:
+            continue
+        members = free & np.all(np.abs(key - key[m]) <= tol, axis=1)
+        free &= ~members
+        row = list(key[m])
+        for terms in (weight_c * a, weight_c * b, weight_s * a, weight_s * b):
+            t = np.asarray(terms, dtype=float)[members]
+            value = math.fsum(t)
+            row.append(value if abs(value) > 1e-13 * math.fsum(np.abs(t)) else 0.0)
+        rows.append(row)
+    return np.array(rows, dtype=float).reshape(-1, 7)
+
+
+@njit(cache=True, inline='always')
+def _grouped(a_c, a_s, groups, series, top):
+    """
+    Return the two sums of :func:`harmonic_groups`' ``groups`` and the largest ``|Z|^2``.
+
+    ``(B_c G_a + B_s G_b, B_c G_sa + B_s G_sb, max s)`` with ``D(s) = sum_{k <= top}
+    series_k s^k``, in real arithmetic.
+
+    One loop of fixed length over the groups, each an independent Horner chain (no
+    branches: the stages' chain of evaluations is latency-bound).
+    """
+    cr, ci, sr, si = a_c.real, a_c.imag, a_s.real, a_s.imag
+    p = cr * cr + ci * ci
+    q = cr * sr + ci * si
+    r = sr * sr + si * si
+    g0 = g1 = g2 = g3 = 0.0
+    reach = 0.0
+    for n in range(groups.shape[0]):
+        x = groups[n, 0] * p + groups[n, 1] * q + groups[n, 2] * r
+        reach = max(reach, x)
+        d = series[top]
+        for k in range(top - 1, -1, -1):
+            d = d * x + series[k]
+        g0 += groups[n, 3] * d
+        g1 += groups[n, 4] * d
+        g2 += groups[n, 5] * d
+        g3 += groups[n, 6] * d
+    return (complex(g0 * cr + g1 * sr, g0 * ci + g1 * si),
+            complex(g2 * cr + g3 * sr, g2 * ci + g3 * si), reach)
 
 
 @njit(cache=True, inline='always')
@@ -193,11 +287,38 @@ def force_harmonic(a_c, a_s, fb_c, fb_s, fw_c, fw_s, dcoef):
     return complex(ncr, nci), complex(nsr, nsi)
 
 
+@njit(cache=True, inline='always')
+def force_grouped(a_c, a_s, fgroups, dcoef):
+    """
+    Return :func:`force_harmonic`'s N(A) by merged angles, to round-off; NaN out of range.
+
+    ``fgroups`` :func:`harmonic_groups` of ``(fb_c, fb_s, fw_c, fw_s)``. Out of range as
+    :func:`force_harmonic`: an angle at ``|Z|^2 >= 1`` (contact; every angle is in a
+    group, to :data:`GROUP_TOLERANCE`), or a result not finite.
+    """
+    n_c, n_s, reach = _grouped(a_c, a_s, fgroups, dcoef, dcoef.size - 1)
+    if reach < 1.0 and math.isfinite(n_c.real + n_c.imag + n_s.real + n_s.imag):
+        return n_c, n_s
+    return complex(np.nan, np.nan), complex(np.nan, np.nan)
+
+
 PICKOFF_SERIES = np.array([math.comb(2 * k + 1, k) / 4.0 ** k for k in range(12)])
 """``c_k = C(2k+1, k) / 4^k``: ``2 / ((1 + sqrt(1 - x)) sqrt(1 - x)) = sum_k c_k x^k`` (S4)."""
 PICKOFF_SERIES_REACH = 0.05
 """Largest ``x = |Z|^2 / d^2`` summed by the series: ``c_12 x^12 < 1e-16`` there; below it
 the fewest terms whose first left out is below 1e-17 (5 at the default drive, x = 1.6e-3)."""
+
+
+@njit(cache=True, inline='always')
+def _series_top(reach):
+    """
+    Return the last term of (S4)'s series summed at ``reach``: ``reach^(top + 1) < 1e-17``.
+
+    (``c_k < 2`` for ``k <= 12``: the first term left out is below 2e-17 of the sum.)
+    """
+    if reach > 0.0:
+        return min(11, max(1, int(math.ceil(-17.0 / math.log10(reach))) - 1))
+    return 11
 
 
 @njit(cache=True)
@@ -218,10 +339,7 @@ def pickoff_harmonic(a_c, a_s, pb_c, pb_s, pg_drive, pg_sense, gap):
         c = PICKOFF_SERIES
         cr, ci, sr, si = a_c.real, a_c.imag, a_s.real, a_s.imag
         inv = 1.0 / d2
-        # the terms up to c_top x^top with x^(top + 1) < 1e-17 (c_k < 2 for k <= 12)
-        top = 11
-        if reach > 0.0:
-            top = min(11, max(1, int(math.ceil(-17.0 / math.log10(reach))) - 1))
+        top = _series_top(reach)
         dr = di = er = ei = 0.0
         for j in range(pb_c.size):
             zr = pb_c[j] * cr + pb_s[j] * sr
@@ -247,6 +365,24 @@ def pickoff_harmonic(a_c, a_s, pb_c, pb_s, pg_drive, pg_sense, gap):
         v_d += pg_drive[j] * h
         v_s += pg_sense[j] * h
     return v_d, v_s
+
+
+@njit(cache=True, inline='always')
+def pickoff_grouped(a_c, a_s, pgroups, pb_c, pb_s, pg_drive, pg_sense, gap):
+    """
+    Return :func:`pickoff_harmonic`'s ``(V_drive, V_sense)`` by merged nodes, to round-off.
+
+    Within :data:`PICKOFF_SERIES_REACH`, the same series to the same last term
+    (``_series_top``) over the nodes merged by :func:`harmonic_groups` (``pgroups`` of
+    ``(pb_c / d, pb_s / d, pg_drive / d, pg_sense / d)``: ``x = |Z|^2 / d^2`` and the
+    ``1 / d^2`` in the weights); beyond it, :func:`pickoff_harmonic` itself (the closed
+    form, NaN at contact).
+    """
+    reach = (abs(a_c) + abs(a_s)) ** 2 / (gap * gap)
+    if reach < PICKOFF_SERIES_REACH:
+        v_d, v_s, _ = _grouped(a_c, a_s, pgroups, PICKOFF_SERIES, _series_top(reach))
+        return v_d, v_s
+    return pickoff_harmonic(a_c, a_s, pb_c, pb_s, pg_drive, pg_sense, gap)
 
 
 @njit(cache=True, inline='always')
@@ -301,7 +437,7 @@ def _derivative(m, rate, slope, b_c, b_s, delta, f_c, f_s):
     w = m.omega_frame
     k = m.stiffness
     c = m.damping
-    n_c, n_s = force_harmonic(b_c, b_s, m.fb_c, m.fb_s, m.fw_c, m.fw_s, m.dcoef)
+    n_c, n_s = force_grouped(b_c, b_s, m.fgroups, m.dcoef)
     kr = m.kappa * rate
     ks = m.kappa * slope
     # (S2) less i delta B, in real arithmetic: the bracket is X - i omega Y with
@@ -429,6 +565,8 @@ def run_periods(m, env, st, filt, first_period, count, decimate, noise, out_t, o
             piece_end = _next_knot(a, t_end, m.rate_times)
             sub = max(1, int(math.ceil(scale * (piece_end - a) / m.max_rotation)))
             h = (piece_end - a) / sub
+            h6 = h / 6.0
+            w6 = h / (6.0 * h_period)
             for k in range(sub):
                 t = a + k * h
                 t_next = piece_end if k == sub - 1 else t + h
@@ -447,10 +585,10 @@ def run_periods(m, env, st, filt, first_period, count, decimate, noise, out_t, o
                 k4c, k4s = _derivative(m, r4, g4, y4c, y4s, delta, f_c, f_s)
                 # (S7) the period's mean of B by the same quadrature (the integral of B as a
                 # state of the same Runge-Kutta step)
-                mean_c += (b_c + 2.0 * y2c + 2.0 * y3c + y4c) * (h / (6.0 * h_period))
-                mean_s += (b_s + 2.0 * y2s + 2.0 * y3s + y4s) * (h / (6.0 * h_period))
-                b_c = b_c + h * (k1c + 2.0 * k2c + 2.0 * k3c + k4c) / 6.0
-                b_s = b_s + h * (k1s + 2.0 * k2s + 2.0 * k3s + k4s) / 6.0
+                mean_c += (b_c + 2.0 * y2c + 2.0 * y3c + y4c) * w6
+                mean_s += (b_s + 2.0 * y2s + 2.0 * y3s + y4s) * w6
+                b_c = b_c + (k1c + 2.0 * k2c + 2.0 * k3c + k4c) * h6
+                b_s = b_s + (k1s + 2.0 * k2s + 2.0 * k3s + k4s) * h6
             a = piece_end
         if not (math.isfinite(b_c.real + b_c.imag + b_s.real + b_s.imag)):
             return -1 - index
@@ -479,8 +617,8 @@ def run_periods(m, env, st, filt, first_period, count, decimate, noise, out_t, o
                 filt[ch, i] = new[i]
         # (S7) the measurement: the pick-off's first harmonics of the period's mean,
         # fitted as x_c cos(phi) + x_s sin(phi) (C2): x_c = Re, x_s = -Im
-        v_d, v_s = pickoff_harmonic(mean_c, mean_s, m.pb_c, m.pb_s, m.pg_drive, m.pg_sense,
-                                    m.gap)
+        v_d, v_s = pickoff_grouped(mean_c, mean_s, m.pgroups, m.pb_c, m.pb_s, m.pg_drive,
+                                   m.pg_sense, m.gap)
         if not math.isfinite(v_d.real + v_s.real):
             return -1 - index
         if noisy:  # (S10) the fit's errors from the amplifiers' noise
