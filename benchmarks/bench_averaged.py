@@ -121,7 +121,8 @@ def closed(args) -> None:
           f'{os.getloadavg()[0]:.2f}; best of {args.repeat}; simulated s per CPU s')
     print(f'{"full (Run, 200 kHz)":28s} rtf_cpu {full:10.2f}')
     print(f'{"averaged, ~/rate at 1 kHz":28s} rtf_cpu {averaged:10.2f}   ratio to full '
-          f'{averaged / full:8.1f}')
+          f'{averaged / full:8.1f}   {1e6 / (config.control.rate * averaged):.2f} us per '
+          f'loop period')
     print(f'~/rate, averaged against full after 50 ms: largest difference {worst:.2e} of '
           f'the reading')
 
