@@ -304,7 +304,8 @@ def test_the_pickoffs_first_harmonic_is_that_of_the_full_models_volts():
         assert abs(sense - first[0]) < 1e-11 * abs(first[1])
 
 
-def test_the_merged_angles_give_the_per_angle_force_and_pickoff():
+@pytest.mark.parametrize('extra', [{}, {'gyro.sense_misalignment': 0.3, 'device.seed': 3}])
+def test_the_merged_angles_give_the_per_angle_force_and_pickoff(extra):
     # The closed loop's N(A) and pick-off harmonics (kernels.envelope.force_grouped,
     # pickoff_grouped: the symmetric angles merged, one D(s) per group) against the per-angle
     # sums they replace (force_harmonic, pickoff_harmonic, each tested above against AFT and
@@ -312,11 +313,12 @@ def test_the_merged_angles_give_the_per_angle_force_and_pickoff():
     # (1e-13 of the largest component: 36 and 64 terms of alternating sign at ~1e-16, and
     # the groups' keys equal to GROUP_TOLERANCE = 1e-14), on random envelopes up to 2.5 um
     # (a quarter of the gap: the pick-off's closed form beyond 0.22 of it, its series
-    # below); NaN, as the per-angle sum, at and beyond contact.
+    # below); NaN, as the per-angle sum, at and beyond contact. The default gyroscope and a
+    # drawn device with its sense electrodes turned by 0.3 deg.
     from ring_gyro_sim.core import kernels
     from ring_gyro_sim.core.averaged import AveragedGyro
     env = kernels.envelope
-    cfg = build_config({'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0})
+    cfg = build_config({'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0, **extra})
     m = AveragedGyro(cfg).model
     assert m.fgroups.shape[0] < m.fb_c.size and m.pgroups.shape[0] < m.pb_c.size
     rng = np.random.default_rng(5)
