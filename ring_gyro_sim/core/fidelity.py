@@ -1,0 +1,266 @@
+# Copyright 2026 ring_gyro_sim developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The closed-loop gyroscope at two fidelity levels, handed between them (issue 25's ``auto``).
+
+:class:`AutoGyro` runs the gyroscope offline and returns its ``~/rate``: on the averaged model
+(``core.averaged.AveragedGyro``) while nothing fast acts, on the full model (``Simulator``)
+around what the averaged model does not represent, with the hand-offs of S13 and S14.
+
+The rules (``auto``)
+--------------------
+- **To the full model** at the last ``~/rate`` sample at or before the start of a shock pulse
+  (scheduled in the configuration, ``scenario.shock_*``, or by :meth:`AutoGyro.shock`) or of
+  a scheduled input of the full model (a parameter change, a rate or drive command, a reset:
+  the simulator's events): the full model simulates the pulse or the input from its start.
+- **Back to the averaged model** at a loop update once no pulse is acting, the loops are
+  locked with force-to-rebalance on, the ring is free of the stops, and the modes the
+  averaged model leaves out have rung down below ``HAND_BACK_THRESHOLD`` of the gap
+  (``averaged.fast_mode_amplitude``: measured at 1e-3 of d_g to cost 1.4e-5 of the reading
+  after a 10 000 g shock, doc/averaged.md), checked every :data:`CHECK_S`.
+- **Never averaged**: a configuration the averaged model does not run (open loop, no
+  rebalance, the untruncated force, a ``~/rate`` not a whole fraction of the loops' rate)
+  or with an environment (steady acceleration, sine or random vibration: they act at every
+  sample), which runs on the full model throughout (:attr:`AutoGyro.reason` says why).
+
+``full`` runs the full model throughout; ``averaged`` the averaged model throughout and
+refuses what it cannot run (a shock included).
+"""
+
+from dataclasses import dataclass
+import math
+from typing import List, Optional, Tuple
+
+import numpy as np
+from ring_gyro_sim.core import thermal
+from ring_gyro_sim.core.averaged import AveragedGyro, fast_mode_amplitude, HAND_BACK_THRESHOLD
+from ring_gyro_sim.core.errors import InputError, ParameterError
+from ring_gyro_sim.core.params import SimConfig
+from ring_gyro_sim.core.simulator import Simulator, Status
+
+__all__ = ['CHECK_S', 'FIDELITIES', 'AutoGyro', 'AutoSamples']
+
+FIDELITIES = ('auto', 'full', 'averaged')
+"""The fidelity levels (``integrator.fidelity``)."""
+
+CHECK_S = 0.01
+"""How often the full model checks whether it may hand back to the averaged one, s."""
+
+
+@dataclass(frozen=True)
+class AutoSamples:
+    """
+    ``~/rate`` of :meth:`AutoGyro.advance`.
+
+    Attributes
+    ----------
+    t, rate, quadrature : ndarray, shape (K,)
+        Sample times (s), rate and quadrature (rad/s), as ``RateSamples``.
+    averaged : ndarray of bool, shape (K,)
+        Whether the averaged model produced each sample.
+
+    """
+
+    t: np.ndarray
+    rate: np.ndarray
+    quadrature: np.ndarray
+    averaged: np.ndarray
+
+
+def _unsupported(config: SimConfig, sim: Simulator) -> Optional[str]:
+    """Return why the averaged model cannot run this gyroscope, None when it can."""
+    c = config
+    if not (c.control.closed and c.control.rebalance and c.gyro.enabled
+            and c.modes.companions and c.modes.count >= 2):
+        return 'the averaged model is the closed-loop gyroscope with force-to-rebalance'
+    if c.electrodes.taylor_terms <= 0:
+        return 'the averaged force is that of the truncated series (electrodes.taylor_terms)'
+    decimation = int(round(c.run.output_rate / c.gyro.output_rate))
+    if decimation % sim.loop.window:
+        return 'gyro.output_rate is not a whole fraction of control.rate'
+    if sim._environment is not None:
+        return 'an environment (steady acceleration or vibration) acts at every sample'
+    return None
+
+
+class AutoGyro:
+    """
+    The closed-loop gyroscope offline at ``fidelity`` (module docstring), ``~/rate`` out.
+
+    Parameters
+    ----------
+    config : SimConfig
+        The gyroscope.
+    start_state : (q, v), optional
+        Default: the ``Run``'s (``operating_point.start_state`` at the die's start).
+    calibration : Calibration, None or 'auto'
+        As ``Simulator``'s; both models apply the same.
+    fidelity : str
+        ``auto``, ``full`` or ``averaged``.
+
+    Attributes
+    ----------
+    handoffs : list of (float, str)
+        Each change of model: its time (s) and the model from then on (``averaged``,
+        ``full``); the first entry is the start.
+    reason : str or None
+        Why the averaged model is not used at all (None: it is, where the rules allow).
+
+    Raises
+    ------
+    ParameterError
+        An unknown fidelity; ``averaged`` for a gyroscope the averaged model cannot run.
+
+    """
+
+    def __init__(self, config: SimConfig, start_state=None, calibration='auto',
+                 fidelity: str = 'auto') -> None:
+        from ring_gyro_sim.core.gyro import operating_point
+        if fidelity not in FIDELITIES:
+            raise ParameterError(f'integrator.fidelity: one of {", ".join(FIDELITIES)}, '
+                                 f'got {fidelity!r}')
+        if start_state is None:
+            start_state = operating_point.start_state(thermal.start_state_device(config))
+        self.config = config
+        self.fidelity = fidelity
+        self.sim = Simulator(config, start_state, calibration=calibration)
+        self.reason = (_unsupported(config, self.sim) if self.sim.loop is not None
+                       else 'the averaged model is the closed-loop gyroscope')
+        if fidelity == 'averaged' and self.reason is not None:
+            raise ParameterError(f'integrator.fidelity: averaged, but {self.reason}')
+        if fidelity == 'full':
+            self.reason = 'integrator.fidelity: full'
+        self._loop_s = self.sim.loop.period_s if self.sim.loop is not None else 0.0
+        decimation = int(round(config.run.output_rate / config.gyro.output_rate))
+        self._rate_periods = (decimation // self.sim.loop.window
+                              if self.sim.loop is not None else 0)
+        self._check_samples = int(round(CHECK_S / self.sim.period_s))
+        self.averaged: Optional[AveragedGyro] = None
+        self.handoffs: List[Tuple[float, str]] = []
+        if self.reason is None and self._fast_at() > 0.0:
+            self._to_averaged()
+        else:
+            self.handoffs.append((0.0, 'full'))
+
+    @property
+    def time_s(self) -> float:
+        """Return the simulated time, s."""
+        return self.averaged.time_s if self.averaged is not None else self.sim.time_s
+
+    def shock(self, peak_x: float, peak_y: float = 0.0, at_s: Optional[float] = None) -> None:
+        """
+        Schedule a half-sine shock as ``Simulator.shock`` does, at ``at_s`` (default now).
+
+        Raises
+        ------
+        InputError
+            A time in the past, or any shock at fidelity ``averaged``.
+
+        """
+        if self.fidelity == 'averaged':
+            raise InputError('shock: integrator.fidelity averaged does not represent shocks')
+        at_s = self.time_s if at_s is None else float(at_s)
+        if not (math.isfinite(at_s) and at_s >= self.time_s):
+            raise InputError(f'shock: time {at_s!r} s is before now ({self.time_s} s)')
+        self.sim.shock(peak_x, peak_y, at_ns=int(round(at_s * 1e9)))
+
+    def _fast_at(self) -> float:
+        """
+        Return when the next thing the averaged model does not represent starts, s.
+
+        A pulse that has not ended (its duration is set when it starts: -1 before) or a
+        pending event of the full model; inf when there is none.
+        """
+        sim, now = self.sim, self.time_s
+        times = [t0 for t0, dur, _, _ in sim._pulses if dur < 0.0 or t0 + dur > now]
+        times += [index * sim.period_s for index, _, _ in sim._events]
+        return min(times) if times else math.inf
+
+    def _to_averaged(self) -> None:
+        self.averaged = AveragedGyro(self.config, calibration=self.sim.calibration,
+                                     simulator=self.sim)
+        self.handoffs.append((self.averaged.time_s, 'averaged'))
+
+    def _to_full(self) -> None:
+        self.sim.resume(self.averaged.resume_state())
+        self.averaged = None
+        self.handoffs.append((self.sim.time_s, 'full'))
+
+    def _may_hand_back(self) -> bool:
+        """Whether the full model may hand back to the averaged one now (module docstring)."""
+        sim, loop = self.sim, self.sim.loop
+        now = sim.time_s
+        if (self.fidelity != 'auto' or self.reason is not None
+                or sim.status != Status.RUNNING or sim.in_stop_contact
+                or not (loop.locked and loop.rebalance_on)):
+            return False
+        if any(t0 <= now and (dur < 0.0 or t0 + dur > now) for t0, dur, _, _ in sim._pulses):
+            return False
+        if self._fast_at() <= now + CHECK_S:
+            return False
+        return fast_mode_amplitude(sim) < HAND_BACK_THRESHOLD
+
+    def advance(self, seconds: float) -> AutoSamples:
+        """
+        Advance by ``seconds`` (whole ``~/rate`` periods); return the ``~/rate`` samples.
+
+        Raises
+        ------
+        ParameterError
+            A negative or non-finite duration.
+
+        """
+        if not (math.isfinite(seconds) and seconds >= 0.0):
+            raise ParameterError(f'seconds: must be finite and >= 0, got {seconds!r}')
+        rate_s = self._rate_periods * self._loop_s if self._rate_periods else None
+        if rate_s is None:   # no loops: the full model only
+            step = self.config.run.output_period_ns * 1e-9
+            s = self.sim.advance_samples(int(round(seconds / step)))
+            r = s.rate_output
+            return AutoSamples(r.t, r.rate, r.quadrature, np.zeros(r.t.size, dtype=bool))
+        end = int(round((self.time_s + seconds) / rate_s))   # in ~/rate periods
+        parts = []
+        while True:
+            now = int(round(self.time_s / rate_s))
+            if now >= end:
+                break
+            if self.averaged is not None:
+                fast = self._fast_at()
+                stop = end
+                if not math.isinf(fast):
+                    stop = min(end, int(math.floor(fast / rate_s + 1e-9)))
+                if stop > now:
+                    out = self.averaged.advance((stop - now) * rate_s)
+                    parts.append((out.t, out.rate, out.quadrature, True))
+                if stop < end:
+                    self._to_full()
+                continue
+            # the full model up to its next check (a whole number of ~/rate periods)
+            samples_per_rate = self._rate_periods * self.sim.loop.window
+            check = max(1, self._check_samples // samples_per_rate)
+            count = min(end - now, check - now % check) * samples_per_rate
+            r = self.sim.advance_samples(count).rate_output
+            parts.append((r.t, r.rate, r.quadrature, False))
+            if self.sim.status != Status.RUNNING:
+                break
+            if self._may_hand_back():
+                self._to_averaged()
+        if not parts:
+            empty = np.empty(0)
+            return AutoSamples(empty, empty, empty, np.empty(0, dtype=bool))
+        return AutoSamples(np.concatenate([p[0] for p in parts]),
+                           np.concatenate([p[1] for p in parts]),
+                           np.concatenate([p[2] for p in parts]),
+                           np.concatenate([np.full(p[0].size, p[3]) for p in parts]))
