@@ -139,6 +139,7 @@ from typing import Optional, Sequence, Tuple
 import numpy as np
 from ring_gyro_sim.core import harmonic_balance, kernels, noise, structure, thermal
 from ring_gyro_sim.core.errors import ParameterError, SimulationError
+from ring_gyro_sim.core.gyro import electronics
 from ring_gyro_sim.core.params import BOLTZMANN, SimConfig
 from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
@@ -511,7 +512,8 @@ class GyroSamples:
     rate, quadrature : ndarray, shape (K,)
         ``~/rate``'s rate and quadrature, rad/s: the held calibration applied to the
         filtered rebalance forces (K1), or without one the filtered rebalance rate and
-        quadrature (C7, E14); the rate plus the flicker (S11).
+        quadrature (C7, E14); the rate plus the flicker (S11), then the output word (E15:
+        ``gyro.resolution``, ``gyro.range``).
     readout : ndarray, shape (K, 2)
         The filtered rebalance forces ``(S_c, S_s)``, m/s^2: the readout before calibration.
     envelope : ndarray of complex, shape (K, 2)
@@ -520,6 +522,8 @@ class GyroSamples:
         The loops' state after the update at each sample time (``~/control``'s columns).
     nco_phase : ndarray, shape (K,)
         The NCO's phase at each sample time, rad: ``q = Re(B e^{i phase})`` (S5).
+    saturated : ndarray of bool, shape (K,), or None
+        Which samples read the full scale (E15); None without ``gyro.range``.
 
     """
 
@@ -530,6 +534,7 @@ class GyroSamples:
     envelope: np.ndarray
     control: np.ndarray
     nco_phase: np.ndarray
+    saturated: Optional[np.ndarray] = None
 
 
 _NO_NOISE = np.zeros((0, 8))
@@ -649,8 +654,8 @@ class AveragedGyro:
     products of the amplifiers' first harmonics (S4), the constant and the ``2 omega`` terms.
     The full model's clock jumps; its noises are addressed by sample index and go on.
 
-    What it is not: the output word (E15), the block topics and the open-loop sense
-    readout; shocks, base acceleration, vibration and contact (doc/averaged.md).
+    What it is not: the block topics and the open-loop sense readout; shocks, base
+    acceleration, vibration and contact (doc/averaged.md).
 
     Parameters
     ----------
@@ -802,6 +807,8 @@ class AveragedGyro:
         # (S11) the flicker of ~/rate: the full model's bank (E13), so the same samples
         # (from a running full model, its bank's state now)
         self.flicker = copy.deepcopy(sim.sense.electronics.flicker)
+        self.saturated_samples = 0
+        """``~/rate`` samples that read the full scale (E15), as the sense chain counts them."""
         # for the hand-back (S14): the coordinates' layout, the demodulator's references
         el = sim.sense.electronics
         self._pair = (ic, is_)
@@ -992,6 +999,11 @@ class AveragedGyro:
         flicker = self.flicker.samples(first_output, outputs)   # the bank's index moves on
         if self.flicker.sigma > 0.0:  # (S11) after the calibration, as E13
             rate += flicker
+        # (E15) the output word, last, as the full model's sense chain
+        g = self.config.gyro
+        rate, saturated = electronics.output_word(rate, g.resolution, g.range)
+        if saturated is not None:
+            self.saturated_samples += int(np.count_nonzero(saturated))
         return GyroSamples(t=t, rate=rate, quadrature=quadrature, readout=filtered[:, 2:],
                            envelope=env, control=control_rows,
-                           nco_phase=rows[:, e.NCO_PHASE].copy())
+                           nco_phase=rows[:, e.NCO_PHASE].copy(), saturated=saturated)

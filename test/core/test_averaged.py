@@ -540,3 +540,29 @@ def test_a_full_model_goes_on_from_the_averaged_one():
     expected = np.concatenate([f.demod.values for f in full])
     drive = np.max(np.abs(expected[:, 2:]))
     assert np.max(np.abs(demod - expected)) < 1e-4 * drive
+
+
+def test_the_averaged_rate_goes_through_the_output_word():
+    # (E15) the output word last, as the full model's sense chain: at 10 deg/s with a full
+    # scale of 0.1 rad/s and a resolution of 1e-4 rad/s, every sample a whole number of the
+    # resolution within the range, those the rounded reading would put beyond it read the
+    # full scale and are flagged (and counted); the full model reads the same words (the
+    # readings 3e-6 apart round alike but where one falls within 3e-6 of a half step).
+    from ring_gyro_sim.core import thermal
+    from ring_gyro_sim.core.averaged import AveragedGyro
+    cfg = build_config({'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0,
+                        'gyro.range': 0.1, 'gyro.resolution': 1e-4,
+                        'scenario.rate_times': [0.0, 0.05],
+                        'scenario.rate_values': [0.0, TEN_DEG_S]})
+    start = operating_point.start_state(thermal.start_state_device(cfg))
+    model = AveragedGyro(cfg, start)
+    out = model.advance(0.2)
+    words = out.rate / 1e-4
+    assert np.allclose(words, np.round(words), rtol=0.0, atol=1e-6)
+    assert np.max(np.abs(out.rate)) <= 0.1
+    assert out.saturated is not None and out.saturated.any() and not out.saturated.all()
+    assert np.all(np.abs(out.rate[out.saturated]) == 0.1)
+    assert model.saturated_samples == int(np.count_nonzero(out.saturated))
+    sim = Simulator(cfg, start, calibration=None)
+    full = [sim.advance_samples(2000).rate_output for _ in range(20)]
+    assert np.array_equal(np.concatenate([f.saturated for f in full]), out.saturated)

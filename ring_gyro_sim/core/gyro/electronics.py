@@ -377,6 +377,24 @@ def _check_array(name: str, value, shape) -> np.ndarray:
     return arr
 
 
+def output_word(rate: np.ndarray, resolution: float,
+                full_scale: float) -> Tuple[np.ndarray, Optional[np.ndarray]]:
+    """
+    Return ``rate`` (rad/s) as the part outputs it, and which samples saturated (E15).
+
+    Rounded to a whole number of ``resolution`` (half to even; 0: not), then held within
+    ``+-full_scale`` (0: no range, and None for the second value).
+    """
+    if resolution > 0.0:
+        rate = np.round(rate / resolution) * resolution
+    if full_scale <= 0.0:
+        return rate, None
+    saturated = np.abs(rate) > full_scale
+    if saturated.any():
+        rate = np.clip(rate, -full_scale, full_scale)
+    return rate, saturated
+
+
 def _periodic_state(sos: np.ndarray, amplitude: complex, theta: float) -> np.ndarray:
     """
     Return the state of second-order sections under ``x[n] = a e^{i theta n}`` at n = 0.
@@ -1053,13 +1071,8 @@ class SenseElectronics:
         saturated samples in :attr:`saturated_samples`.
         """
         g = self.config.gyro
-        if g.resolution > 0.0:
-            rate = np.round(rate / g.resolution) * g.resolution
-        if g.range <= 0.0:
-            return rate, None
-        saturated = np.abs(rate) > g.range
-        if saturated.any():
-            rate = np.clip(rate, -g.range, g.range)
+        rate, saturated = output_word(rate, g.resolution, g.range)
+        if saturated is not None:
             self.saturated_samples += int(np.count_nonzero(saturated))
         return rate, saturated
 
