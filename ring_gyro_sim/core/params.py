@@ -117,6 +117,8 @@ no rotation or electronics, the 2theta drive open loop at ``drive.amplitude`` an
 """
 DRIVE_START_CHOICES = ('rest', 'upper_branch', 'lower_branch')
 INTEGRATOR_METHODS = ('bm6', 'bm4', 'strang')
+FIDELITIES = ('auto', 'full', 'averaged')
+"""``integrator.fidelity``: which model the offline analyses may run (doc/averaged.md)."""
 RECORD_COMPRESSIONS = ('zstd', 'lz4', 'none')
 
 MAX_MODES = 20
@@ -374,6 +376,11 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               '(order 2, 1); see core/kernels/', choices=INTEGRATOR_METHODS),
     ParamSpec('integrator.max_step', 'integrator.max_step', 'float', 0.0, 's',
               'largest integration step (0 = automatic, see core/kernels/)', **_NON_NEGATIVE),
+    ParamSpec('integrator.fidelity', 'integrator.fidelity', 'str', 'auto', '-',
+              'model of the quiet stretches: auto or averaged let the offline analyses '
+              '(characterize) run their quiet tests on the averaged model (auto falls back '
+              'to the full model where it cannot, averaged refuses), full never; ring_gyro '
+              'run and the node run the full model (doc/averaged.md)', choices=FIDELITIES),
     ParamSpec('real_time_factor', 'run.real_time_factor', 'float', 1.0, '-',
               'simulated seconds per wall second (0 = as fast as possible)', **_NON_NEGATIVE,
               read_only=False),
@@ -1090,10 +1097,11 @@ class ControlParams:
 
 @_parameter_group('integrator')
 class IntegratorParams:
-    """Choice of the splitting method and of the largest step, s."""
+    """Choice of the splitting method, of the largest step (s) and of the model's fidelity."""
 
     method: str
     max_step: float
+    fidelity: str
 
 
 @_parameter_group('thermal')

@@ -125,6 +125,7 @@ def test_infinity_is_rejected(name, value):
     ('drive.start_on', 'middle_branch'),
     ('integrator.method', 'rk4'),
     ('integrator.max_step', -1e-6),
+    ('integrator.fidelity', 'fast'),
     ('duration', -1.0),
     ('output.rate', 0.0),
     ('output.rate', 300000.0),     # period 3333.33 ns
