@@ -69,6 +69,21 @@ device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
      ``bandwidth_hz = 1 / (2 pi tau)``, the -3 dB frequency of that first-order fit. The
      time to 63.2 % of the step is given beside it.
 
+1b. The long zero-rate record (:func:`_long_record`, :func:`_long_allan`; issue 25): 3 h /
+   200 s at zero rate on the averaged model (``core.averaged.AveragedGyro``, ~450 x real
+   time on the default gyroscope: 3 h in ~25 s), run first, when ``integrator.fidelity`` is
+   ``auto`` or ``averaged`` and the averaged model runs the device (the closed loop with
+   force-to-rebalance, the truncated force). Its Allan deviation goes to ``T / 8`` (1 349 s /
+   24.75 s) with 68.3 % intervals (allantools: Greenhall's degrees of freedom of the
+   overlapping estimator, white rate noise); the same fit as the short record (its ARW
+   beside the full model's), the bias instability (the minimum / 0.664, an upper bound when
+   the curve has not turned), the log-log slope over the last decade, and the rate random
+   walk (the +1/2 line ``K sqrt(tau / 3)``) where the curve rises beyond its minimum. With
+   ``full``, or on a device the averaged model cannot run under ``auto``, the section says
+   it was not run and why; ``averaged`` refuses such a device before any run. The short
+   full-model record above stays: its step gives the time constant the fits start from, and
+   its ARW, bootstrap and bias are the full model's.
+
 2. Scale factor (12.9): one run per rate of the table, -300 .. 300 deg/s in 13 points of
    12 s each, the mean over the last 4 s (``--quick``: -300, -100, 0, 100, 300 deg/s, 0.5 s
    each, the mean after 0.1 s). The start state holds the pair's steady linear response to
@@ -190,6 +205,13 @@ STOP_THRESHOLD_AT_S = 0.001
 """The shock time of the no-impact threshold's runs, s (they start on the drive's orbit)."""
 STOP_BRACKET = (0.5, 1.1)
 """The threshold's first two runs, times the 1theta mode's closed form: they bracket it."""
+LONG_CHUNK_S = 100.0
+"""The long record is advanced in pieces this long: the bar moves, and only the rate is kept."""
+AVERAGED_COST = 1.0 / 250.0
+"""The progress bar's weight of a second of the averaged model, in seconds of the full model:
+the closed-loop gyroscope runs ~280 times faster on it (doc/averaged.md, "Speed")."""
+RRW_MIN_SLOPE = 0.25
+"""A rise beyond the Allan minimum counts as rate random walk (+1/2) above this log-log slope."""
 NEEDS = ('allantools',)
 """Libraries beyond the node's (:mod:`ring_gyro_sim.extras`), checked before anything runs."""
 
@@ -244,6 +266,10 @@ class Plan:
         how many bisections follow the two that bracket it.
     stop_tolerances_dps : tuple of float
         The recovery tolerances: back within each of the unshocked reading, deg/s.
+    long_record_s : float
+        The long zero-rate record on the averaged model (``integrator.fidelity`` auto or
+        averaged; :func:`_long_record`), s, the first ``zero_rate_skip_s`` left out: its
+        Allan deviation reaches ``(long_record_s - zero_rate_skip_s) / TAU_FRACTION``.
 
     """
 
@@ -280,6 +306,7 @@ class Plan:
     stop_threshold_after_s: float = 0.02
     stop_bisections: int = 7
     stop_tolerances_dps: Tuple[float, ...] = (1.0, 0.1)
+    long_record_s: float = 10800.0
 
     def environment_runs(self, output_rate_hz: float = 200000.0) -> List[Dict[str, Any]]:
         """
@@ -338,7 +365,9 @@ class Plan:
         tables of the device as owned are not among them: ``core.gyro.calibration`` runs
         each table rate until it has settled (3 simulated s per table on the default
         gyroscope, 29 s on the open loops of ``config/gyro.yaml``) and keeps them (in this
-        process and in its cache file), so their length is not the plan's.
+        process and in its cache file), so their length is not the plan's. Nor is the long
+        record's (``long_record_s``): it runs on the averaged model, and the sheet counts it
+        apart (``long_record``).
         """
         out = [('drift and step', self.zero_rate_s + self.step_s)]
         out += [('rate table', self.rate_point_s)] * len(self.rate_points_dps)
@@ -366,7 +395,7 @@ QUICK = Plan(zero_rate_s=8.0, zero_rate_skip_s=2.0, step_rate_dps=10.0, step_s=2
              temperature_points_k=(283.15, 313.15), environment_s=0.3,
              environment_average_s=0.1, stop_shock_peaks_g=(1000.0, 5000.0),
              stop_shock_at_s=0.02, stop_shock_after_s=0.1, stop_threshold_after_s=0.005,
-             stop_bisections=4)
+             stop_bisections=4, long_record_s=200.0)
 """``--quick``: 22.9 simulated s with the three loop modes (short records; the tests)."""
 
 
@@ -490,22 +519,30 @@ class _Record:
 class _Bar:
     """One progress bar over every run of the characterization (simulated s)."""
 
-    def __init__(self, total_s: float, enabled: bool) -> None:
+    def __init__(self, total_s: float, enabled: bool, averaged_s: float = 0.0) -> None:
         from ring_gyro_sim.progress import Progress
-        self.progress = Progress(total_s, enabled, name='characterize')
+        # the averaged model's seconds weigh AVERAGED_COST of the full model's
+        self.progress = Progress(total_s + averaged_s * AVERAGED_COST, enabled,
+                                 name='characterize')
         self.done_s = 0.0
+        self.work = 0.0
         self.runs = 0
 
-    def update(self, run_s: float, note: str) -> None:
-        self.progress.update(self.done_s + run_s, note)
+    def update(self, run_s: float, note: str, weight: float = 1.0) -> None:
+        self.progress.update(self.work + run_s * weight, note)
 
     def note(self, text: str) -> None:
         self.progress.note(f'characterize: {text}')
 
     def finish_run(self, planned_s: float) -> None:
         self.done_s += planned_s
+        self.work += planned_s
         self.runs += 1
-        self.progress.update(self.done_s)
+        self.progress.update(self.work)
+
+    def finish_averaged(self, planned_s: float) -> None:
+        self.work += planned_s * AVERAGED_COST
+        self.progress.update(self.work)
 
     def close(self) -> None:
         self.progress.close()
@@ -831,8 +868,12 @@ def characterize(params_path: str, out_dir: str, quick: bool = False,
         plan = replace(plan, shock_peaks_g=peaks)
     out = prepare_directory(out_dir)  # before computing: 20 minutes lost otherwise
     output_rate = build_config(flat).run.output_rate
-    bar = _Bar(plan.simulated_s(len(loops), output_rate), progress)
+    averaged = build_config(flat).integrator.fidelity != 'full'
+    bar = _Bar(plan.simulated_s(len(loops), output_rate), progress,
+               averaged_s=plan.long_record_s if averaged else 0.0)
     try:
+        # first: integrator.fidelity: averaged refuses a device before any full-model run
+        long = _long_record(flat, plan, bar)
         drift = _drift_and_step(flat, plan, bar)
         table = _rate_table(flat, plan, bar, drift)
         shocks = [_shock(flat, plan, bar, peak, loop)
@@ -844,6 +885,7 @@ def characterize(params_path: str, out_dir: str, quick: bool = False,
     sheet = _assemble(params_path, flat, plan, quick, loops, drift, table, shocks)
     sheet.update(owned)
     sheet['environment'] = environment
+    sheet['long_record'] = _long_allan(long, drift)
     sheet['white_noise'] = _white_noise(sheet)
     sheet['simulated_s'] = bar.done_s
     sheet['runs'] = bar.runs
@@ -887,6 +929,155 @@ def _drift_and_step(flat, plan: Plan, bar: _Bar) -> Dict[str, Any]:
             'predicted_arw_rad_sqrt_s': el.predicted_arw()[0],
             'predicted_bandwidth_hz': float(el.bandwidth_hz), 'step_at_s': t0,
             'step_rad_s': step}
+
+
+def _long_record(flat, plan: Plan, bar: _Bar) -> Dict[str, Any]:
+    """
+    Record ``plan.long_record_s`` at zero rate on the averaged model (module docstring, 1b).
+
+    The model runs when ``integrator.fidelity`` is ``auto`` or ``averaged`` and
+    ``core.averaged.AveragedGyro`` runs the device (the test is quiet: no shock, no base
+    acceleration, no vibration, no rate). It reads the model's own readout, as the other tests
+    (``gyro.calibration.source: ideal``: the loop's rebalance rate, C7), from the run's start
+    state, with the device's noises (S9-S11, their own streams of ``gyro.noise_seed``).
+
+    Returns
+    -------
+    dict
+        ``run`` False with the ``reason``; or ``run`` True with ``rate`` (rad/s, the first
+        ``zero_rate_skip_s`` left out), ``rate_hz``, ``config``, ``simulated_s`` and
+        ``wall_s`` (of the averaged model: its start, the start state included, and run).
+
+    Raises
+    ------
+    ParameterError
+        ``integrator.fidelity: averaged`` and a device the averaged model cannot run.
+
+    """
+    from ring_gyro_sim.core.averaged import AveragedGyro
+    config = build_config(_test_parameters(flat, plan.long_record_s))
+    fidelity = config.integrator.fidelity
+    out: Dict[str, Any] = {'run': False, 'fidelity': fidelity, 'planned_s': plan.long_record_s}
+    if fidelity == 'full':
+        out['reason'] = ('integrator.fidelity: full. The long record runs on the averaged '
+                         'model only: on the full model (~2x real time) it would take hours')
+        return out
+    if plan.long_record_s <= plan.zero_rate_skip_s:
+        out['reason'] = 'the plan has no long record (long_record_s)'
+        return out
+    wall0 = time.monotonic()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore', RuntimeWarning)  # as _simulate's Run
+            gyro = AveragedGyro(config)
+    except ParameterError as exc:
+        if fidelity == 'averaged':
+            raise ParameterError(f'integrator.fidelity: averaged, but the averaged model '
+                                 f'cannot run this device: {exc}') from exc
+        out['reason'] = (f'the averaged model cannot run this device ({exc}). '
+                         f'integrator.fidelity: auto falls back to the full model, on which '
+                         f'a record this long would take hours')
+        return out
+    rate_hz = float(config.gyro.output_rate)
+    total = int(round(plan.long_record_s * rate_hz))
+    chunk = max(1, int(round(LONG_CHUNK_S * rate_hz)))
+    note = 'long zero-rate record (averaged model)'
+    parts, done = [], 0
+    while done < total:
+        count = min(chunk, total - done)
+        parts.append(gyro.advance(count / rate_hz).rate)
+        done += count
+        bar.update(done / rate_hz, note, AVERAGED_COST)
+    wall = time.monotonic() - wall0
+    bar.finish_averaged(plan.long_record_s)
+    skip = int(round(plan.zero_rate_skip_s * rate_hz))
+    out.update(run=True, rate=np.concatenate(parts)[skip:], rate_hz=rate_hz, config=config,
+               simulated_s=done / rate_hz, skip_s=skip / rate_hz, wall_s=wall,
+               model='averaged (core.averaged.AveragedGyro)')
+    return out
+
+
+def _long_allan(long, drift) -> Dict[str, Any]:
+    """
+    Return the long record's Allan analysis (module docstring, 1b), or why it was not run.
+
+    The fit and the bias instability as the short record's (:func:`allan_fit`, the step's
+    time constant, the same terms and shortest tau); beyond it the log-log slope over the
+    last decade of tau, and where the curve rises beyond its minimum with a slope above
+    :data:`RRW_MIN_SLOPE`, the rate random walk: the +1/2 line ``K sqrt(tau / 3)`` (IEEE Std
+    952, C.1) fitted there, weighted by the clusters ``T / tau``. The error bars are the 68.3 %
+    confidence intervals of allantools (``confidence_interval``) at Greenhall's equivalent
+    degrees of freedom of the overlapping estimator for white rate noise (``edf_greenhall``,
+    alpha 0, d 2: the noise of the default device at long tau). ``oadev``'s own
+    ``dev / sqrt(n)`` counts the overlapping (correlated) pairs as independent: at ``T / 8``
+    it gives 0.3 % where the interval is -17 % .. +33 %.
+    """
+    if not long['run']:
+        return {k: long[k] for k in ('run', 'fidelity', 'planned_s', 'reason')}
+    x, rate_hz, config = long['rate'], long['rate_hz'], long['config']
+    tc = drift['step']['time_constant_s']
+    tau_min = max(0.01, 1.0 / config.gyro.filter_bandwidth)
+    if config.control.rebalance:
+        tau_min = max(tau_min, SLOPE_ONLY_TC * tc)  # as _drift_and_step
+    allan = allan_fit(x, rate_hz, tc, _noise_terms(config), tau_min)
+    tau, dev = allan['tau_s'], allan['adev_rad_s']
+    record_s = x.size / rate_hz
+    interval = _allan_intervals(tau, dev, x.size, rate_hz)
+
+    def line(region, exponent):
+        # weighted least squares of log(dev) = exponent-free level + slope log(tau)
+        w = record_s / tau[region]
+        lt, ld = np.log(tau[region]), np.log(dev[region])
+        if exponent is None:
+            slope, _ = np.polyfit(lt, ld, 1, w=np.sqrt(w))
+            return float(slope)
+        return float(np.exp(np.sum(w * (ld - exponent * lt)) / np.sum(w)))
+    last = tau >= tau[-1] / 10.0
+    slope = line(last, None) if np.count_nonzero(last) >= 3 else None
+    k = int(np.argmin(np.abs(tau - allan['minimum_tau_s'])))
+    beyond = tau > tau[k]
+    rrw = None
+    if allan['floor_reached'] and np.count_nonzero(beyond) >= 3 and \
+            line(beyond, None) > RRW_MIN_SLOPE:
+        rrw = {'k_rad_s_per_sqrt_s': line(beyond, 0.5) * math.sqrt(3.0),
+               'tau_s': [float(tau[beyond][0]), float(tau[beyond][-1])]}
+    h = RAD_S_TO_DEG_H
+    return {
+        'run': True, 'fidelity': long['fidelity'], 'model': long['model'],
+        'planned_s': long['planned_s'], 'simulated_s': long['simulated_s'],
+        'skip_s': long['skip_s'], 'record_s': record_s, 'wall_s': long['wall_s'],
+        'tau_max_s': float(tau[-1]),
+        'adev_at_tau_max_deg_per_h': float(dev[-1]) * h,
+        'adev_interval_at_tau_max_deg_per_h': [float(v) * h for v in interval[-1]],
+        'arw_deg_per_sqrt_h': allan['arw_rad_sqrt_s'] * RAD_SQRT_S_TO_DEG_SQRT_H,
+        'arw_fit_tau_s': allan['fit_tau_s'],
+        'bias_instability_deg_per_h': allan['minimum_rad_s'] / FLICKER_FLOOR * h,
+        'bias_instability_interval_deg_per_h': [float(v) / FLICKER_FLOOR * h
+                                                for v in interval[k]],
+        'bias_instability_tau_s': allan['minimum_tau_s'],
+        'bias_instability_floor_reached': allan['floor_reached'],
+        'long_tau_slope': slope,
+        'long_tau_slope_tau_s': [float(tau[last][0]), float(tau[-1])],
+        'rate_random_walk_deg_per_h_per_sqrt_h': (
+            None if rrw is None else rrw['k_rad_s_per_sqrt_s'] * h * 60.0),
+        'rate_random_walk_tau_s': None if rrw is None else rrw['tau_s'],
+        'allan': {'tau_s': tau, 'adev_deg_per_h': dev * h,
+                  'adev_interval_deg_per_h': interval * h,
+                  'interval': '68.3 %, allantools.edf_greenhall (white rate noise, '
+                              'overlapping) and confidence_interval'}}
+
+
+def _allan_intervals(tau: np.ndarray, dev: np.ndarray, n_samples: int,
+                     rate_hz: float) -> np.ndarray:
+    """Return the 68.3 % intervals ``(K, 2)`` of an oadev curve (:func:`_long_allan`)."""
+    import allantools
+    out = np.empty((tau.size, 2))
+    for j, (t, d) in enumerate(zip(tau, dev)):
+        # the rate samples are frequency data: n_samples + 1 phase points
+        edf = allantools.edf_greenhall(alpha=0, d=2, m=int(round(t * rate_hz)),
+                                       N=n_samples + 1, overlapping=True)
+        out[j] = allantools.confidence_interval(float(d), edf)
+    return out
 
 
 def _rate_table(flat, plan: Plan, bar: _Bar, drift) -> Dict[str, Any]:
@@ -1348,6 +1539,16 @@ def _write(out: Path, sheet, drift, table, shocks, loops) -> List[str]:
     files = ['datasheet.json', 'datasheet.md']
     allan = drift['allan']
     pngs = {}
+    long = sheet['long_record']
+    curve = None
+    if long['run']:
+        g = long['allan']
+        curve = (g['tau_s'], g['adev_deg_per_h'],
+                 np.abs(np.transpose(g['adev_interval_deg_per_h'])
+                        - np.asarray(g['adev_deg_per_h'])),
+                 f'averaged model, {_fmt(long["record_s"] / 3600.0, 3)} h (oadev)',
+                 (long['bias_instability_tau_s'],
+                  long['bias_instability_deg_per_h'] * FLICKER_FLOOR))
     if plotting.plot_allan(
             allan['tau_s'], allan['adev_rad_s'] * RAD_S_TO_DEG_H,
             allan['adev_err_rad_s'] * RAD_S_TO_DEG_H, out / 'allan.png',
@@ -1360,7 +1561,8 @@ def _write(out: Path, sheet, drift, table, shocks, loops) -> List[str]:
             floor=(allan['minimum_tau_s'], allan['minimum_rad_s'] * RAD_S_TO_DEG_H),
             slope_only=None if allan['slope_only'] is None else (
                 allan['slope_only']['tau_s'],
-                allan['slope_only']['arw_rad_sqrt_s'] * RAD_S_TO_DEG_H)):
+                allan['slope_only']['arw_rad_sqrt_s'] * RAD_S_TO_DEG_H),
+            long_record=curve):
         pngs['allan'] = 'allan.png'
     rows = sheet['rate_table']
     if plotting.plot_scale_factor(
@@ -1494,6 +1696,7 @@ def _markdown(sheet, pngs: Mapping[str, str]) -> str:
         f'| {a["bandwidth"]:+.2%} | {_fmt(sheet["step"]["rate_deg_per_s"])} deg/s step, '
         f'first-order fit tau = {_fmt(sheet["step"]["time_constant_s"], 4)} s '
         f'(63.2 % at {_fmt(sheet["step"]["t63_s"], 4)} s) |', '']
+    lines += _long_markdown(sheet['long_record'], sheet['arw_deg_per_sqrt_h'])
     c = sheet['calibration']
     w = sheet['white_noise']
     th = sheet['temperature']
@@ -1562,6 +1765,51 @@ def _markdown(sheet, pngs: Mapping[str, str]) -> str:
     for key, name in pngs.items():
         lines += [f'![{titles[key]}]({name})', '']
     return '\n'.join(lines)
+
+
+def _interval(pair) -> str:
+    return f'{_fmt(pair[0], 3)} .. {_fmt(pair[1], 3)}'
+
+
+def _long_markdown(g, arw_short) -> List[str]:
+    """Return the long zero-rate record's section (module docstring, 1b)."""
+    lines = ['## Long zero-rate record (averaged model)', '']
+    if not g['run']:
+        return lines + [f'Not run: {g["reason"]}.', '']
+    bound = '' if g['bias_instability_floor_reached'] else '<= '
+    lines += [f'{_fmt(g["record_s"], 6)} s ({_fmt(g["record_s"] / 3600.0, 3)} h) at zero '
+              f'rate on the averaged model (`integrator.fidelity: {g["fidelity"]}`; '
+              f'doc/averaged.md), the first {_fmt(g["skip_s"])} s left out; '
+              f'{_fmt(g["wall_s"], 3)} s of wall time. Allan deviation (oadev) to tau = '
+              f'{_fmt(g["tau_max_s"], 4)} s; the intervals are 68.3 % (allantools, '
+              f'the degrees of freedom of Greenhall for white rate noise).', '',
+              '| figure | value | unit | how |', '|---|---|---|---|',
+              f'| angle random walk | {_fmt(g["arw_deg_per_sqrt_h"], 4)} | deg/sqrt(h) | '
+              f'the same Allan fit over tau {_fmt(g["arw_fit_tau_s"][0], 3)} .. '
+              f'{_fmt(g["arw_fit_tau_s"][1], 4)} s (the short record of the full model: '
+              f'{_fmt(arw_short, 4)}) |',
+              f'| bias instability | {bound}{_fmt(g["bias_instability_deg_per_h"], 3)} '
+              f'({_interval(g["bias_instability_interval_deg_per_h"])}) | deg/h | Allan '
+              f'minimum / 0.664 at tau = {_fmt(g["bias_instability_tau_s"], 4)} s'
+              + ('' if g['bias_instability_floor_reached'] else
+                 ' (no floor within the record: an upper bound)') + ' |',
+              f'| Allan deviation at tau = {_fmt(g["tau_max_s"], 4)} s | '
+              f'{_fmt(g["adev_at_tau_max_deg_per_h"], 3)} '
+              f'({_interval(g["adev_interval_at_tau_max_deg_per_h"])}) | deg/h | the longest '
+              f'tau |',
+              f'| log-log slope, last decade | {_fmt(g["long_tau_slope"], 3)} | - | tau '
+              f'{_fmt(g["long_tau_slope_tau_s"][0], 4)} .. '
+              f'{_fmt(g["long_tau_slope_tau_s"][1], 4)} s (-1/2 white, 0 flicker, +1/2 rate '
+              f'random walk) |']
+    if g['rate_random_walk_deg_per_h_per_sqrt_h'] is None:
+        lines.append('| rate random walk | - | deg/h/sqrt(h) | no +1/2 rise beyond the minimum '
+                     'within the record |')
+    else:
+        lo, hi = g['rate_random_walk_tau_s']
+        lines.append(f'| rate random walk | {_fmt(g["rate_random_walk_deg_per_h_per_sqrt_h"], 3)}'
+                     f' | deg/h/sqrt(h) | +1/2 line K sqrt(tau / 3) over tau {_fmt(lo, 4)} .. '
+                     f'{_fmt(hi, 4)} s |')
+    return lines + ['']
 
 
 def _random_entry(results, shift, sine) -> Optional[Dict[str, Any]]:

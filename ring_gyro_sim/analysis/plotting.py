@@ -764,7 +764,7 @@ def plot_rate(traces, path, title='Rate output', shock_s=None, drive=None,
 
 def plot_allan(tau_s, adev, err, path, model=None, arw_deg_per_h=None,
                predicted_arw_deg_per_h=None, fit_tau_s=None, floor=None,
-               slope_only=None) -> bool:
+               slope_only=None, long_record=None) -> bool:
     """
     Save an Allan-deviation plot with the ARW line and the bias-instability floor marked.
 
@@ -784,6 +784,9 @@ def plot_allan(tau_s, adev, err, path, model=None, arw_deg_per_h=None,
         ``(tau_s, deg/h)`` of the curve's minimum (the bias-instability read).
     slope_only : ((float, float), float), optional
         The plain -1/2 fit: its tau range (s) and level at 1 s (deg/h).
+    long_record : (tau_s, adev, err, label, floor), optional
+        A second, longer record's curve (deg/h) with its label, and its minimum
+        ``(tau_s, deg/h)`` or None; the tau axis and the -1/2 lines extend to it.
 
     """
     plt = _pyplot()
@@ -793,11 +796,21 @@ def plot_allan(tau_s, adev, err, path, model=None, arw_deg_per_h=None,
     fig, ax = plt.subplots(figsize=(7.0, 5.0))
     try:
         ax.errorbar(tau, adev, yerr=err, fmt='o', ms=3, lw=0.8, label='measured (oadev)')
+        line_tau = np.array([tau[0], tau[-1]])
+        if long_record is not None:
+            l_tau, l_adev, l_err, l_label, l_floor = long_record
+            l_tau = np.asarray(l_tau, dtype=float)
+            ax.errorbar(l_tau, l_adev, yerr=l_err, fmt='s', ms=2.5, lw=0.8, alpha=0.8,
+                        color='tab:purple', label=l_label)
+            if l_floor is not None:
+                ax.plot([l_floor[0]], [l_floor[1]], 's', color='tab:purple', ms=8, mfc='none',
+                        label=f'its minimum {l_floor[1]:.3g} deg/h at {l_floor[0]:.3g} s: '
+                              f'BI = {l_floor[1] / 0.6643:.3g} deg/h')
+            line_tau = np.array([min(tau[0], l_tau[0]), max(tau[-1], l_tau[-1])])
         if fit_tau_s is not None:
             ax.axvspan(fit_tau_s[0], fit_tau_s[1], color='0.9', zorder=0, label='fit range')
         if model is not None:
             ax.loglog(tau, model, '-', lw=1.0, label='fitted noise model')
-        line_tau = np.array([tau[0], tau[-1]])
         if arw_deg_per_h is not None:
             ax.loglog(line_tau, arw_deg_per_h / np.sqrt(line_tau), '--', lw=1.0,
                       label=f'-1/2 slope: ARW = {arw_deg_per_h / 60.0:.4g} deg/sqrt(h)')
