@@ -653,7 +653,7 @@ def long_default():
     """Run the QUICK plan's long record of ``config/default.yaml`` (auto); analyse it."""
     flat = ch.load_device(str(DEFAULT))
     bar = ch._Bar(0.0, False, ch.QUICK.long_record_s)
-    rec = ch._long_record(flat, ch.QUICK, bar)
+    rec = ch._long_record(flat, ch.QUICK, bar, ch.averaged_refusal(flat))
     el = Run(rec['config']).sim.sense.electronics
     # the step's time constant as the model predicts it (the fit's shortest tau, 10 Tc)
     drift = {'step': {'time_constant_s': 1.0 / (2.0 * math.pi * el.bandwidth_hz)}}
@@ -712,7 +712,8 @@ def test_the_long_record_section_is_in_the_markdown(long_default):
 def test_fidelity_full_leaves_the_long_record_out_and_says_why():
     flat = dict(ch.load_device(str(DEFAULT)), **{'integrator.fidelity': 'full'})
     bar = ch._Bar(0.0, False)
-    g = ch._long_allan(ch._long_record(flat, ch.QUICK, bar), None)
+    assert ch.averaged_refusal(flat) == 'integrator.fidelity: full'
+    g = ch._long_allan(ch._long_record(flat, ch.QUICK, bar, ch.averaged_refusal(flat)), None)
     assert g['run'] is False and 'integrator.fidelity: full' in g['reason']
     assert bar.work == 0.0
     text = '\n'.join(ch._long_markdown(g, 0.05))
@@ -745,3 +746,30 @@ def test_a_bad_fidelity_is_refused_naming_the_field(tmp_path, capsys):
     err = capsys.readouterr().err
     assert 'integrator.fidelity' in err and 'auto, full, averaged' in err
     assert not (tmp_path / 'x').exists()
+
+
+def test_the_averaged_record_of_the_step_is_the_full_one():
+    # Noise off, the drift-and-step run's scenario (10 deg/s at 1 s here, 1.5 s after): the
+    # first-order fit's time constant and gain of the averaged model's record against the
+    # full model's, within 1e-3 (the issue's must-show on the reading after the first time
+    # constant; the readings agree to 5.4e-4 just after it, 3e-6 from 0.1 s on:
+    # doc/averaged.md).
+    flat = dict(ch.load_device(str(DEFAULT)))
+    flat.update({'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0})
+    assert ch.averaged_refusal(flat) is None
+    step, t0, length = 10.0 * ch.DEG, 1.0, 2.5
+    values = ch._test_parameters(flat, length, **{'scenario.rate_times': [t0, t0],
+                                                  'scenario.rate_values': [0.0, step]})
+    bar = ch._Bar(0.0, False)
+    averaged = ch._simulate_averaged(values, length, bar, 'step')
+    full = ch._simulate(values, length, bar, 'step')
+    assert averaged.model == 'averaged' and full.model == 'full'
+    assert bar.averaged_s == bar.done_s == length and bar.runs == 1
+    assert np.allclose(averaged.t, full.t, rtol=0.0, atol=1e-9)
+    fit_a, fit_f = (ch.step_fit(r.t, r.rate, t0, step) for r in (averaged, full))
+    for key in ('time_constant_s', 'gain'):
+        assert fit_a[key] == pytest.approx(fit_f[key], rel=1e-3), key
+    # the applied rate is the step, from its time on, as the full model applies it
+    assert np.array_equal(averaged.applied, full.applied)
+    assert averaged.scale_factor == full.scale_factor
+    assert averaged.electronics.predicted_arw() == full.electronics.predicted_arw()
