@@ -1876,7 +1876,7 @@ def _long_markdown(g, arw_short) -> List[str]:
               '| figure | value | unit | how |', '|---|---|---|---|',
               f'| angle random walk | {_fmt(g["arw_deg_per_sqrt_h"], 4)} | deg/sqrt(h) | '
               f'the same Allan fit over tau {_fmt(g["arw_fit_tau_s"][0], 3)} .. '
-              f'{_fmt(g["arw_fit_tau_s"][1], 4)} s (the short record of the full model: '
+              f'{_fmt(g["arw_fit_tau_s"][1], 4)} s (the short record: '
               f'{_fmt(arw_short, 4)}) |',
               f'| bias instability | {bound}{_fmt(g["bias_instability_deg_per_h"], 3)} '
               f'({_interval(g["bias_instability_interval_deg_per_h"])}) | deg/h | Allan '

@@ -433,6 +433,8 @@ def cmd_characterize(args) -> int:
         'arw_deg_per_sqrt_h': sheet['arw_deg_per_sqrt_h'],
         'bias_instability_deg_per_h': sheet['bias_instability_deg_per_h'],
         'bandwidth_hz': sheet['bandwidth_hz'], 'shock_entries': len(sheet['shock']),
+        'drift_model': sheet['drift_model'],
+        'long_record_tau_max_s': sheet['long_record'].get('tau_max_s'),
         'agreement': sheet['agreement'], 'wall_time_s': sheet['wall_time_s'],
         'files': [str(Path(args.out) / name) for name in sheet['files']]}, sort_keys=True))
     return 0

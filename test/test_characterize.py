@@ -83,6 +83,8 @@ def test_the_run_succeeds_and_prints_its_summary_last(quick, sheet):
     assert summary['scale_factor_v_per_rad_s'] == sheet['scale_factor']
     assert summary['arw_deg_per_sqrt_h'] == sheet['arw_deg_per_sqrt_h']
     assert summary['shock_entries'] == len(sheet['shock'])
+    # config/gyro.yaml is open loop: everything on the full model, no long record
+    assert summary['drift_model'] == 'full' and summary['long_record_tau_max_s'] is None
     assert set(summary['files']) == {str(out / n) for n in (
         'datasheet.json', 'datasheet.md', 'allan.png', 'scale_factor.png', 'step.png',
         'shock_recovery.png', 'temperature.png')}
