@@ -217,6 +217,10 @@ AVERAGED_COST = 1.0 / 250.0
 the closed-loop gyroscope runs ~280 times faster on it (doc/averaged.md, "Speed")."""
 RRW_MIN_SLOPE = 0.25
 """A rise beyond the Allan minimum counts as rate random walk (+1/2) above this log-log slope."""
+RRW_START = 3.0
+"""The rate random walk's line is fitted from this many times the minimum's tau on: where
+white rate noise meeting it at the minimum (``N^2 / tau = K^2 tau / 3`` there) adds at most
+``(1 / 3)^2`` to the variance, 5.4 % to the deviation."""
 NEEDS = ('allantools',)
 """Libraries beyond the node's (:mod:`ring_gyro_sim.extras`), checked before anything runs."""
 
@@ -1086,11 +1090,13 @@ def _long_allan(long, drift) -> Dict[str, Any]:
     """
     Return the long record's Allan analysis (module docstring, 1b), or why it was not run.
 
-    The fit and the bias instability as the short record's (:func:`allan_fit`, the step's
-    time constant, the same terms and shortest tau); beyond it the log-log slope over the
+    The fit as the short record's (:func:`allan_fit`, the step's time constant, the same
+    terms and shortest tau), the bias instability the minimum over the fit range / 0.664;
+    beyond it the log-log slope over the
     last decade of tau, and where the curve rises beyond its minimum with a slope above
     :data:`RRW_MIN_SLOPE`, the rate random walk: the +1/2 line ``K sqrt(tau / 3)`` (IEEE Std
-    952, C.1) fitted there, weighted by the clusters ``T / tau``. The error bars are the 68.3 %
+    952, C.1) fitted from :data:`RRW_START` times the minimum's tau on, weighted by the
+    clusters ``T / tau``. The error bars are the 68.3 %
     confidence intervals of allantools (``confidence_interval``) at Greenhall's equivalent
     degrees of freedom of the overlapping estimator for white rate noise (``edf_greenhall``,
     alpha 0, d 2: the noise of the default device at long tau). ``oadev``'s own
@@ -1110,7 +1116,8 @@ def _long_allan(long, drift) -> Dict[str, Any]:
     interval = _allan_intervals(tau, dev, x.size, rate_hz)
 
     def line(region, exponent):
-        # weighted least squares of log(dev) = exponent-free level + slope log(tau)
+        # weighted by the clusters T / tau: exponent None, the slope of log(dev) on log(tau);
+        # else the level L of dev = L tau^exponent
         w = record_s / tau[region]
         lt, ld = np.log(tau[region]), np.log(dev[region])
         if exponent is None:
@@ -1119,10 +1126,15 @@ def _long_allan(long, drift) -> Dict[str, Any]:
         return float(np.exp(np.sum(w * (ld - exponent * lt)) / np.sum(w)))
     last = tau >= tau[-1] / 10.0
     slope = line(last, None) if np.count_nonzero(last) >= 3 else None
-    k = int(np.argmin(np.abs(tau - allan['minimum_tau_s'])))
-    beyond = tau > tau[k]
+    # the minimum over the whole fit range: it starts at 10 Tc, past the rebalance loop's
+    # peak (the only loop the averaged model runs), and a rate random walk makes the curve's
+    # maximum the last tau, where allan_fit's search from the maximum on would start
+    first = int(np.flatnonzero(tau >= allan['fit_tau_s'][0] * (1.0 - 1e-9))[0])
+    k = first + int(np.argmin(dev[first:]))
+    floor_reached = k < tau.size - 1
+    beyond = tau >= RRW_START * tau[k]
     rrw = None
-    if allan['floor_reached'] and np.count_nonzero(beyond) >= 3 and \
+    if floor_reached and np.count_nonzero(beyond) >= 3 and \
             line(beyond, None) > RRW_MIN_SLOPE:
         rrw = {'k_rad_s_per_sqrt_s': line(beyond, 0.5) * math.sqrt(3.0),
                'tau_s': [float(tau[beyond][0]), float(tau[beyond][-1])]}
@@ -1136,11 +1148,11 @@ def _long_allan(long, drift) -> Dict[str, Any]:
         'adev_interval_at_tau_max_deg_per_h': [float(v) * h for v in interval[-1]],
         'arw_deg_per_sqrt_h': allan['arw_rad_sqrt_s'] * RAD_SQRT_S_TO_DEG_SQRT_H,
         'arw_fit_tau_s': allan['fit_tau_s'],
-        'bias_instability_deg_per_h': allan['minimum_rad_s'] / FLICKER_FLOOR * h,
+        'bias_instability_deg_per_h': float(dev[k]) / FLICKER_FLOOR * h,
         'bias_instability_interval_deg_per_h': [float(v) / FLICKER_FLOOR * h
                                                 for v in interval[k]],
-        'bias_instability_tau_s': allan['minimum_tau_s'],
-        'bias_instability_floor_reached': allan['floor_reached'],
+        'bias_instability_tau_s': float(tau[k]),
+        'bias_instability_floor_reached': floor_reached,
         'long_tau_slope': slope,
         'long_tau_slope_tau_s': [float(tau[last][0]), float(tau[-1])],
         'rate_random_walk_deg_per_h_per_sqrt_h': (

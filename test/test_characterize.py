@@ -775,3 +775,33 @@ def test_the_averaged_record_of_the_step_is_the_full_one():
     assert np.array_equal(averaged.applied, full.applied)
     assert averaged.scale_factor == full.scale_factor
     assert averaged.electronics.predicted_arw() == full.electronics.predicted_arw()
+
+
+def test_the_long_record_reads_a_known_rate_random_walk():
+    # White rate noise N and a rate random walk K (the rate a Wiener process of K per
+    # sqrt(s)): sigma^2 = N^2 / tau + K^2 tau / 3 (IEEE Std 952, C.1), minimum at
+    # tau_m = sqrt(3) N / K = 0.2 s. 1 000 s at 100 Hz, seeded. K read from 3 tau_m on:
+    # 5.4 % high at most from the white part (RRW_START), plus 3 x the relative error of the
+    # deviation at 3 tau_m, 1 / sqrt(2 (T / tau - 1)) = 1.7 %.
+    rate_hz, length, n_white, k_rrw = 100.0, 1000.0, 1e-3, math.sqrt(3.0) * 1e-3 / 0.2
+    rng = np.random.default_rng(25)
+    size = int(length * rate_hz)
+    x = n_white * math.sqrt(rate_hz) * rng.standard_normal(size) + k_rrw * np.cumsum(
+        rng.standard_normal(size)) / math.sqrt(rate_hz)
+    config = build_config({})
+    long = {'run': True, 'fidelity': 'auto', 'model': 'synthetic', 'planned_s': length,
+            'rate': x, 'rate_hz': rate_hz, 'config': config, 'simulated_s': length,
+            'skip_s': 0.0, 'wall_s': 0.0}
+    g = ch._long_allan(long, {'step': {'time_constant_s': 1e-3}})
+    assert g['bias_instability_floor_reached']
+    assert g['bias_instability_tau_s'] == pytest.approx(0.2, rel=0.5)
+    lo = g['rate_random_walk_tau_s'][0]
+    margin = 0.054 + 3.0 / math.sqrt(2.0 * (length / lo - 1.0))
+    expected = k_rrw * ch.RAD_S_TO_DEG_H * 60.0  # deg/h/sqrt(h)
+    assert g['rate_random_walk_deg_per_h_per_sqrt_h'] == pytest.approx(expected, rel=margin)
+    # the last decade's slope +1/2 within the deviation's 68 % interval at its end
+    lo_d, hi_d = g['adev_interval_at_tau_max_deg_per_h']
+    spread = math.log(hi_d / lo_d) / 2.0 / math.log(10.0)
+    assert g['long_tau_slope'] == pytest.approx(0.5, abs=2.0 * spread)
+    text = '\n'.join(ch._long_markdown(g, 0.05))
+    assert 'K sqrt(tau / 3)' in text
