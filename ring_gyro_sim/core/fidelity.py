@@ -47,13 +47,10 @@ import numpy as np
 from ring_gyro_sim.core import thermal
 from ring_gyro_sim.core.averaged import AveragedGyro, fast_mode_amplitude, HAND_BACK_THRESHOLD
 from ring_gyro_sim.core.errors import InputError, ParameterError
-from ring_gyro_sim.core.params import SimConfig
+from ring_gyro_sim.core.params import FIDELITIES, SimConfig
 from ring_gyro_sim.core.simulator import Simulator, Status
 
-__all__ = ['CHECK_S', 'FIDELITIES', 'AutoGyro', 'AutoSamples']
-
-FIDELITIES = ('auto', 'full', 'averaged')
-"""The fidelity levels (``integrator.fidelity``)."""
+__all__ = ['CHECK_S', 'AutoGyro', 'AutoSamples']
 
 CHECK_S = 0.01
 """How often the full model checks whether it may hand back to the averaged one, s."""
@@ -107,8 +104,9 @@ class AutoGyro:
         Default: the ``Run``'s (``operating_point.start_state`` at the die's start).
     calibration : Calibration, None or 'auto'
         As ``Simulator``'s; both models apply the same.
-    fidelity : str
-        ``auto``, ``full`` or ``averaged``.
+    fidelity : str, optional
+        ``auto``, ``full`` or ``averaged``; default the configuration's
+        ``integrator.fidelity``.
 
     Attributes
     ----------
@@ -126,11 +124,13 @@ class AutoGyro:
     """
 
     def __init__(self, config: SimConfig, start_state=None, calibration='auto',
-                 fidelity: str = 'auto') -> None:
+                 fidelity: Optional[str] = None) -> None:
         from ring_gyro_sim.core.gyro import operating_point
+        if fidelity is None:
+            fidelity = config.integrator.fidelity
         if fidelity not in FIDELITIES:
-            raise ParameterError(f'integrator.fidelity: one of {", ".join(FIDELITIES)}, '
-                                 f'got {fidelity!r}')
+            raise ParameterError(f'integrator.fidelity: must be one of '
+                                 f'{", ".join(FIDELITIES)}, got {fidelity!r}')
         if start_state is None:
             start_state = operating_point.start_state(thermal.start_state_device(config))
         self.config = config

@@ -60,13 +60,15 @@ def test_auto_goes_through_a_10000_g_shock_on_the_full_model_and_back():
 
 
 def test_the_fidelities_refuse_what_they_cannot_run():
-    with pytest.raises(ParameterError, match='integrator.fidelity: one of auto, full, averaged'):
+    with pytest.raises(ParameterError,
+                       match='integrator.fidelity: must be one of auto, full, averaged'):
         AutoGyro(build_config(QUIET), fidelity='fast')
     open_loop = build_config({**QUIET, 'control.drive_loop': 'open',
                               'control.rebalance': False})
     with pytest.raises(ParameterError, match='integrator.fidelity: averaged, but'):
         AutoGyro(open_loop, fidelity='averaged')
     auto = AutoGyro(open_loop, calibration=None)            # auto: the full model throughout
+    assert auto.fidelity == 'auto'                          # integrator.fidelity's default
     assert auto.reason is not None and auto.handoffs == [(0.0, 'full')]
     averaged = AutoGyro(build_config(QUIET), calibration=None, fidelity='averaged')
     with pytest.raises(InputError, match='shock: integrator.fidelity averaged'):
