@@ -46,7 +46,7 @@ NOT_RUN = {
     'ring_gyro report --out out/report': '~20 min (make test-all: the slow paper cases)',
     'ring_gyro sweep config/sweep_case4.yaml --out out/case4': 'six 30 s cases '
     '(test/sweep/test_case4.py runs its short form)',
-    'ring_gyro characterize config/default.yaml --out out/datasheet': '~20 min '
+    'ring_gyro characterize config/default.yaml --out out/datasheet': '~10 min '
     '(test/test_characterize.py runs --quick)',
 }
 """Commands not run here, by their text in the README, and why."""
