@@ -70,24 +70,24 @@ device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
      time to 63.2 % of the step is given beside it.
 
 1b. The long zero-rate record (:func:`_long_record`, :func:`_long_allan`; issue 25): 3 h /
-   200 s at zero rate on the averaged model (``core.averaged.AveragedGyro``, ~450 x real
-   time on the default gyroscope: 3 h in ~25 s), run first, when ``integrator.fidelity`` is
-   ``auto`` or ``averaged`` and the averaged model runs the device (the closed loop with
-   force-to-rebalance, the truncated force). Its Allan deviation goes to ``T / 8`` (1 349 s /
-   24.75 s) with 68.3 % intervals (allantools: Greenhall's degrees of freedom of the
-   overlapping estimator, white rate noise); the same fit as the short record (its ARW
-   beside the full model's), the bias instability (the minimum / 0.664, an upper bound when
-   the curve has not turned), the log-log slope over the last decade, and the rate random
+   200 s at zero rate on the averaged model (``core.averaged.AveragedGyro``, ~1 500 x real time on
+   the default gyroscope with its noises: 3 h in ~8.5 s), run first, when
+   ``integrator.fidelity`` is ``auto`` or ``averaged`` and the averaged model runs the device
+   (the closed loop with force-to-rebalance, the truncated force). Its Allan deviation goes to
+   ``T / 8`` (1 349 s / 24.75 s) with 68.3 % intervals (allantools: Greenhall's degrees of
+   freedom of the overlapping estimator, white rate noise); the same fit as the short record
+   (its ARW beside the full model's), the bias instability (the minimum / 0.664, an upper bound
+   when the curve has not turned), the log-log slope over the last decade, and the rate random
    walk (the +1/2 line ``K sqrt(tau / 3)``) where the curve rises beyond its minimum. With
-   ``full``, or on a device the averaged model cannot run under ``auto``, the section says
-   it was not run and why; ``averaged`` refuses such a device before any run. The short
-   record above stays (its step gives the time constant the fits start from) on the full
-   model, unless the averaged model runs the device: then the drift-and-step run is on it
-   too (``drift_model``), which reproduces the full model's step response (time constant
-   and gain within 1e-3 noise off; measured 1.1e-4) and its ARW within the statistics
-   (doc/averaged.md). The other tests stay on the full model: the shocks and the environment
-   are not quiet, and the rate table's nonlinearity is read to ~0.002 ppm of full scale,
-   finer than the two models' agreement has been measured (3e-6 of the reading at 10 deg/s).
+   ``full``, or on a device the averaged model cannot run under ``auto``, the section says it
+   was not run and why; ``averaged`` refuses such a device before any run. The short record
+   above stays (its step gives the time constant the fits start from) on the full model, unless
+   the averaged model runs the device: then the drift-and-step run is on it too
+   (``drift_model``), which reproduces the full model's step response (time constant and gain
+   within 1e-3 noise off; measured 1.1e-4) and its ARW within the statistics (doc/averaged.md).
+   The other tests stay on the full model: the shocks and the environment are not quiet, and
+   the rate table's nonlinearity is read to ~0.002 ppm of full scale, finer than the two
+   models' agreement has been measured (3e-6 of the reading at 10 deg/s).
 
 2. Scale factor (12.9): one run per rate of the table, -300 .. 300 deg/s in 13 points of
    12 s each, the mean over the last 4 s (``--quick``: -300, -100, 0, 100, 300 deg/s, 0.5 s
@@ -212,9 +212,10 @@ STOP_BRACKET = (0.5, 1.1)
 """The threshold's first two runs, times the 1theta mode's closed form: they bracket it."""
 LONG_CHUNK_S = 100.0
 """The long record is advanced in pieces this long: the bar moves, and only the rate is kept."""
-AVERAGED_COST = 1.0 / 250.0
+AVERAGED_COST = 1.0 / 800.0
 """The progress bar's weight of a second of the averaged model, in seconds of the full model:
-the closed-loop gyroscope runs ~280 times faster on it (doc/averaged.md, "Speed")."""
+the closed-loop gyroscope with its noises runs ~800 times faster on it (``make
+bench-averaged``, doc/performance.md)."""
 RRW_MIN_SLOPE = 0.25
 """A rise beyond the Allan minimum counts as rate random walk (+1/2) above this log-log slope."""
 RRW_START = 3.0
@@ -611,11 +612,11 @@ def averaged_refusal(flat: Mapping[str, Any]) -> Optional[str]:
     return None
 
 
-def _averaged_gyro(config: SimConfig):
+def _averaged_gyro(config: SimConfig, start_state=None):
     from ring_gyro_sim.core.averaged import AveragedGyro
     with warnings.catch_warnings():
         warnings.simplefilter('ignore', RuntimeWarning)  # as _simulate's Run
-        return AveragedGyro(config)
+        return AveragedGyro(config, start_state)
 
 
 def _advance_averaged(gyro, duration_s: float, bar: _Bar, note: str):
@@ -644,28 +645,19 @@ def _simulate_averaged(values: Mapping[str, Any], duration_s: float, bar: _Bar,
     its start state (``Run``'s, built, not run: the scale factor, the predictions). No drive
     pick-off (``drive`` NaN) and no run summary.
     """
+    from ring_gyro_sim.core.rate_profile import RateProfile
     config = build_config(dict(values))
-    gyro = _averaged_gyro(config)
     with warnings.catch_warnings():
         warnings.simplefilter('ignore', RuntimeWarning)
         run = Run(config, log=bar.note)
     try:
-        el = run.sim.sense.electronics
+        el, start = run.sim.sense.electronics, run.start_state
     finally:
         run.close()
+    gyro = _averaged_gyro(config, start)   # the Run's start state: one orbit shooting
     t, rate, quadrature = _advance_averaged(gyro, duration_s, bar, f'{note} (averaged model)')
-    knots = np.asarray(config.run.rate_times, dtype=float)
-    levels = np.asarray(config.run.rate_values, dtype=float)
-    applied = np.zeros_like(t)
-    if knots.size:  # piecewise linear, right-continuous at a repeated knot (a step)
-        k = np.searchsorted(knots, t, side='right')
-        inside = (k > 0) & (k < knots.size)
-        lo, hi = np.clip(k - 1, 0, knots.size - 1), np.clip(k, 0, knots.size - 1)
-        span = np.where(inside, knots[hi] - knots[lo], 1.0)
-        frac = np.where(inside & (span > 0), (t - knots[lo]) / np.where(span > 0, span, 1.0),
-                        0.0)
-        applied = np.where(k == 0, levels[0], np.where(
-            k >= knots.size, levels[-1], levels[lo] + frac * (levels[hi] - levels[lo])))
+    # the profile as both models apply it (0 before its first knot, the value after a step)
+    applied = RateProfile.of(config).at(np.round(t * 1e9).astype(np.int64))
     return _Record(t=t, rate=rate, applied=applied, drive=np.full(t.size, math.nan),
                    quadrature=quadrature, scale_factor=float(el.scale_factor),
                    drive_amplitude_m=float(el.drive_amplitude_m), electronics=el,
@@ -969,10 +961,10 @@ def characterize(params_path: str, out_dir: str, quick: bool = False,
         if not peaks or not all(math.isfinite(g) and g > 0.0 for g in peaks):
             raise ParameterError('--shock-g: give positive shock amplitudes in g')
         plan = replace(plan, shock_peaks_g=peaks)
+    # integrator.fidelity: averaged refuses a device before any run or output directory
+    refusal = averaged_refusal(flat)
     out = prepare_directory(out_dir)  # before computing: 20 minutes lost otherwise
     output_rate = build_config(flat).run.output_rate
-    # first: integrator.fidelity: averaged refuses a device before any run
-    refusal = averaged_refusal(flat)
     quiet = refusal is None
     drift_s = plan.zero_rate_s + plan.step_s
     bar = _Bar(plan.simulated_s(len(loops), output_rate) - (drift_s if quiet else 0.0), progress,

@@ -731,22 +731,17 @@ def test_auto_on_a_device_the_averaged_model_cannot_run_says_why(sheet, quick):
     assert '## Long zero-rate record (averaged model)\n\nNot run: the averaged model' in text
 
 
-def test_fidelity_averaged_refuses_such_a_device_before_any_run(tmp_path, capsys):
-    path = with_fidelity(tmp_path, GYRO, 'averaged')
+@pytest.mark.parametrize('device, fidelity, said', [
+    (GYRO, 'averaged', ('integrator.fidelity: averaged', 'control.rebalance')),  # open loop
+    (DEFAULT, 'fast', ('integrator.fidelity', 'auto, full, averaged'))])        # no such value
+def test_a_fidelity_that_cannot_be_kept_is_refused_before_any_run(tmp_path, capsys,
+                                                                  device, fidelity, said):
+    path = with_fidelity(tmp_path, device, fidelity)
     code = cli.main(['characterize', str(path), '--out', str(tmp_path / 'x'), '--quick',
                      '--no-progress'])
     assert code == 1
     err = capsys.readouterr().err
-    assert 'integrator.fidelity: averaged' in err and 'control.rebalance' in err
-
-
-def test_a_bad_fidelity_is_refused_naming_the_field(tmp_path, capsys):
-    path = with_fidelity(tmp_path, DEFAULT, 'fast')
-    code = cli.main(['characterize', str(path), '--out', str(tmp_path / 'x'), '--quick',
-                     '--no-progress'])
-    assert code == 1
-    err = capsys.readouterr().err
-    assert 'integrator.fidelity' in err and 'auto, full, averaged' in err
+    assert all(part in err for part in said), err
     assert not (tmp_path / 'x').exists()
 
 
