@@ -119,13 +119,17 @@ class AutoGyro:
     Raises
     ------
     ParameterError
-        An unknown fidelity; ``averaged`` for a gyroscope the averaged model cannot run.
+        No gyroscope (``gyro.enabled`` off); an unknown fidelity; ``averaged`` for a
+        gyroscope the averaged model cannot run.
 
     """
 
     def __init__(self, config: SimConfig, start_state=None, calibration='auto',
                  fidelity: Optional[str] = None) -> None:
         from ring_gyro_sim.core.gyro import operating_point
+        if not config.gyro.enabled:
+            raise ParameterError("gyro.enabled: AutoGyro returns the gyroscope's ~/rate, "
+                                 'which needs gyro.enabled')
         if fidelity is None:
             fidelity = config.integrator.fidelity
         if fidelity not in FIDELITIES:

@@ -63,6 +63,8 @@ def test_the_fidelities_refuse_what_they_cannot_run():
     with pytest.raises(ParameterError,
                        match='integrator.fidelity: must be one of auto, full, averaged'):
         AutoGyro(build_config(QUIET), fidelity='fast')
+    with pytest.raises(ParameterError, match='gyro.enabled'):
+        AutoGyro(build_config({**QUIET, 'gyro.enabled': False}))
     open_loop = build_config({**QUIET, 'control.drive_loop': 'open',
                               'control.rebalance': False})
     with pytest.raises(ParameterError, match='integrator.fidelity: averaged, but'):
