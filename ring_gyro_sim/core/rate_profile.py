@@ -106,6 +106,14 @@ class RateProfile:
         return (np.array(times[keep:end], dtype=np.float64) * 1e-9,
                 np.array(self._w[keep:end], dtype=np.float64))
 
+    def knots_from(self, t_s: float) -> Tuple[np.ndarray, np.ndarray]:
+        """Return the knots (s, rad/s) from the last one at or before ``t_s`` (s) on."""
+        if not self._t:
+            return _EMPTY, _EMPTY
+        keep = max(0, bisect.bisect_right(self._t, int(round(t_s * 1e9))) - 1)
+        return (np.array(self._t[keep:], dtype=np.float64) * 1e-9,
+                np.array(self._w[keep:], dtype=np.float64))
+
     def at(self, t_ns: np.ndarray) -> np.ndarray:
         """Return the rate (rad/s) at the times ``t_ns`` (ns; after a step there)."""
         t_ns = np.asarray(t_ns, dtype=np.int64)

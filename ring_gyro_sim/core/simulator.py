@@ -69,7 +69,7 @@ import bisect
 from dataclasses import dataclass, replace
 import enum
 import math
-from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 import warnings
 
 import numpy as np
@@ -93,7 +93,7 @@ _NO_NOISE = np.empty((0, 1))
 
 __all__ = ['STEPS_PER_PERIOD', 'STEP_HARMONICS', 'PULSE_SUBSTEPS_PER_DURATION',
            'GAP_GRID_POINTS_PER_MODE', 'ELECTRODE_GAUSS_POINTS', 'GAP_FLOOR_RATIO', 'Status',
-           'default_max_step', 'ResumeState', 'Samples', 'Simulator']
+           'default_max_step', 'joined_samples', 'ResumeState', 'Samples', 'Simulator']
 
 STEPS_PER_PERIOD = 8
 """Default steps per period of the fastest step-setting mode (see :func:`default_max_step`)."""
@@ -210,6 +210,21 @@ def _joined(t: np.ndarray, parts) -> Tuple[electronics.DemodSamples, electronics
                                     saturated=saturated))
 
 
+def joined_samples(parts: Sequence['Samples']) -> 'Samples':
+    """Join the samples of consecutive stretches (of one run) into those of the whole."""
+    def cat(name):
+        arrays = [getattr(p, name) for p in parts]
+        return None if any(a is None for a in arrays) else np.concatenate(arrays)
+    t = cat('t')
+    demod = rate_output = None
+    if all(p.demod is not None and p.rate_output is not None for p in parts):
+        demod, rate_output = _joined(t, [(p.demod, p.rate_output) for p in parts])
+    return Samples(t=t, q=cat('q'), v=cat('v'), gap=cat('gap'), min_gap=cat('min_gap'),
+                   capacitance=cat('capacitance'), drive_phase=cat('drive_phase'),
+                   applied_rate=cat('applied_rate'), control=cat('control'), demod=demod,
+                   rate_output=rate_output, die_temperature=parts[-1].die_temperature)
+
+
 def _check_acceleration(name: str, x: float, y: float = 0.0) -> None:
     """Refuse an in-plane acceleration (m/s^2) beyond ``core.params.MAX_ACCELERATION``."""
     magnitude = math.hypot(x, y)
@@ -321,6 +336,9 @@ class ResumeState:
         The die, at the time of ``sample_index``.
     flicker : electronics.FlickerNoise or None
         The flicker bank's state (None: the simulator's own goes on).
+    device_temperature : float or None
+        The die temperature (K) the device's coefficients were last built at (T2-T6), so
+        that the full model goes on with the same device; None: rebuilt by the die's rule.
 
     """
 
@@ -335,6 +353,7 @@ class ResumeState:
     latest_quadrature: float
     die: Any
     flicker: Any = None
+    device_temperature: Optional[float] = None
 
 
 @dataclass(frozen=True)
@@ -534,6 +553,10 @@ class Simulator:
             self.sense.electronics.die_temperature = kelvin
         if abs(kelvin - self.device_temperature) < THERMAL_STEP_K:
             return
+        self._build_device_at(kelvin)
+
+    def _build_device_at(self, kelvin: float) -> None:
+        """Rebuild the device's coefficients, force noise and amplifiers at ``kelvin`` (K)."""
         self.device_temperature = kelvin
         device = thermal.device_at(self._config, kelvin)
         self._build(device)
@@ -799,6 +822,31 @@ class Simulator:
         self._event_seq += 1
         self._events.sort(key=lambda e: (e[0], e[1]))
 
+    def next_scheduled_s(self) -> float:
+        """
+        Return when the next scheduled input acts, s (inf: none).
+
+        The start of a shock pulse that has not ended (one acting now: now), a scheduled
+        input (a parameter, drive or temperature change) or a streamed base-acceleration
+        sample: what a model that does not integrate them must hand over before
+        (``core.fidelity``). The angular rate's profile is not among them.
+        """
+        now = self.time_s
+        times = [max(t0, now) for t0, dur, _, _ in self._pulses if dur < 0.0 or t0 + dur > now]
+        if self._events:
+            times.append(self._events[0][0] * self.period_s)
+        profile, head = self._profile_t, self._profile_head
+        if head < len(profile) and (profile[-1] * 1e-9 > now or self._profile_x[-1] != 0.0
+                                    or self._profile_y[-1] != 0.0):
+            # the profile acts from its first sample still in use; its last value holds
+            times.append(max(now, profile[head] * 1e-9))
+        return min(times) if times else math.inf
+
+    @property
+    def has_environment(self) -> bool:
+        """Whether a steady acceleration or a sine or random vibration acts at every sample."""
+        return self._environment is not None
+
     def shock(self, peak_x: float, peak_y: float = 0.0, at_ns: Optional[int] = None,
               duration_s: Optional[float] = None) -> None:
         """
@@ -1036,6 +1084,9 @@ class Simulator:
                              'simulate it')
         self.sample_index = index
         self.die = state.die
+        if (state.device_temperature is not None
+                and state.device_temperature != self.device_temperature):
+            self._build_device_at(float(state.device_temperature))
         self._follow_die()
         self._set_state(state.q, state.v)
         for name, value in state.loop.items():

@@ -79,3 +79,28 @@ def test_the_fidelities_refuse_what_they_cannot_run():
     assert out.averaged.all() and out.t.size == 50
     with pytest.raises(InputError, match='before now'):
         auto.shock(1.0, at_s=-1.0)
+
+
+def test_the_next_scheduled_input_is_what_the_averaged_model_must_hand_over_before():
+    # Simulator.next_scheduled_s: a pulse from its start until it ends, a scheduled input at
+    # its sample, a base-acceleration profile from its first sample in use while it is not
+    # over (its last value holds: a last value not zero never ends it); not a rate.
+    from ring_gyro_sim.core.simulator import Simulator
+    sim = Simulator(build_config({}), calibration=None)
+    assert sim.next_scheduled_s() == math.inf
+    sim.set_rate(2_000_000, 0.1)
+    assert sim.next_scheduled_s() == math.inf
+    sim.shock(1000.0, at_ns=3_000_000)
+    sim.set_ambient(300.0, at_ns=2_500_000)
+    assert sim.next_scheduled_s() == pytest.approx(2.5e-3)
+    sim.advance_samples(520)   # 2.6 ms: the temperature step acted
+    assert sim.next_scheduled_s() == pytest.approx(3e-3)
+    sim.advance_samples(620)   # 5.7 ms: the pulse (1/10 of the 2theta period) is over
+    assert sim.next_scheduled_s() == math.inf
+    sim.add_base_acceleration(6_000_000, 1.0)
+    assert sim.next_scheduled_s() == pytest.approx(6e-3)
+    sim.advance_samples(100)   # past the only sample: its 1 m/s^2 holds
+    assert sim.next_scheduled_s() == pytest.approx(sim.time_s)
+    sim.add_base_acceleration(7_000_000, 0.0)
+    sim.advance_samples(400)   # past the last sample, which is 0: over
+    assert sim.next_scheduled_s() == math.inf
