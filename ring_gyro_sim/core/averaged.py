@@ -539,6 +539,19 @@ class GyroSamples:
 
 _NO_NOISE = np.zeros((0, 8))
 
+
+def _control_rows(rows: np.ndarray) -> np.ndarray:
+    """Return the loops' states ``(K, LOOP_STATE_SIZE)`` as ``~/control`` rows (C9)."""
+    e = kernels.envelope
+    return np.stack([rows[:, e.OMEGA] / (2.0 * math.pi), rows[:, e.PHASE_ERR],
+                     rows[:, e.AMP], rows[:, e.FORCE], rows[:, e.SC],
+                     rows[:, e.SS], rows[:, e.RB_RATE], rows[:, e.RB_QUAD],
+                     rows[:, e.LOCKED], rows[:, e.RB_ON]], axis=1)
+
+
+NOISE_CHUNK = 1024
+"""Loop periods of normals drawn at once per noise stream (``AveragedGyro._normals``)."""
+
 MAX_ROTATION = 0.05
 """Largest ``|lambda| h`` of an RK4 substep (S6): local error ``(lambda h)^5 / 120`` = 3e-9."""
 
@@ -710,6 +723,7 @@ class AveragedGyro:
         self.config = config
         self.calibration = calibration
         self.decimate = decimation // window
+        self._period_ns = int(sim.period_ns)
         device = thermal.device_at(config, sim.device_temperature)
         m = device.modes.count
         ic, is_ = 1, m + 1
@@ -737,9 +751,11 @@ class AveragedGyro:
         # (S12) the frame turns at the drive mode's frequency on this die: the NCO's centre
         # moved with the frequencies (T3), as the full model starts the NCO
         frame = float(loop.omega_c * thermal.frequency_scale(config, sim.device_temperature))
-        times = np.asarray(config.run.rate_times if config.gyro.enabled else (), dtype=float)
-        values = np.asarray(config.run.rate_values if config.gyro.enabled else (),
-                            dtype=float)
+        if simulator is not None:   # the profile in force: streamed rates included
+            times, values = sim.rate_profile.knots_from(sim.time_s)
+        else:
+            times = np.asarray(config.run.rate_times, dtype=float)
+            values = np.asarray(config.run.rate_values, dtype=float)
         pb_c = np.ascontiguousarray(geometry.electrode_shapes[ic])
         pb_s = np.ascontiguousarray(geometry.electrode_shapes[is_])
         pg_drive = np.ascontiguousarray(node * vpf[node_electrode, 1])
@@ -793,13 +809,14 @@ class AveragedGyro:
         # THERMAL_UPDATE_S, the device rebuilt once the die has moved THERMAL_STEP_K
         self.die = copy.deepcopy(sim.die)
         self.device_temperature = sim.device_temperature
-        self._thermal_live = bool(config.run.temperature_times)
+        self._thermal_live = bool(config.run.temperature_times) or bool(sim._thermal_live)
         self._thermal_periods = max(1, int(round(sim._thermal_window / window)))
         # the amplifiers' volts per farad scale as 1 / feedback capacitance (T6)
         self._feedback = float(device.gyro.feedback_capacitance)
         self.period_index = sim.sample_index // window
         # (S9, S10) the noises' scales, of the device at the die's temperature (T5, T6)
         self.noise_seed = int(config.gyro.noise_seed)
+        self._chunks = {}   # stream -> (first period, its NOISE_CHUNK rows of normals)
         self._modal_mass = float(device.modal_masses()[ic])
         self._input_capacitance = np.asarray(sim.pickoff.input_capacitance, dtype=float)
         self._pickoff_noisy = bool(sim.pickoff.noisy)
@@ -886,22 +903,44 @@ class AveragedGyro:
         if count == 0:
             return out
         if self.force_noise_factor is not None:
-            z = noise.block_normals(self.noise_seed, noise.STREAM_ENVELOPE_FORCE,
-                                    self.period_index, count, 4)
+            z = self._normals(noise.STREAM_ENVELOPE_FORCE, count)
             factor = self.force_noise_factor
             out[:, 0:4:2] = z[:, 0:2] @ factor.T   # re of (f_c, f_s)
             out[:, 1:4:2] = z[:, 2:4] @ factor.T   # im of (f_c, f_s)
         if self.pickoff_noise_std is not None:
-            z = noise.block_normals(self.noise_seed, noise.STREAM_ENVELOPE_PICKOFF,
-                                    self.period_index, count, 4)
+            z = self._normals(noise.STREAM_ENVELOPE_PICKOFF, count)
             out[:, 4:6] = z[:, 0:2] * self.pickoff_noise_std[0]
             out[:, 6:8] = z[:, 2:4] * self.pickoff_noise_std[1]
         return out
 
+    def _normals(self, stream: int, count: int) -> np.ndarray:
+        """
+        Return the normals of the next ``count`` periods of ``stream``, ``(count, 4)``.
+
+        Rows of :func:`noise.normals` by period index (a row depends on its index only),
+        drawn :data:`NOISE_CHUNK` periods at a time on chunk boundaries (the next chunk
+        ahead on the noise module's thread) and sliced: a run's short calls (a block of 10
+        ms in a run) do not pay a draw each.
+        """
+        out = np.empty((count, 4))
+        done = 0
+        while done < count:
+            index = self.period_index + done
+            start = index - index % NOISE_CHUNK
+            cached = self._chunks.get(stream)
+            if cached is None or cached[0] != start:
+                cached = (start, noise.block_normals(self.noise_seed, stream, start,
+                                                     NOISE_CHUNK, 4))
+                self._chunks[stream] = cached
+            take = min(count - done, start + NOISE_CHUNK - index)
+            out[done:done + take] = cached[1][index - start:index - start + take]
+            done += take
+        return out
+
     @property
     def time_s(self) -> float:
-        """Return the simulated time, s."""
-        return self.period_index * self.model.period
+        """Return the simulated time, s (as the full model's clock reads it)."""
+        return self.period_index * self.model.window * self._period_ns * 1e-9
 
     def resume_state(self):
         """
@@ -940,7 +979,43 @@ class AveragedGyro:
                            nco_phase=phase, harmonics=np.array([v_s, v_d]),
                            rebalance_state=rebalance,
                            latest_rate=self._latest[0], latest_quadrature=self._latest[1],
-                           die=die, flicker=copy.deepcopy(self.flicker))
+                           die=die, flicker=copy.deepcopy(self.flicker),
+                           device_temperature=self.device_temperature)
+
+    def set_rate_profile(self, times: np.ndarray, values: np.ndarray) -> None:
+        """Take the angular rate's profile in force from now on: knots (s, rad/s) (S6)."""
+        self.model = self.model._replace(
+            rate_times=np.ascontiguousarray(times, dtype=float),
+            rate_values=np.ascontiguousarray(values, dtype=float))
+
+    @property
+    def envelope(self) -> np.ndarray:
+        """Return the pair's envelopes ``(B_c, B_s)`` now, m (S5)."""
+        return self._envelope.copy()
+
+    @property
+    def nco(self) -> Tuple[float, float]:
+        """Return the NCO's phase (rad) now and its angular frequency (rad/s) in force."""
+        e = kernels.envelope
+        return float(self._loop[e.NCO_PHASE]), float(self._loop[e.OMEGA])
+
+    def control_row(self) -> np.ndarray:
+        """Return the loops' state in force now as a ``~/control`` row (C9)."""
+        return _control_rows(self._loop[None, :])[0]
+
+    def harmonics(self, envelope: np.ndarray) -> np.ndarray:
+        """
+        Return the amplifiers' first harmonics of envelopes ``(K, 2)`` (S4), ``(K, 2)``, V.
+
+        Columns sense and drive, ``volts = Re(V e^{i phi})`` at the NCO's phase.
+        """
+        m = self.model
+        out = np.empty((len(envelope), 2), dtype=complex)
+        for k, (b_c, b_s) in enumerate(envelope):
+            v_d, v_s = kernels.pickoff_harmonic(b_c, b_s, m.pb_c, m.pb_s, m.pg_drive,
+                                                m.pg_sense, m.gap)
+            out[k] = v_s, v_d
+        return out
 
     def advance(self, seconds: float) -> GyroSamples:
         """
@@ -981,17 +1056,17 @@ class AveragedGyro:
                 self.period_index = -1 - n
                 raise SimulationError(f"averaged model: the orbit left the force's or the "
                                       f"pick-off's range at {self.time_s:.6f} s")
-            die[written:written + n] = self._die_temperature
+            die[written:written + n] = (math.nan if self._die_temperature is None
+                                        else self._die_temperature)
             written += n
             done += stop
             self.period_index += stop
         e = kernels.envelope
-        control_rows = np.stack([rows[:, e.OMEGA] / (2.0 * math.pi), rows[:, e.PHASE_ERR],
-                                 rows[:, e.AMP], rows[:, e.FORCE], rows[:, e.SC],
-                                 rows[:, e.SS], rows[:, e.RB_RATE], rows[:, e.RB_QUAD],
-                                 rows[:, e.LOCKED], rows[:, e.RB_ON]], axis=1)
+        control_rows = _control_rows(rows)
         if self.calibration is not None:
-            rate, quadrature = self.calibration.apply(filtered[:, 2], filtered[:, 3], die)
+            # the die's sensor not read yet: the calibration at its reference (K3)
+            known = None if np.isnan(die).any() else die
+            rate, quadrature = self.calibration.apply(filtered[:, 2], filtered[:, 3], known)
         else:
             rate, quadrature = filtered[:, 0].copy(), filtered[:, 1].copy()
         if outputs:   # what the sense chain holds as its latest sample (before the flicker)

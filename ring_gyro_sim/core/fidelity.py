@@ -44,13 +44,13 @@ import math
 from typing import List, Optional, Tuple
 
 import numpy as np
-from ring_gyro_sim.core import thermal
+from ring_gyro_sim.core import kernels, thermal
 from ring_gyro_sim.core.averaged import AveragedGyro, fast_mode_amplitude, HAND_BACK_THRESHOLD
 from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.params import FIDELITIES, SimConfig
-from ring_gyro_sim.core.simulator import Simulator, Status
+from ring_gyro_sim.core.simulator import Samples, Simulator, Status
 
-__all__ = ['CHECK_S', 'AutoGyro', 'AutoSamples']
+__all__ = ['CHECK_S', 'AutoGyro', 'AutoSamples', 'AveragedStretch', 'unsupported']
 
 CHECK_S = 0.01
 """How often the full model checks whether it may hand back to the averaged one, s."""
@@ -87,9 +87,25 @@ def _unsupported(config: SimConfig, sim: Simulator) -> Optional[str]:
     decimation = int(round(c.run.output_rate / c.gyro.output_rate))
     if decimation % sim.loop.window:
         return 'gyro.output_rate is not a whole fraction of control.rate'
-    if sim._environment is not None:
+    if sim.has_environment:
         return 'an environment (steady acceleration or vibration) acts at every sample'
     return None
+
+
+def unsupported(config: SimConfig, sim: Simulator, blocks: bool = False) -> Optional[str]:
+    """
+    Return why the averaged model cannot run this gyroscope, None when it can.
+
+    ``blocks``: for a run that publishes blocks (``run.Run``), whose ``~/control`` rows and
+    reconstructed samples need one ``~/rate`` sample per loop period.
+    """
+    if sim.loop is None:
+        return 'the averaged model is the closed-loop gyroscope'
+    reason = _unsupported(config, sim)
+    if reason is None and blocks and (int(round(config.run.output_rate / config.gyro.output_rate))
+                                      != sim.loop.window):
+        reason = 'a run at fidelity auto needs gyro.output_rate equal to control.rate'
+    return reason
 
 
 class AutoGyro:
@@ -187,10 +203,7 @@ class AutoGyro:
         A pulse that has not ended (its duration is set when it starts: -1 before) or a
         pending event of the full model; inf when there is none.
         """
-        sim, now = self.sim, self.time_s
-        times = [t0 for t0, dur, _, _ in sim._pulses if dur < 0.0 or t0 + dur > now]
-        times += [index * sim.period_s for index, _, _ in sim._events]
-        return min(times) if times else math.inf
+        return self.sim.next_scheduled_s()
 
     def _to_averaged(self) -> None:
         self.averaged = AveragedGyro(self.config, calibration=self.sim.calibration,
@@ -209,8 +222,6 @@ class AutoGyro:
         if (self.fidelity != 'auto' or self.reason is not None
                 or sim.status != Status.RUNNING or sim.in_stop_contact
                 or not (loop.locked and loop.rebalance_on)):
-            return False
-        if any(t0 <= now and (dur < 0.0 or t0 + dur > now) for t0, dur, _, _ in sim._pulses):
             return False
         if self._fast_at() <= now + CHECK_S:
             return False
@@ -268,3 +279,144 @@ class AutoGyro:
                            np.concatenate([p[1] for p in parts]),
                            np.concatenate([p[2] for p in parts]),
                            np.concatenate([np.full(p[0].size, p[3]) for p in parts]))
+
+
+class AveragedStretch:
+    """
+    The averaged model inside a run (``run.Run``): its stretches as the full model's samples.
+
+    Taken over from the run's full model ``sim`` at a loop update (S13); :meth:`advance`
+    returns what ``Simulator.advance_samples`` returns for the same samples, built from the
+    envelopes (R1-R4 below); :meth:`sync` hands the state back to ``sim`` (S14), which the
+    run does before anything reads or changes the full model.
+
+    (R1) The coordinates. Over each loop period the NCO turns at the frequency its update
+    at the period's start set, so its phase at sample ``j`` (1..N) of the period is the
+    phase at the start plus ``omega j P``; the envelopes, known at the loop updates, are
+    taken linear between them (the slow flow moves them by ``|B'| T``, ~1e-5 of ``|B|`` a
+    period in a quiet stretch). The pair is ``q = Re(B e^{i phi})``,
+    ``q' = Re(i omega_frame B e^{i phi})`` (S1); the other modes are at rest (what the
+    hand-off demands of them, ``HAND_BACK_THRESHOLD``). So the block topics (q_n, gaps,
+    capacitances: ``Simulator`` computes them from q exactly as for its own samples) show
+    the driven pair's oscillation without the 2 omega ripple of the envelope and without
+    the fast modes' residue below the threshold.
+
+    (R2) ``~/control``: the loops' rows of the averaged model (S7), held over each period
+    as the full model holds them.
+
+    (R3) ``~/demodulator``: the mixers' constant outputs of the amplifiers' first
+    harmonics (S4), at the loop updates and linear between them. Left out: the ``2 omega``
+    terms the low-pass passes (:attr:`ripple_gain` of them: 7e-11 at the defaults), its lag
+    behind the slowly moving constants, the pick-off's higher harmonics, and the pick-off
+    noise (S10 drives the loops only).
+
+    (R4) ``~/rate``: the averaged model's (S8-S11), with the variance the full model's
+    validity monitor gives the same rows (``SenseChain.judge``).
+    """
+
+    def __init__(self, sim: Simulator) -> None:
+        self.sim = sim
+        self.gyro = AveragedGyro(sim.config, calibration=sim.calibration, simulator=sim)
+        from scipy import signal
+        el = sim.sense.electronics
+        self._psi = (el.drive_phase_rad + el.phase_error, el.drive_phase_rad)
+        _, omega = self.gyro.nco
+        _, h2 = signal.sosfreqz(el._sos, worN=[2.0 * omega * sim.period_s])
+        self.ripple_gain = float(abs(h2[0]))
+        """The low-pass's gain at twice the NCO's frequency: the ``2 phi`` terms left out
+        of ``~/demodulator`` (R3), relative to the constants (7e-11 at the defaults)."""
+        self._pair = (1, sim.config.modes.count + 1)
+        self._saturated = 0
+        self.rate_version = sim.rate_profile.version
+        self._geometry_of = self._geometry = None
+
+    @property
+    def sample_index(self) -> int:
+        """Return the global sample index now (a loop update)."""
+        return self.gyro.period_index * self.gyro.model.window
+
+    def follow_rate(self) -> None:
+        """Take the full model's angular-rate profile if it changed (a streamed rate)."""
+        profile = self.sim.rate_profile
+        if profile.version != self.rate_version:
+            self.gyro.set_rate_profile(*profile.knots_from(self.gyro.time_s))
+            self.rate_version = profile.version
+
+    def advance(self, count: int) -> Samples:
+        """Advance by ``count`` samples (whole loop periods); return them (R1-R4)."""
+        from ring_gyro_sim.core.gyro.electronics import DemodSamples, RateSamples
+        sim, gyro = self.sim, self.gyro
+        window = gyro.model.window
+        if count % window:
+            raise ParameterError(f'count: {count} samples is not a whole number of loop '
+                                 f'periods ({window} samples)')
+        self.follow_rate()
+        periods = count // window
+        first = self.sample_index
+        env0, (phase0, omega0), row0 = gyro.envelope, gyro.nco, gyro.control_row()
+        out = gyro.advance(periods * gyro.model.period)
+        index = np.arange(count)
+        k = index // window
+        t = (first + index + 1) * sim.period_s
+        dc = self._demodulator(np.vstack([env0[None, :], out.envelope]))
+        # (R1) the pair at every sample
+        n = sim.model.n_coordinates
+        pair_q = np.empty((count, 2))
+        pair_v = np.empty((count, 2))
+        phase = np.empty(count)
+        demod = np.empty((count, 4))
+        kernels.envelope.stretch_samples(
+            np.vstack([env0[None, :], out.envelope]),
+            np.concatenate([[phase0], out.nco_phase[:-1]]),
+            np.concatenate([[omega0], out.control[:-1, 0] * (2.0 * math.pi)]),
+            window, sim.period_s, gyro.model.omega_frame, dc, pair_q, pair_v, phase, demod)
+        q = np.zeros((count, n))
+        v = np.zeros((count, n))
+        q[:, self._pair] = pair_q
+        v[:, self._pair] = pair_v
+        # the channels of the pair's coordinates: the full model's kernel on the pair's
+        # rows of its geometry (the other coordinates are 0: the same sums)
+        geometry = sim._output_geometry
+        if geometry is not self._geometry_of:
+            self._geometry_of = geometry
+            self._geometry = geometry._replace(**{
+                name: np.ascontiguousarray(getattr(geometry, name)[list(self._pair)])
+                for name in ('centre_shapes', 'ring_shapes', 'electrode_shapes',
+                             'fine_shapes', 'curvature')})
+        channels = sim._channel_arrays(count)
+        kernels.output_channels(pair_q, self._geometry, channels)
+        t_ns = (first + index + 1).astype(np.int64) * sim.period_ns
+        # (R2) the loops' rows, held over each period
+        control = np.vstack([row0[None, :], out.control])[k]
+        rate = RateSamples(t=out.t, rate=out.rate, quadrature=out.quadrature,
+                           saturated=out.saturated)
+        rate = sim.sense.judge(rate, control[index[window - 1::window]])
+        return Samples(t=t, q=q, v=v, gap=channels.gap, min_gap=channels.min_gap,
+                       capacitance=channels.capacitance, drive_phase=phase,
+                       applied_rate=sim.rates_at(t_ns), control=control,
+                       demod=DemodSamples(t=t, values=demod), rate_output=rate,
+                       die_temperature=gyro.die.advance_to(gyro.time_s))
+
+    def _demodulator(self, envelope: np.ndarray) -> np.ndarray:
+        """
+        Return the demodulator's outputs of envelopes ``(K, 2)``: ``(K, 4)``, V (R3).
+
+        The mixers make of an amplifier's first harmonic V, with the reference's phase psi,
+        ``Re(V e^{-i psi})`` (I) and ``-Im(V e^{-i psi})`` (Q) and terms at ``2 phi``
+        (``SenseElectronics.resume``), which the low-pass passes by its response there
+        (:attr:`ripple_gain`), left out.
+        """
+        volts = self.gyro.harmonics(envelope)
+        dc = np.empty((len(envelope), 4))
+        for ch, psi in enumerate(self._psi):
+            down = volts[:, ch] * complex(math.cos(psi), -math.sin(psi))
+            dc[:, 2 * ch] = down.real
+            dc[:, 2 * ch + 1] = -down.imag
+        return dc
+
+    def sync(self) -> None:
+        """Hand the state now to the full model (S14): it may go on, or be read."""
+        gyro, el = self.gyro, self.sim.sense.electronics
+        self.sim.resume(gyro.resume_state())
+        el.saturated_samples += gyro.saturated_samples - self._saturated
+        self._saturated = gyro.saturated_samples

@@ -187,6 +187,23 @@ class SenseChain:
                                          rate.saturated)
         return demod, replace(rate, variance=variance)
 
+    def judge(self, rate: RateSamples, control: np.ndarray) -> RateSamples:
+        """
+        Return ``rate`` with each sample's variance judged from the loops' rows alone.
+
+        The rate samples of a stretch the averaged model produced (``core.fidelity``), with
+        ``control`` the loops' rows in force at each of them: the closed loop's reasons
+        (V1: lock, qualification, force limit, amplitude) and the variance (V2-V5) as
+        :meth:`process` judges them. The shock detector is not run (no pick-off volts: the
+        averaged model runs only where no shock acts); it takes up its last level again.
+        """
+        if len(rate) == 0:
+            return rate
+        codes = self._reasons(rate.rate, None, control)
+        variance = self.validity.samples(rate.t, rate.rate, rate.quadrature, codes,
+                                         rate.saturated)
+        return replace(rate, variance=variance)
+
     def _shock_detector(self, drive_volts: np.ndarray, picks: np.ndarray) -> np.ndarray:
         """
         Tell per rate sample whether the drive pick-off shows a shock's onset (V1).

@@ -47,7 +47,8 @@ from numba import njit
 import numpy as np
 
 __all__ = ['EnvelopeModel', 'force_grouped', 'force_harmonic', 'harmonic_groups',
-           'pickoff_grouped', 'pickoff_harmonic', 'run_periods', 'LOOP_STATE_SIZE']
+           'pickoff_grouped', 'pickoff_harmonic', 'run_periods', 'stretch_samples',
+           'LOOP_STATE_SIZE']
 
 
 class EnvelopeModel(NamedTuple):
@@ -634,3 +635,58 @@ def run_periods(m, env, st, filt, first_period, count, decimate, noise, out_t, o
                 out_loop[written, i] = st[i]
             written += 1
     return written
+
+
+@njit(cache=True, nogil=True)
+def stretch_samples(env, starts, omega, window, period, omega_frame, dc, q_out, v_out,
+                    phase_out, demod_out):
+    """
+    Write the samples of an averaged stretch from its loop updates (``core.fidelity``, R1, R3).
+
+    Parameters
+    ----------
+    env : ndarray of complex, shape (P + 1, 2)
+        The pair's envelopes at the stretch's start and at the end of each of its P periods.
+    starts : ndarray, shape (P,)
+        The NCO's phase at the start of each period, rad.
+    omega : ndarray, shape (P,)
+        The NCO's angular frequency over each period, rad/s.
+    window : int
+        Samples per period.
+    period : float
+        The sample period, s.
+    omega_frame : float
+        The frame's angular frequency (S1), rad/s.
+    dc : ndarray, shape (P + 1, 4)
+        The demodulator's outputs at the start and at the end of each period.
+    q_out, v_out : ndarray, shape (P * window, 2)
+        The pair's coordinates (m) and velocities (m/s) at every sample, written.
+    phase_out : ndarray, shape (P * window,)
+        The NCO's phase at every sample, rad in [0, 2 pi), written.
+    demod_out : ndarray, shape (P * window, 4)
+        The demodulator's outputs at every sample, written.
+
+    """
+    two_pi = 2.0 * math.pi
+    for p in range(omega.size):
+        w = omega[p]
+        start = starts[p]
+        # e^{i phi} turned by e^{i w P} per sample (one cos and sin per period, not per
+        # sample: the product's rounding grows to ~window ulps over a period)
+        step_c = math.cos(w * period)
+        step_s = math.sin(w * period)
+        c = math.cos(start)
+        s = math.sin(start)
+        for j in range(1, window + 1):
+            i = p * window + j - 1
+            frac = j / window
+            phi = start + w * j * period
+            phi -= two_pi * math.floor(phi / two_pi)
+            phase_out[i] = phi
+            c, s = c * step_c - s * step_s, s * step_c + c * step_s
+            for m in range(2):
+                b = env[p, m] + (env[p + 1, m] - env[p, m]) * frac
+                q_out[i, m] = b.real * c - b.imag * s
+                v_out[i, m] = -omega_frame * (b.real * s + b.imag * c)
+            for ch in range(4):
+                demod_out[i, ch] = dc[p, ch] + (dc[p + 1, ch] - dc[p, ch]) * frac
