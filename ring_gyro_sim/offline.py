@@ -145,7 +145,7 @@ def run_offline(config: SimConfig, duration_s: Optional[float] = None,
             if run.time_ns >= next_diag_ns or last:
                 next_diag_ns += DIAGNOSTICS_PERIOD_NS
                 run.diagnostics(_pacing(run), finished=last)
-            bar.update(run.sim.time_s)
+            bar.update(run.time_s)
         bar.close()
         return run.summary(output)
     finally:
@@ -154,7 +154,7 @@ def run_offline(config: SimConfig, duration_s: Optional[float] = None,
 
 def _pacing(run: Run) -> Pacing:
     wall = run.wall_time_s()
-    rtf = run.sim.time_s / wall if wall > 0 else 0.0
+    rtf = run.time_s / wall if wall > 0 else 0.0
     return Pacing(target=0.0, achieved=rtf, average=rtf)
 
 

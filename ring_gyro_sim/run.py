@@ -59,6 +59,31 @@ Reset
     (:meth:`Run.failure_text`: the diagnostics, the node's log and its next ``~/reset``
     answer) names what is in force instead of promising that a reset recovers.
 
+Which model (``integrator.fidelity``)
+    ``full``: the full model (``Simulator``) throughout. ``auto`` (the default) and
+    ``averaged``: the averaged model (``core.fidelity.AveragedStretch``: the closed-loop
+    gyroscope's slow flow, its blocks reconstructed from the envelopes) wherever it may run,
+    the full model elsewhere. A run starts on the full model, which hands over at its first
+    check if it may (its sense chain has then judged a sample). The averaged model hands
+    over to the full one at the last loop update at or before anything scheduled that it
+    does not integrate acts
+    (``Simulator.next_scheduled_s``: a shock pulse, a base-acceleration sample, a parameter,
+    drive or temperature change), and at once when an input other than an angular rate
+    acts at the current time (a reset included); angular rates it integrates itself. The
+    full model hands back at a hand-back check (every ``core.fidelity.CHECK_S`` of simulated
+    time) that :meth:`Run._may_hand_back` allows: the loops locked with force-to-rebalance
+    and the drive at its set-point, the last ``~/rate`` sample a measurement, nothing
+    scheduled acting, the last input other than a rate ``CHECK_S`` ago or more, and
+    the modes the averaged model leaves out rung down below ``HAND_BACK_THRESHOLD``. Never
+    averaged: a gyroscope the averaged model does not run (``core.fidelity.unsupported``:
+    open loop, no rebalance, an environment, ``gyro.output_rate`` below ``control.rate``,
+    ...). The rules read the state and the acting times of the inputs, never when an input
+    arrived, so that a re-simulation (``--from``) makes the same hand-offs. ``averaged``
+    differs from ``auto`` only in refusing, at the start, a gyroscope the averaged model
+    cannot run. Each change of model goes to the sink (:meth:`Sink.handoff`: the
+    recording's ``ring_gyro_sim.handoff`` metadata), the diagnostics (``model``,
+    ``model_changes``) and the summary (``model_handoffs``).
+
 Recording order
     The sink sees every accepted input when it acts, in simulation-time order, before the
     block that contains its time (:meth:`Sink.input`), so a recording is written in log-time
@@ -79,13 +104,15 @@ from typing import Any, Callable, Deque, Dict, List, Mapping, Optional, Tuple, U
 import numpy as np
 
 from ring_gyro_sim.core import thermal
+from ring_gyro_sim.core.averaged import fast_mode_amplitude, HAND_BACK_THRESHOLD
 from ring_gyro_sim.core.errors import InputError, ParameterError
-from ring_gyro_sim.core.gyro import calibration as gyro_calibration, operating_point
+from ring_gyro_sim.core.fidelity import AveragedStretch, CHECK_S, unsupported
+from ring_gyro_sim.core.gyro import calibration as gyro_calibration, operating_point, validity
 from ring_gyro_sim.core.gyro.control import ControlSamples, update_rows
 from ring_gyro_sim.core.gyro.electronics import DemodSamples, RateSamples
 from ring_gyro_sim.core.gyro.stats import describe, DriveStats, RateStats
 from ring_gyro_sim.core.params import SimConfig, TEMPERATURE_RANGE_K
-from ring_gyro_sim.core.simulator import channel_names, Samples, Simulator, Status
+from ring_gyro_sim.core.simulator import channel_names, joined_samples, Samples, Simulator, Status
 
 __all__ = ['AmbientTemperature', 'AngularRate', 'BaseAcceleration', 'Block', 'Diagnostics',
            'DriveAmplitude', 'DriveFrequency', 'FINISHED',
@@ -306,6 +333,9 @@ class Sink:
     def diagnostics(self, diag: Diagnostics) -> None:
         """Take a diagnostics snapshot."""
 
+    def handoff(self, at_ns: int, model: str) -> None:
+        """Take a change of model at ``at_ns`` (``averaged`` or ``full`` from then on)."""
+
     def close(self) -> None:
         """End the run (finalise files)."""
 
@@ -500,7 +530,9 @@ class Run:
         if isinstance(calibration, str) and calibration == 'auto':
             calibration = gyro_calibration.for_config(config, log)
         self.calibration: Optional[gyro_calibration.Calibration] = calibration
-        self.sim = Simulator(config, start_state, calibration=calibration)
+        self._stretch: Optional[AveragedStretch] = None
+        self._stale = False
+        self._sim = Simulator(config, start_state, calibration=calibration)
         random = self.sim.random_vibration
         if random is not None and log is not None:
             r = config.run
@@ -546,27 +578,78 @@ class Run:
             # ~/angular_rate at their times: a linear profile's knots, not steps.
             self._accepted(AngularRate(z=float(rate), at_ns=int(round(t_s * 1e9))))
         self.sink.start(self.start_state)
+        # the model of each stretch (integrator.fidelity, module docstring)
+        self.fidelity = config.integrator.fidelity
+        self.handoffs: List[Tuple[float, str]] = []
+        self._last_input_ns = -(1 << 62)  # the latest acting time of an input not a rate
+        self._check_samples = max(1, int(round(CHECK_S / self._sim.period_s)))
+        self.fidelity_reason: Optional[str] = (
+            'integrator.fidelity: full' if self.fidelity == 'full'
+            else unsupported(config, self._sim, blocks=True))
+        if self.fidelity == 'averaged' and self.fidelity_reason is not None:
+            raise ParameterError(f'integrator.fidelity: averaged, but {self.fidelity_reason}')
+        if self._may_hand_back():
+            self._to_averaged()
+        else:
+            self._handoff('full')
 
     # ------------------------------------------------------------------ properties
     @property
+    def sim(self) -> Simulator:
+        """
+        Return the full model, holding the state now.
+
+        After an averaged stretch the averaged model's state is handed to it first (S14),
+        so that whatever reads or changes it sees the run's state now.
+        """
+        if self._stale:
+            self._stretch.sync()
+            self._stale = False
+        return self._sim
+
+    @property
+    def model(self) -> str:
+        """Return the model running now: ``averaged`` or ``full``."""
+        return 'averaged' if self._stretch is not None else 'full'
+
+    @property
     def config(self) -> SimConfig:
         """Return the configuration in force."""
-        return self.sim.config
+        return self._sim.config
 
     @property
     def time_ns(self) -> int:
         """Return the simulation time, ns (the end of the last block)."""
-        return self.sim.time_ns
+        return self._sample_index() * self._sim.period_ns
+
+    @property
+    def time_s(self) -> float:
+        """Return the simulation time, s."""
+        return self._sample_index() * self._sim.period_s
+
+    @property
+    def sample_index(self) -> int:
+        """Return the global index of the next sample (the samples simulated so far)."""
+        return self._sample_index()
+
+    @property
+    def period_ns(self) -> int:
+        """Return the sample period, ns (``output.rate``)."""
+        return self._sim.period_ns
+
+    def _sample_index(self) -> int:
+        return (self._stretch.sample_index if self._stretch is not None
+                else self._sim.sample_index)
 
     @property
     def channel_names(self) -> Dict[str, List[str]]:
         """Return the channel names of the block outputs (``Simulator.channel_names``)."""
-        return self.sim.channel_names
+        return self._sim.channel_names
 
     @property
     def running(self) -> bool:
         """Tell whether the ring is free (not in contact, not failed)."""
-        return self.sim.status == Status.RUNNING
+        return self._sim.status == Status.RUNNING
 
     @property
     def pending_shocks(self) -> int:
@@ -592,10 +675,15 @@ class Run:
 
         """
         try:
-            return self._apply(event)
+            at_ns = self._apply(event)
         except (InputError, ParameterError):
             self.count_rejected(event.topic)
             raise
+        if (self._stretch is not None and not isinstance(event, AngularRate)
+                and at_ns <= self.time_ns):
+            # it acted on the full model already (at the current time): it goes on from it
+            self._to_full()
+        return at_ns
 
     def _apply(self, event: Input) -> int:
         sim = self.sim
@@ -649,6 +737,8 @@ class Run:
         elif isinstance(event, ParameterChange):
             at_ns = self._now_only(event.at_ns)
             sim.update_parameters(event.changes, at_ns=at_ns)
+            if self.fidelity != 'full':   # the averaged model may (no longer) run it
+                self.fidelity_reason = unsupported(sim.config, sim, blocks=True)
         else:
             raise InputError(f'unknown input {event!r}')
         self._accepted(replace(event, at_ns=at_ns))
@@ -760,6 +850,8 @@ class Run:
                 _, _, event = rates.popleft()
             else:
                 return
+            if not isinstance(event, AngularRate):
+                self._last_input_ns = max(self._last_input_ns, int(event.at_ns))
             self.sink.input(event)
 
     def count_rejected(self, topic: str, kind: str = 'invalid') -> None:
@@ -794,7 +886,7 @@ class Run:
             self.advance(count)
             done += count
             if progress is not None:
-                progress(self.sim.time_s)
+                progress(self.time_s)
         return done >= total
 
     def advance(self, n_samples: int,
@@ -811,18 +903,18 @@ class Run:
         """
         if self._wall0 is None:
             self._wall0 = self._clock()
-        sim = self.sim
-        first = sim.sample_index
+        sim = self._sim
+        first = self._sample_index()
         self._shocks_this_block = 0
-        samples = sim.advance_samples(int(n_samples), between)
-        end_ns = sim.time_ns
+        samples = self._advance(int(n_samples), between)
+        end_ns = self.time_ns
         self._flush_inputs(end_ns)
         while self._shock_ends and self._shock_ends[0] <= end_ns:
             heapq.heappop(self._shock_ends)
         while self._future_profile and self._future_profile[0] <= end_ns:
             heapq.heappop(self._future_profile)
         rate, demod = samples.rate_output, samples.demod
-        self.stats.add(samples, sim.sample_index)
+        self.stats.add(samples, self._sample_index())
         if rate is not None and self.rate_stats is not None:
             at = np.clip(np.searchsorted(samples.t, rate.t), 0, max(0, len(samples) - 1))
             self.rate_stats.add(rate, samples.applied_rate[at])
@@ -837,6 +929,99 @@ class Run:
         self.blocks += 1
         self.sink.block(block)
         return block
+
+    def _advance(self, count: int, between: Optional[Callable[[], None]]) -> Samples:
+        """
+        Advance by ``count`` samples on the model of each stretch (module docstring).
+
+        Averaged up to the last loop update at or before the next scheduled input the full
+        model must simulate, full from there; full up to the next hand-back check (every
+        :data:`~ring_gyro_sim.core.fidelity.CHECK_S` of simulated time), averaged from a
+        check that allows it.
+        """
+        sim = self._sim
+        parts: List[Samples] = []
+        while count > 0:
+            stretch = self._stretch
+            if stretch is not None:
+                window = sim.loop.window
+                now = stretch.sample_index
+                limit = count - count % window
+                fast = sim.next_scheduled_s()
+                if not math.isinf(fast):
+                    stop = int(math.floor(fast / sim.period_s + 1e-9)) // window * window
+                    limit = min(limit, max(0, stop - now))
+                if limit > 0:
+                    parts.append(stretch.advance(limit))
+                    self._stale = True
+                    count -= limit
+                    if between is not None:
+                        between()
+                if count > 0:
+                    self._to_full()
+                continue
+            step = count
+            if self.fidelity_reason is None:   # the hand-back checks (CHECK_S)
+                step = min(count, self._check_samples - sim.sample_index % self._check_samples)
+            parts.append(sim.advance_samples(step, between))
+            count -= step
+            if sim.sample_index % self._check_samples == 0 and self._may_hand_back():
+                self._to_averaged()
+        if not parts:
+            return sim.advance_samples(0)
+        return parts[0] if len(parts) == 1 else joined_samples(parts)
+
+    def _may_hand_back(self) -> bool:
+        """
+        Whether the full model may hand over to the averaged one now.
+
+        At a loop update after the start (the full model runs the first check's stretch, so
+        that its sense chain has judged a sample), at fidelity ``auto`` or ``averaged``, with
+        a gyroscope the
+        averaged model runs (``core.fidelity.unsupported``, of the configuration in force);
+        the ring free, the loops locked with force-to-rebalance on and the drive at its
+        set-point (within ``validity.DRIVE_TOLERANCE``), the last ``~/rate`` sample a
+        measurement (no reason against it, V1), nothing scheduled acting now, the last
+        input other than a rate :data:`CHECK_S` ago or more, and the modes the averaged
+        model leaves out rung down below
+        :data:`~ring_gyro_sim.core.averaged.HAND_BACK_THRESHOLD` of the gap. Each condition
+        depends on the state and on the acting times of the inputs that have acted, never
+        on when an input arrived: a re-simulation makes the same hand-offs.
+        """
+        sim = self._sim
+        if self.fidelity == 'full' or sim.status != Status.RUNNING or sim.in_stop_contact:
+            return False
+        loop = sim.loop
+        if loop is None or sim.sample_index == 0 or sim.sample_index % loop.window:
+            return False   # the first check after the full model's first samples
+        self.fidelity_reason = unsupported(sim.config, sim, blocks=True)
+        if self.fidelity_reason is not None or not (loop.locked and loop.rebalance_on):
+            return False
+        # the loops at their operating point, ~/rate a measurement (V1)
+        if (not loop.setpoint_m > 0.0
+                or not abs(loop.amplitude / loop.setpoint_m - 1.0) <= validity.DRIVE_TOLERANCE
+                or sim.sense.validity.state.reason):
+            return False
+        self._flush_inputs(sim.time_ns)
+        if (sim.next_scheduled_s() <= sim.time_s
+                or sim.time_ns - self._last_input_ns < self._check_samples * sim.period_ns):
+            return False
+        return fast_mode_amplitude(sim) < HAND_BACK_THRESHOLD
+
+    def _to_averaged(self) -> None:
+        self._stretch = AveragedStretch(self._sim)
+        self._stale = False
+        self._handoff('averaged')
+
+    def _to_full(self) -> None:
+        self.sim  # noqa: B018 - the averaged model's state handed to the full model
+        self._stretch = None
+        self._handoff('full')
+
+    def _handoff(self, model: str) -> None:
+        at_ns = self._sim.time_ns
+        self.handoffs.append((at_ns * 1e-9, model))
+        self.sink.handoff(at_ns, model)
 
     # ------------------------------------------------------------------ reporting
     def diagnostics(self, pacing: Pacing = Pacing(), finished: bool = False) -> Diagnostics:
@@ -853,7 +1038,8 @@ class Run:
         the middleware reports lost), ``pending_shocks``, ``pending_inputs``, ``accepted_shocks``,
         ``accepted_angular_rate``, ``drive_amplitude``, ``drive_frequency_hz``,
         ``nonfinite_failures`` (``Simulator.nonfinite_failures``), ``stop_impacts`` (impacts
-        on the mechanical stops, ``Simulator.impacts``: 0 without them).
+        on the mechanical stops, ``Simulator.impacts``: 0 without them), ``model`` (the model
+        running now: ``averaged`` or ``full``) and ``model_changes`` (hand-offs so far).
         """
         sim = self.sim
         stats = self.stats
@@ -893,6 +1079,8 @@ class Run:
         values['drive_frequency_hz'] = drive.frequency
         values['nonfinite_failures'] = sim.nonfinite_failures
         values['stop_impacts'] = sim.impacts
+        values['model'] = self.model
+        values['model_changes'] = len(self.handoffs) - 1
         values['die_temperature_k'] = float(sim.die.kelvin)
         values['ambient_temperature_k'] = float(sim.die.ambient.at(sim.time_s))
         gyro_warning = ''
@@ -1004,9 +1192,22 @@ class Run:
 
         The rms only if a random vibration is on.
         """
-        out = {**self.stop_figures(), **self.gyro_figures()}
+        out = {**self.stop_figures(), **self.gyro_figures(), **self.fidelity_figures()}
         if self.sim.random_vibration is not None:
             out['random_vibration_rms_g'] = self.sim.random_vibration.rms_g
+        return out
+
+    def fidelity_figures(self) -> Dict[str, Any]:
+        """
+        Return the models of the run: ``model_handoffs`` and why it is full throughout.
+
+        ``model_handoffs``: ``[[t_s, model], ...]`` from the start (``averaged`` or ``full``
+        from ``t_s`` on); ``fidelity_reason``: why the averaged model never ran, when it did
+        not.
+        """
+        out: Dict[str, Any] = {'model_handoffs': [[t, model] for t, model in self.handoffs]}
+        if all(model == 'full' for _, model in self.handoffs):
+            out['fidelity_reason'] = self.fidelity_reason
         return out
 
     def stop_figures(self) -> Dict[str, Any]:
@@ -1047,6 +1248,9 @@ class Run:
         gyro = describe(self.gyro_figures())
         if gyro:
             text += f'; {gyro}'
+        if any(model == 'averaged' for _, model in self.handoffs):
+            text += '; models: ' + ', '.join(f'{model} from {t:.6g} s'
+                                             for t, model in self.handoffs)
         if not self.running:
             text += f'; {self.sim.status}: {self.sim.message}'
         return text

@@ -83,6 +83,8 @@ _INDEXED_READ_ERRORS = (*_TRUNCATION_ERRORS, OSError)
 
 #: Name of the metadata record of a run (written by ``ring_gyro_sim.ros.recorder``).
 RUN_METADATA_NAME = 'ring_gyro_sim'
+#: Name of the metadata records of the run's changes of model (``integrator.fidelity``).
+HANDOFF_METADATA_NAME = 'ring_gyro_sim.handoff'
 
 _log = logging.getLogger(__name__)
 _hinted = set()
@@ -498,6 +500,26 @@ def read_metadata(path, name):
         If the file cannot be read or holds no metadata record of that name.
 
     """
+    records = _metadata_records(path, name)
+    if not records:
+        raise RecordingError(f'recording {str(path)!r} has no metadata record {name!r}')
+    return records[-1]
+
+
+def read_handoffs(path):
+    """
+    Return a run's changes of model: ``[(t_ns, model), ...]`` in time order.
+
+    ``model`` is ``averaged`` or ``full`` from ``t_ns`` on (``integrator.fidelity``, one
+    metadata record :data:`HANDOFF_METADATA_NAME` each, the first at the start); empty for a
+    recording made before the records existed.
+    """
+    out = [(int(r['t_ns']), r['model']) for r in _metadata_records(path, HANDOFF_METADATA_NAME)]
+    return sorted(out, key=lambda item: item[0])
+
+
+def _metadata_records(path, name):
+    """Return every metadata record ``name`` of a bag, in file order, as dicts."""
     path = _checked_path(path)
     records = []
     with open(path, 'rb') as stream:
@@ -521,9 +543,7 @@ def read_metadata(path, name):
                            if isinstance(record, Metadata) and record.name == name]
                 if summary is None:
                     _hint_incomplete(path, stop[0] if stop else None)
-    if not records:
-        raise RecordingError(f'recording {str(path)!r} has no metadata record {name!r}')
-    return dict(records[-1].metadata)
+    return [dict(record.metadata) for record in records]
 
 
 def decode(message: BagMessage):

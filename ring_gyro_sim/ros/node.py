@@ -353,7 +353,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         if self.tick_timer is not None:
             self.destroy_timer(self.tick_timer)
         rtf = self.real_time_factor
-        block_wall_s = self.block_samples * self.run.sim.period_s / rtf if rtf > 0 else 0.0
+        block_wall_s = self.block_samples * self.run.period_ns * 1e-9 / rtf if rtf > 0 else 0.0
         period = min(max(block_wall_s / 4.0, 0.001), 0.02)
         self._tick_period_s = period
         self.tick_timer = self.create_timer(period, self._on_tick, clock=self.steady)
@@ -378,7 +378,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         rtf = self.real_time_factor
         if rtf <= 0.0 or self._pace_wall0 is None:
             return 0.0  # as fast as possible: at once
-        latency_ns = RATE_LATENCY_BLOCKS * self.block_samples * self.run.sim.period_ns
+        latency_ns = RATE_LATENCY_BLOCKS * self.block_samples * self.run.period_ns
         return self._pace_wall0 + (t_ns + latency_ns - self._pace_sim0_ns) / (rtf * 1e9)
 
     def _rate_spacing_s(self) -> float:
@@ -440,11 +440,11 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         if self.rate_pacer is not None:
             self.rate_pacer.send_due()
         deadline = now + TICK_BUDGET_S
-        period_ns = self.run.sim.period_ns
+        period_ns = self.run.period_ns
         while True:
             n = self.block_samples
             if self.total_samples:
-                n = min(n, self.total_samples - self.run.sim.sample_index)
+                n = min(n, self.total_samples - self.run.sample_index)
                 if n <= 0:
                     self._finish('duration reached')
                     return math.inf
@@ -522,7 +522,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         wall = time.monotonic() - self._start_wall if self._start_wall is not None else 0.0
         sim_s = (self.run.time_ns - self._start_sim_ns) * 1e-9
         rate = f' (x{sim_s / wall:.3f} real time)' if wall > 0 else ''
-        text = (f'{self.run.sim.time_s:.6f} s simulated in {wall:.3f} s{rate}; '
+        text = (f'{self.run.time_s:.6f} s simulated in {wall:.3f} s{rate}; '
                 f'{self.run.summary_text()}')
         if self.run.config.run.record_path:
             text += f'; recorded to {self.run.config.run.record_path}'

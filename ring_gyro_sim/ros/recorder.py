@@ -113,7 +113,7 @@ from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.params import SimConfig, to_flat
 from ring_gyro_sim.recording import cdr
 from ring_gyro_sim.recording.errors import OutputExistsError, RecordingError
-from ring_gyro_sim.recording.reader import RUN_METADATA_NAME
+from ring_gyro_sim.recording.reader import HANDOFF_METADATA_NAME, RUN_METADATA_NAME
 from ring_gyro_sim.recording.writer import BagWriter
 from ring_gyro_sim.ros import conversions
 from ring_gyro_sim.ros.qos import recorded_qos, TOPIC_QOS
@@ -422,6 +422,17 @@ class RunRecorder:
     def start(self, initial_state) -> None:
         """Set the initial state (q, v) of the run (the :class:`~ring_gyro_sim.run.Sink` call)."""
         self.set_initial_state(*initial_state)
+
+    def handoff(self, at_ns: int, model: str) -> None:
+        """
+        Record a change of model at ``at_ns``: a metadata record ``ring_gyro_sim.handoff``.
+
+        ``{'t_ns', 'model'}`` (``averaged`` or ``full`` from then on), written at once, so
+        that a cut recording keeps the hand-offs before the cut
+        (``recording.reader.read_handoffs``).
+        """
+        self.writer.add_metadata(HANDOFF_METADATA_NAME, {'t_ns': str(int(at_ns)),
+                                                         'model': str(model)})
 
     def discard(self) -> None:
         """Close and delete the file: the run never started (no metadata, no samples)."""

@@ -104,6 +104,9 @@ class NullRecorder:
     def set_calibration(self, calibration) -> None:
         """Do nothing."""
 
+    def handoff(self, at_ns: int, model: str) -> None:
+        """Do nothing."""
+
     def close(self) -> None:
         """Do nothing."""
 
@@ -243,6 +246,10 @@ class RosSink(run_mod.Sink):
     def start(self, state) -> None:
         """Write the recording's metadata with the start state."""
         self.recorder.start(state)
+
+    def handoff(self, at_ns: int, model: str) -> None:
+        """Record a change of model (``integrator.fidelity``)."""
+        self.recorder.handoff(at_ns, model)
 
     def input(self, event) -> None:
         """Record an input as it acts."""

@@ -161,7 +161,8 @@ def test_force_to_rebalance_holds_a_misaligned_sense_mode_where_its_amplifier_re
     ftr = {'gyro.enabled': True, 'control.drive_loop': 'closed', 'control.rebalance': True,
            'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0,
            'gyro.calibration.source': 'ideal', 'gyro.sense_misalignment': delta,
-           'scenario.rate_times': [0.0], 'scenario.rate_values': [0.0]}
+           'scenario.rate_times': [0.0], 'scenario.rate_values': [0.0],
+           'integrator.fidelity': 'full'}   # E1b of the full model's pick-off
     config = build_config(ftr)
     run = Run(config)
     first = run.advance(config.run.block_samples).rate.rate
