@@ -124,9 +124,6 @@ class Publishers:
     (``ros.rate_pacer.RatePacer``).
     """
 
-    #: The block messages are published: :class:`RosSink` builds them with every sample.
-    publishes_blocks = True
-
     def __init__(self, blocks: Mapping[str, object], diagnostics, clock=None,
                  rate=None, die_temperature=None) -> None:
         self._blocks = dict(blocks)
@@ -134,6 +131,18 @@ class Publishers:
         self._clock = clock
         self._rate = rate
         self._die_temperature = die_temperature
+
+    @property
+    def publishes_blocks(self) -> bool:
+        """
+        Tell whether a subscriber is matched on any block topic.
+
+        Only then does :class:`RosSink` build the block messages with every sample and
+        publish them: nobody subscribed, a 200 kHz block costs the node its conversion to
+        messages and their serialisation for no one (the recording keeps its rows either
+        way).
+        """
+        return any(pub.get_subscription_count() > 0 for pub in self._blocks.values())
 
     def die_temperature(self, msg) -> None:
         """Publish ``~/die_temperature`` (gyroscope only)."""
@@ -287,8 +296,9 @@ class RosSink(run_mod.Sink):
         """
         Convert a block to messages once; publish and record them, and ``/clock``.
 
-        Published, the block messages hold every sample (the recorder decimates its copy);
-        offline nothing needs the message objects: the block topics and ``~/rate`` go to the
+        Published (a subscriber is matched on a block topic: ``Publishers.publishes_blocks``),
+        the block messages hold every sample (the recorder decimates its copy); otherwise,
+        and offline, nothing needs the message objects: the block topics and ``~/rate`` go to the
         recorder as their CDR, packed from the rows the recording keeps
         (``record.decimation``), so a recording does not pay for building every 200 kHz sample
         into a message, nor for rclpy's conversion of the messages back to CDR.
@@ -315,7 +325,8 @@ class RosSink(run_mod.Sink):
                                                                                 rows, build)
         if block.control is not None:
             msgs[conversions.CONTROL_TOPIC] = conversions.control_block(block.control, build)
-        self.publishers.blocks(msgs)
+        if not thinned:
+            self.publishers.blocks(msgs)
         clock = conversions.clock_message(block.end_ns)
         self.publishers.clock(clock)
         self.recorder.outputs(msgs, block.end_ns, thinned=thinned)

@@ -254,13 +254,16 @@ def test_decimation_thins_the_demodulator_never_the_rate(tmp_path, samples, deci
 
 
 class _Publisher:
-    """Keeps what it is given to publish."""
+    """Keeps what it is given to publish; one subscriber is matched."""
 
     def __init__(self):
         self.messages = []
 
     def publish(self, msg):
         self.messages.append(msg)
+
+    def get_subscription_count(self):
+        return 1
 
 
 @pytest.mark.parametrize('decimation', [1, 7, 300])
@@ -282,6 +285,30 @@ def test_published_blocks_hold_every_sample_and_record_as_offline(
         assert [len(x) for x in published] == [200] * BLOCKS
     a, b = read_rate(offline), read_rate(live)
     assert np.array_equal(a.t_ns, b.t_ns) and np.array_equal(a.rate, b.rate)
+
+
+class _Unwatched(_Publisher):
+    """A publisher nobody subscribes to."""
+
+    def get_subscription_count(self):
+        return 0
+
+
+def test_blocks_nobody_subscribes_to_are_not_published_and_record_as_offline(
+        tmp_path, samples):
+    # Publishers.publishes_blocks: no subscriber matched on any block topic, RosSink builds
+    # the recorded rows only, as offline, and publishes no block; ~/rate goes out as before.
+    values = {**GYRO, 'record.decimation': 7}
+    offline = record(tmp_path / 'offline.mcap', samples, values)
+    blocks = {name: _Unwatched() for name in conversions.OUTPUT_TOPICS + ('demodulator',)}
+    rate = _Publisher()
+    live = record(tmp_path / 'live.mcap', samples, values,
+                  publishers=Publishers(blocks, _Publisher(), rate=rate))
+    assert not any(p.messages for p in blocks.values())
+    assert len(rate.messages) == BLOCKS   # one list of ~/rate messages per block
+    for name in conversions.OUTPUT_TOPICS + ('demodulator',):
+        a, b = read_block_topic(offline, name), read_block_topic(live, name)
+        assert a.end_ns == b.end_ns and np.array_equal(a.data, b.data), name
 
 
 def test_gyro_topics_only_in_a_gyroscope_run(tmp_path, samples):
