@@ -280,6 +280,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         self._pace_wall0: Optional[float] = None
         self._pace_sim0_ns = 0
         self._start_wall: Optional[float] = None
+        self._start_cpu: Optional[float] = None
         self._start_sim_ns = self.run.time_ns
         self._diag_wall = time.monotonic()
         self._diag_sim_ns = self.run.time_ns
@@ -436,6 +437,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         now = time.monotonic()
         if self._pace_wall0 is None:
             self._pace_wall0 = self._start_wall = self._diag_wall = now
+            self._start_cpu = time.process_time()
             self._pace_sim0_ns = self._start_sim_ns = self._diag_sim_ns = self.run.time_ns
         if self.rate_pacer is not None:
             self.rate_pacer.send_due()
@@ -522,6 +524,9 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         wall = time.monotonic() - self._start_wall if self._start_wall is not None else 0.0
         sim_s = (self.run.time_ns - self._start_sim_ns) * 1e-9
         rate = f' (x{sim_s / wall:.3f} real time)' if wall > 0 else ''
+        if wall > 0 and self._start_cpu is not None:  # the node's threads, every one
+            rate += (f', {100.0 * (time.process_time() - self._start_cpu) / wall:.1f} % of a '
+                     f'core')
         text = (f'{self.run.time_s:.6f} s simulated in {wall:.3f} s{rate}; '
                 f'{self.run.summary_text()}')
         if self.run.config.run.record_path:
