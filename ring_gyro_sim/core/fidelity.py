@@ -18,6 +18,8 @@ The closed-loop gyroscope at two fidelity levels, handed between them (issue 25'
 :class:`AutoGyro` runs the gyroscope offline and returns its ``~/rate``: on the averaged model
 (``core.averaged.AveragedGyro``) while nothing fast acts, on the full model (``Simulator``)
 around what the averaged model does not represent, with the hand-offs of S13 and S14.
+:class:`AveragedStretch` is the averaged model inside a run (``run.Run``, whose docstring
+has its rules): its stretches as the full model's samples, every output topic rebuilt.
 
 The rules (``auto``)
 --------------------
