@@ -53,6 +53,12 @@ def node_command():
 
 def run_node(params: str, duration: float, domain: int):
     """Run the node once; return (rtf from its log, wall s, cpu s)."""
+    log, wall, cpu = run_node_log(params, duration, domain, LINE)
+    return float(LINE.findall(log)[-1][2]), wall, cpu
+
+
+def run_node_log(params: str, duration: float, domain: int, line):
+    """Run the node once; return (its log, wall s, cpu s); exit if ``line`` is not in it."""
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
                PYTHONPATH=os.pathsep.join([REPO, os.environ.get('PYTHONPATH', '')]))
     args = node_command() + ['--ros-args', '--params-file', params, '-p',
@@ -64,10 +70,10 @@ def run_node(params: str, duration: float, domain: int):
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    found = LINE.findall(done.stdout + done.stderr)
-    if done.returncode != 0 or not found:
-        raise SystemExit(f'node failed ({done.returncode}): {(done.stdout + done.stderr)[-2000:]}')
-    return float(found[-1][2]), wall, cpu
+    log = done.stdout + done.stderr
+    if done.returncode != 0 or not line.search(log):
+        raise SystemExit(f'node failed ({done.returncode}): {log[-2000:]}')
+    return log, wall, cpu
 
 
 def main(argv=None) -> int:

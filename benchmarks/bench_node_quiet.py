@@ -30,18 +30,13 @@ in one session.
 import argparse
 import os
 import re
-import resource
-import subprocess
 import sys
 import tempfile
-import time
 
 import yaml
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-REPO = os.path.dirname(HERE)
-sys.path.insert(0, HERE)
-from bench_node import node_command  # noqa: E402 I100 - the node runner of the other one
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_node import run_node_log  # noqa: E402 I100 - the other benchmark's runner
 
 
 SHARE = re.compile(r'real time\), ([0-9.]+) % of a core')
@@ -49,21 +44,8 @@ SHARE = re.compile(r'real time\), ([0-9.]+) % of a core')
 
 def run_node(params: str, duration: float, domain: int):
     """Run the node once; return (its own share of a core in %, wall s, cpu s)."""
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-               PYTHONPATH=os.pathsep.join([REPO, os.environ.get('PYTHONPATH', '')]))
-    args = node_command() + ['--ros-args', '--params-file', params, '-p',
-                             f'duration:={duration}']
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t0 = time.perf_counter()
-    done = subprocess.run(args, env=env, capture_output=True, text=True, timeout=3600,
-                          check=False)
-    wall = time.perf_counter() - t0
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    found = SHARE.findall(done.stdout + done.stderr)
-    if done.returncode != 0 or not found:
-        raise SystemExit(f'node failed ({done.returncode}): {(done.stdout + done.stderr)[-2000:]}')
-    return float(found[-1]), wall, cpu
+    log, wall, cpu = run_node_log(params, duration, domain, SHARE)
+    return float(SHARE.findall(log)[-1]), wall, cpu
 
 
 def main(argv=None) -> int:
