@@ -150,19 +150,21 @@ the rate read from the force-to-rebalance loop), each set by those two parameter
 modes need them in the table (:func:`available_loops`). The other tests run the file's own
 setting (a file with ``control.rebalance: true`` gets the datasheet of that readout).
 
-Why sequential runs, not the sweep engine: a sweep point (``sweep.point.evaluate``) is a
-paper case that keeps scalar metrics of the 100 kHz modal envelopes (and, on request, the
-envelopes); these tests need the 1 kHz rate records themselves (the Allan deviation, the
-step, the error curves of the shock plot) and the electronics' calibration of each run. The
-runs are cheap beside a sweep (the full characterization is 1 121 simulated s with the three
-loop modes, :meth:`Plan.runs`, ~19 min wall on this loaded 2-core machine), and a local Dask
-cluster here bought 1.0-1.6x (doc/sweeps.md) for a second process tree; one process keeps
-the numba kernels, the one orbit shooting per device and the progress bar in one place.
+Processes (``workers``, :class:`_Farm`): the long record, the zero-rate and step record,
+each shock run, the device as owned, the environment series and the rate table (after the
+step record, whose calibration it reads) are independent pieces, run on a process pool of
+the standard library, the longest submitted first; each seeds from the file, so the
+datasheet does not depend on the number of processes. Not the sweep engine: a sweep point
+(``sweep.point.evaluate``) is a paper case that keeps scalar metrics of the 100 kHz modal
+envelopes (and, on request, the envelopes); these tests need the 1 kHz rate records
+themselves (the Allan deviation, the step, the error curves of the shock plot) and the
+electronics' calibration of each run, and a dozen pieces need no scheduler.
 """
 
 from dataclasses import dataclass, replace
 import json
 import math
+import os
 from pathlib import Path
 import time
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
@@ -529,37 +531,161 @@ class _Record:
 
 
 class _Bar:
-    """One progress bar over every run of the characterization (simulated s)."""
+    """
+    One progress bar over every run of the characterization (simulated s).
+
+    Runs may be under way at once (on :class:`_Farm`'s workers): each reports as its
+    ``task``, and the bar shows the runs finished plus each running one's part.
+    """
 
     def __init__(self, total_s: float, enabled: bool, averaged_s: float = 0.0) -> None:
         from ring_gyro_sim.progress import Progress
         # the averaged model's seconds weigh AVERAGED_COST of the full model's
         self.progress = Progress(total_s + averaged_s * AVERAGED_COST, enabled,
                                  name='characterize')
-        self.done_s = 0.0
-        self.averaged_s = 0.0
         self.work = 0.0
-        self.runs = 0
+        self.running: Dict[Any, float] = {}
+        self.finished: List[float] = []
+        self.finished_averaged: List[float] = []
 
-    def update(self, run_s: float, note: str, weight: float = 1.0) -> None:
-        self.progress.update(self.work + run_s * weight, note)
+    @property
+    def runs(self) -> int:
+        """Return how many runs have finished."""
+        return len(self.finished)
+
+    @property
+    def done_s(self) -> float:
+        """Return their planned simulated seconds (a correctly rounded sum: any order's)."""
+        return math.fsum(self.finished)
+
+    @property
+    def averaged_s(self) -> float:
+        """Return the averaged model's finished runs' simulated seconds (as :attr:`done_s`)."""
+        return math.fsum(self.finished_averaged)
+
+    def _show(self, note: str = '') -> None:
+        self.progress.update(self.work + sum(self.running.values()), note)
+
+    def update(self, run_s: float, note: str, weight: float = 1.0, task: Any = None) -> None:
+        self.running[task] = run_s * weight
+        self._show(note)
 
     def note(self, text: str) -> None:
         self.progress.note(f'characterize: {text}')
 
-    def finish_run(self, planned_s: float) -> None:
-        self.done_s += planned_s
+    def finish_run(self, planned_s: float, task: Any = None) -> None:
+        self.running.pop(task, None)
+        self.finished.append(planned_s)
         self.work += planned_s
-        self.runs += 1
-        self.progress.update(self.work)
+        self._show()
 
-    def finish_averaged(self, planned_s: float) -> None:
-        self.averaged_s += planned_s
+    def finish_averaged(self, planned_s: float, task: Any = None) -> None:
+        self.running.pop(task, None)
+        self.finished_averaged.append(planned_s)
         self.work += planned_s * AVERAGED_COST
-        self.progress.update(self.work)
+        self._show()
 
     def close(self) -> None:
         self.progress.close()
+
+
+class _BarClient:
+    """:class:`_Bar`'s calls made in a worker process: sent to the parent's bar as ``task``."""
+
+    def __init__(self, queue, task: int) -> None:
+        self.queue, self.task = queue, task
+
+    def update(self, run_s: float, note: str, weight: float = 1.0) -> None:
+        self.queue.put(('update', (run_s, note, weight), self.task))
+
+    def note(self, text: str) -> None:
+        self.queue.put(('note', (text,), None))
+
+    def finish_run(self, planned_s: float) -> None:
+        self.queue.put(('finish_run', (planned_s,), self.task))
+
+    def finish_averaged(self, planned_s: float) -> None:
+        self.queue.put(('finish_averaged', (planned_s,), self.task))
+
+
+_WORKER_QUEUE = None
+"""The progress queue of a worker process of :class:`_Farm` (set by its initializer)."""
+
+
+def _worker_start(queue) -> None:
+    global _WORKER_QUEUE
+    _WORKER_QUEUE = queue
+
+
+def _worker_task(task: int, function, args, kwargs):
+    return function(*args, bar=_BarClient(_WORKER_QUEUE, task), **kwargs)
+
+
+class _Farm:
+    """
+    Runs the characterization's independent pieces: here, or on ``workers`` processes.
+
+    :meth:`submit` takes a function with a ``bar`` keyword (it gets the bar, or a
+    :class:`_BarClient` in a worker) and returns a future; :meth:`result` waits for one,
+    passing the workers' progress to the bar meanwhile. One worker runs each piece at
+    submission, in this process, as before workers. Each piece is a run or a series of
+    runs that depends on no other (its seeds are the file's), so the datasheet is the same
+    for any number of workers (``test_characterize``). The workers are spawned (a fresh
+    interpreter each: numba's threads and the parent's state are not forked); their CPU time
+    is counted once they have ended (:meth:`close`).
+    """
+
+    def __init__(self, bar: _Bar, workers: int) -> None:
+        self.bar = bar
+        self.workers = max(1, int(workers))
+        self.pool = self.queue = None
+        self.tasks = 0
+        if self.workers > 1:
+            import concurrent.futures
+            import multiprocessing
+            context = multiprocessing.get_context('spawn')
+            self.queue = context.Queue()
+            self.pool = concurrent.futures.ProcessPoolExecutor(
+                self.workers, mp_context=context, initializer=_worker_start,
+                initargs=(self.queue,))
+
+    def submit(self, function, *args, **kwargs):
+        import concurrent.futures
+        if self.pool is not None:
+            self.tasks += 1
+            return self.pool.submit(_worker_task, self.tasks, function, args, kwargs)
+        future = concurrent.futures.Future()
+        try:
+            future.set_result(function(*args, bar=self.bar, **kwargs))
+        except BaseException as exc:  # noqa: B902 - handed to result(), as a pool would
+            future.set_exception(exc)
+        return future
+
+    def _drain(self, timeout: float) -> None:
+        import queue as queue_mod
+        try:
+            kind, args, task = self.queue.get(timeout=timeout)
+            while True:
+                if kind == 'note':
+                    self.bar.note(*args)
+                else:
+                    getattr(self.bar, kind)(*args, task=task)
+                kind, args, task = self.queue.get_nowait()
+        except queue_mod.Empty:
+            pass
+
+    def result(self, future):
+        while self.queue is not None and not future.done():
+            self._drain(0.2)
+        if self.queue is not None:
+            self._drain(0.0)
+        return future.result()
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+            self._drain(0.0)
+            self.pool = None
 
 
 def _simulate(values: Mapping[str, Any], duration_s: float, bar: _Bar, note: str) -> _Record:
@@ -912,7 +1038,8 @@ def _noise_terms(config: SimConfig) -> List[str]:
 def characterize(params_path: str, out_dir: str, quick: bool = False,
                  loops: Optional[Sequence[str]] = None, progress: bool = True,
                  node_name: str = 'ring_gyro', plan: Optional[Plan] = None,
-                 shock_peaks_g: Optional[Sequence[float]] = None) -> Dict[str, Any]:
+                 shock_peaks_g: Optional[Sequence[float]] = None,
+                 workers: int = 1) -> Dict[str, Any]:
     """
     Measure the datasheet of the gyroscope of ``params_path``; write it to ``out_dir``.
 
@@ -934,6 +1061,9 @@ def characterize(params_path: str, out_dir: str, quick: bool = False,
         Overrides ``quick``.
     shock_peaks_g : sequence of float, optional
         Overrides the plan's shock amplitudes, g.
+    workers : int
+        Processes that run the tests (1: all in this process). The datasheet is the same
+        for any number; ``ring_gyro characterize`` gives the cores.
 
     Returns
     -------
@@ -950,12 +1080,15 @@ def characterize(params_path: str, out_dir: str, quick: bool = False,
         allantools is not installed (checked first).
 
     """
-    wall0, cpu0 = time.monotonic(), time.process_time()
+    wall0, cpu0, children0 = time.monotonic(), time.process_time(), _children_cpu_s()
     extras.require(NEEDS, 'characterize (the Allan deviation)')
     flat = load_device(params_path, node_name)
     loops = tuple(loops) if loops is not None else available_loops()
     parse_loops(','.join(loops))
     plan = plan or (QUICK if quick else FULL)
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ParameterError(f'--workers: give a whole number of processes >= 1, not '
+                             f'{workers!r}')
     if shock_peaks_g is not None:
         peaks = tuple(float(g) for g in shock_peaks_g)
         if not peaks or not all(math.isfinite(g) and g > 0.0 for g in peaks):
@@ -969,16 +1102,24 @@ def characterize(params_path: str, out_dir: str, quick: bool = False,
     drift_s = plan.zero_rate_s + plan.step_s
     bar = _Bar(plan.simulated_s(len(loops), output_rate) - (drift_s if quiet else 0.0), progress,
                averaged_s=(plan.long_record_s + drift_s) if quiet else 0.0)
+    farm = _Farm(bar, workers)
     try:
-        long = _long_record(flat, plan, bar, refusal)
-        drift = _drift_and_step(flat, plan, bar, averaged=quiet)
-        table = _rate_table(flat, plan, bar, drift)
-        shocks = [_shock(flat, plan, bar, peak, loop)
-                  for loop in loops for peak in plan.shock_peaks_g]
-        owned = _owned_device(flat, plan, bar)
-        environment = _environment(flat, plan, bar, drift['step']['time_constant_s'])
+        # the longest pieces first, so that the last to end is short
+        environment = farm.submit(_environment, flat, plan)
+        keys = [(loop, peak) for loop in loops for peak in plan.shock_peaks_g]
+        # the rebalance loop's shock runs are averaged before the shock and after it
+        shocks = {i: farm.submit(_shock, flat, plan, peak_g=keys[i][1], loop=keys[i][0])
+                  for i in sorted(range(len(keys)), key=lambda i: keys[i][0] == 'rebalance')}
+        long = farm.submit(_long_record, flat, plan, refusal=refusal)
+        owned = farm.submit(_owned_device, flat, plan)
+        drift = farm.result(farm.submit(_drift_and_step, flat, plan, averaged=quiet))
+        table = farm.result(farm.submit(_rate_table, flat, plan, drift=_table_inputs(drift)))
+        shocks = [farm.result(shocks[i]) for i in range(len(keys))]
+        long, owned, environment = (farm.result(f) for f in (long, owned, environment))
     finally:
+        farm.close()
         bar.close()
+    environment.update(_settled(plan, drift['step']['time_constant_s']))
     sheet = _assemble(params_path, flat, plan, quick, loops, drift, table, shocks)
     sheet.update(owned)
     sheet['environment'] = environment
@@ -990,10 +1131,17 @@ def characterize(params_path: str, out_dir: str, quick: bool = False,
     sheet['runs'] = bar.runs
     sheet['files'] = _write(out, sheet, drift, table, shocks, loops)
     sheet['wall_time_s'] = time.monotonic() - wall0
-    sheet['cpu_time_s'] = time.process_time() - cpu0
+    sheet['cpu_time_s'] = time.process_time() - cpu0 + _children_cpu_s() - children0
+    sheet['workers'] = farm.workers
     (out / 'datasheet.json').write_text(json.dumps(_jsonable(sheet), indent=1, sort_keys=True,
                                                    allow_nan=False) + '\n', encoding='utf-8')
     return _jsonable(sheet)
+
+
+def _children_cpu_s() -> float:
+    """Return the CPU time of this process's ended children (the farm's workers), s."""
+    t = os.times()
+    return t.children_user + t.children_system
 
 
 def _drift_and_step(flat, plan: Plan, bar: _Bar, averaged: bool = False) -> Dict[str, Any]:
@@ -1169,6 +1317,13 @@ def _allan_intervals(tau: np.ndarray, dev: np.ndarray, n_samples: int,
     return out
 
 
+def _table_inputs(drift) -> Dict[str, Any]:
+    """Return what :func:`_rate_table` reads of :func:`_drift_and_step`'s answer (no record)."""
+    return {'calibration': drift['calibration'], 'drive_amplitude_m': drift['drive_amplitude_m'],
+            'allan': {'arw_rad_sqrt_s': drift['allan']['arw_rad_sqrt_s']},
+            'step': {'time_constant_s': drift['step']['time_constant_s']}}
+
+
 def _rate_table(flat, plan: Plan, bar: _Bar, drift) -> Dict[str, Any]:
     rows = []
     for dps in plan.rate_points_dps:
@@ -1300,7 +1455,14 @@ def _owned_device(flat, plan: Plan, bar: _Bar) -> Dict[str, Any]:
                       'coefficients: least-squares line through the points'}}
 
 
-def _environment(flat, plan: Plan, bar: _Bar, time_constant_s: float) -> Dict[str, Any]:
+def _settled(plan: Plan, time_constant_s: float) -> Dict[str, Any]:
+    """Return the environment entry's words on its averaging window against the rate path."""
+    settle = plan.environment_s - plan.environment_average_s
+    return {'settled': bool(settle >= 5.0 * time_constant_s),
+            'rate_path_time_constant_s': time_constant_s}
+
+
+def _environment(flat, plan: Plan, bar: _Bar) -> Dict[str, Any]:
     """
     Return the environment tests: g-sensitivity and vibration rectification (noise off).
 
@@ -1312,8 +1474,8 @@ def _environment(flat, plan: Plan, bar: _Bar, time_constant_s: float) -> Dict[st
     g-sensitivity is split into its odd part in the acceleration (the linear coefficient a
     datasheet quotes, per g and per m/s^2) and its even part (what does not change sign with
     it); the amplitude series gives the log-log slope (``analysis.environment.loglog_slope``).
-    ``settled``: the averaging starts at least 5 time constants of the rate path (the step's,
-    ``time_constant_s``) after the start. doc/environments.md explains the numbers.
+    :func:`_settled` adds whether the averaging starts at least 5 time constants of the rate
+    path (the step's) after the start. doc/environments.md explains the numbers.
     """
     from ring_gyro_sim.analysis import environment as env
     output_rate = build_config(flat).run.output_rate
@@ -1372,7 +1534,6 @@ def _environment(flat, plan: Plan, bar: _Bar, time_constant_s: float) -> Dict[st
               if (a, middle, 0.0) in sines]
     fit = env.loglog_slope([r['amplitude_g'] for r in series],
                            [r['rectified_bias_deg_per_s'] * DEG for r in series])
-    settle = plan.environment_s - plan.environment_average_s
     return {
         'stops': _stop_shock(flat, plan, bar, stop_runs) if stop_runs else None,
         'random': _random_entry(results, shift, series[0] if series else None),
@@ -1381,8 +1542,6 @@ def _environment(flat, plan: Plan, bar: _Bar, time_constant_s: float) -> Dict[st
                   'the drive orbit with the 1theta pair on its linear answer to the '
                   'environment, less the same without it',
         'record_s': plan.environment_s, 'average_s': plan.environment_average_s,
-        'settled': bool(settle >= 5.0 * time_constant_s),
-        'rate_path_time_constant_s': time_constant_s,
         'zero_floor_deg_per_s': env.ZERO_RAD_S / DEG,
         'reference_rate_deg_per_s': ref['rate_rad_s'] / DEG,
         'contact': any(o['contact'] for _, o, _ in results),

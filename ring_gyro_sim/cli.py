@@ -136,6 +136,9 @@ def _add_characterize_verb(sub) -> None:
                                     'build has)')
     ch.add_argument('--shock-g', help='shock amplitudes, g, comma-separated (default 1000,'
                                       '3000,10000; --quick 1000,10000)')
+    ch.add_argument('--workers', type=int,
+                    help='processes that run the tests (default: the cores; the datasheet '
+                         'is the same for any number)')
     ch.add_argument('--no-progress', action='store_true', help='no progress bar')
     ch.add_argument('--node-name', default='ring_gyro',
                     help='node name whose ros__parameters to read (default ring_gyro)')
@@ -312,6 +315,13 @@ def cmd_calibrate(args) -> int:
     return 0
 
 
+def _cores() -> int:
+    """Return the cores this process may run on (its affinity where the OS says it)."""
+    import os
+    affinity = getattr(os, 'sched_getaffinity', None)
+    return len(affinity(0)) if affinity else (os.cpu_count() or 1)
+
+
 def _plots_available(verb: str) -> bool:
     """Tell whether matplotlib is there; if not, say so once (before computing) and how."""
     from ring_gyro_sim.analysis import plotting
@@ -424,7 +434,8 @@ def cmd_characterize(args) -> int:
     _say_if_compiling(_note('characterize'))
     sheet = characterize(args.params, args.out, quick=args.quick, loops=loops,
                          progress=not args.no_progress, node_name=args.node_name,
-                         shock_peaks_g=peaks)
+                         shock_peaks_g=peaks,
+                         workers=_cores() if args.workers is None else args.workers)
     print(json.dumps({
         'out': args.out, 'quick': args.quick, 'loops': sheet['loops'],
         'scale_factor_v_per_rad_s': sheet['scale_factor'],
