@@ -34,12 +34,15 @@ Pacing
     inputs while the node lags). With the gyroscope, ``~/rate`` is paced
     (``ros/rate_pacer.py``): its messages go out at their sample times, ``RATE_LATENCY_BLOCKS``
     (2) blocks of simulated time after them, a pair at a time, so that a best-effort
-    subscriber (``qos_profile_sensor_data``, keep last 5) that keeps up gets every one: the
-    node sends those due at every tick, after every stretch of a block it computes (every loop
-    update closed loop) and, between ticks, sleeps until the next pair is due (no executor
-    turn, no thread; never past the time the next block is due, nor for more than 80 % of a
-    tick, so inputs and services wait no longer than before). ``duration`` > 0 ends the run
-    after that much simulated time;
+    subscriber (``qos_profile_sensor_data``, keep last 5) that keeps up gets every one. Paced
+    so, the timer ticks every ``MAX_TICK_PERIOD_S`` (20 ms) and a tick serves ``~/rate``
+    until ``TICK_MARGIN_S`` before the next: it sleeps until each pair is due (no executor
+    turn, no thread), computes each block as it falls due (sending what falls due meanwhile,
+    after every loop update closed loop), and returns for the executor's turn, the only
+    time no message goes out. Inputs, services and parameter changes wait for the end of a
+    tick (inputs act at the next block either way); the turn builds rclpy's wait set in
+    Python (~0.3 ms), which at four ticks a block cost ~12 % of a core at real time
+    (doc/performance.md). ``duration`` > 0 ends the run after that much simulated time;
     SIGINT or SIGTERM end it at the next block boundary. Either way: final diagnostics, a
     summary in the log (peak |q1|, smallest gap, q2 amplitude before the first shock and over
     the last 10 ms), the recording finalised, exit code 0. A signal before that, during
@@ -162,6 +165,13 @@ from std_srvs.srv import Trigger
 DIAGNOSTICS_PERIOD_S = 1.0
 TICK_BUDGET_S = 0.05
 """Most wall time one timer callback spends on blocks before serving inputs and services."""
+MAX_TICK_PERIOD_S = 0.02
+"""Longest period of the node's timer, s: inputs, services and parameter changes wait for
+the end of a tick (the inputs act at the next block either way)."""
+TICK_MARGIN_S = 0.0005
+"""A paced gyroscope's tick serves ``~/rate`` until this long before the next tick, s: the
+executor's turn between them (its wait set built in Python, ~0.3 ms) is the only time no
+message goes out."""
 SPIN_TIMEOUT_S = 0.1
 """Longest wait of one executor turn (the stop flag is checked between turns)."""
 LAG_WARN_S = 0.5
@@ -355,8 +365,11 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
             self.destroy_timer(self.tick_timer)
         rtf = self.real_time_factor
         block_wall_s = self.block_samples * self.run.period_ns * 1e-9 / rtf if rtf > 0 else 0.0
-        period = min(max(block_wall_s / 4.0, 0.001), 0.02)
-        self._tick_period_s = period
+        period = min(max(block_wall_s / 4.0, 0.001), MAX_TICK_PERIOD_S)
+        if self.rate_pacer is not None and rtf > 0.0:
+            # A tick serves ~/rate until the next and computes the blocks due meanwhile
+            # (module doc, "Pacing"): few executor turns, each ~0.3 ms of rclpy's wait set.
+            period = MAX_TICK_PERIOD_S
         self.tick_timer = self.create_timer(period, self._on_tick, clock=self.steady)
 
     # ------------------------------------------------------------------ pacing
@@ -399,17 +412,27 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
     def _on_tick(self) -> None:
         self._watch_for_a_namesake()
         next_block_s = self._tick_blocks()
-        if self.rate_pacer is not None and not self.done:
-            self._serve_rate(min(time.monotonic() + 0.8 * self._tick_period_s, next_block_s))
+        if self.rate_pacer is None or self.done:
+            return
+        # ~/rate until shortly before the next tick, and the blocks that fall due meanwhile
+        left_ns = self.tick_timer.time_until_next_call()
+        end = time.monotonic() + (left_ns or 0) * 1e-9 - TICK_MARGIN_S
+        while not self.done:
+            self._serve_rate(min(end, next_block_s))
+            if next_block_s > end:
+                return
+            delay = next_block_s - time.monotonic()
+            if delay > 0.0:
+                time.sleep(delay)
+            next_block_s = self._tick_blocks()
 
     def _serve_rate(self, until: float) -> None:
         """
         Send ``~/rate`` on time until shortly before the next tick (module doc, "Pacing").
 
         Sleeps (no GIL, no executor turn) until each message is due; returns once the next
-        one is due after ``until`` (wall s): 80 % of a tick period from now, or the time the
-        next block is due if sooner (never a block late for it), so inputs and services wait
-        no longer than they did between two ticks.
+        one is due after ``until`` (wall s): ``TICK_MARGIN_S`` before the next tick, or the
+        time the next block is due if sooner (never a block late for it).
         """
         pacer = self.rate_pacer
         pacer.send_due()

@@ -26,7 +26,7 @@ gyroscope sends one sample per output period; so does the node now, two at a tim
 sends those that are due whenever the node calls :meth:`RatePacer.send_due`. The node, which
 has one thread, calls it at every tick of its timer, after every stretch of a block it
 computes (``Simulator.advance_samples``, ``between``: every loop update, 1 ms, closed loop)
-and, between ticks, sleeps until the next pair is due (:meth:`RatePacer.next_send_s`;
+and, through each tick, sleeps until the next pair is due (:meth:`RatePacer.next_send_s`;
 ``ros/node.py``, "Pacing"). A message is due at the wall time the node gives: its sample
 time delayed by a fixed latency, so that a block's messages are ready before the first of
 them is due (two blocks, while the node keeps its pace), mapped to the wall clock by the
