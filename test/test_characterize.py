@@ -33,6 +33,7 @@ import numpy as np
 import pytest
 from ring_gyro_sim import characterize as ch
 from ring_gyro_sim import cli
+from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.gyro import operating_point
 from ring_gyro_sim.core.params import build_config, paper_config, STANDARD_GRAVITY
 from ring_gyro_sim.run import Run
@@ -247,6 +248,28 @@ def test_the_datasheet_is_the_same_on_one_process_as_on_two(sheet, tmp_path):
             == {k: v for k, v in sheet.items() if k not in timing})
     # the time of both processes is counted: more CPU than wall on two
     assert sheet['cpu_time_s'] > sheet['wall_time_s']
+
+
+def _fails_on_purpose(bar):
+    """Report as a piece of a characterization does, then fail (run on a worker)."""
+    bar.note('a note from a worker')
+    bar.update(0.5, 'halfway')
+    bar.finish_run(1.0)
+    raise ParameterError('scenario.shock_peaks: refused on purpose')
+
+
+def test_a_piece_that_fails_on_a_worker_raises_its_error_here(capsys):
+    bar = ch._Bar(2.0, False)
+    farm = ch._Farm(bar, 2)
+    try:
+        with pytest.raises(ParameterError, match='scenario.shock_peaks: refused on purpose'):
+            farm.result(farm.submit(_fails_on_purpose))
+    finally:
+        farm.close()
+    # what the worker reported reached this process's bar (by the end: the queue's order
+    # against the result's is not kept)
+    assert bar.runs == 1 and bar.done_s == 1.0 and not bar.running
+    assert 'characterize: a note from a worker' in capsys.readouterr().err
 
 
 @pytest.mark.parametrize('workers', ['0', '-1'])
