@@ -627,8 +627,8 @@ class _Farm:
 
     :meth:`submit` takes a function with a ``bar`` keyword (it gets the bar, or a
     :class:`_BarClient` in a worker) and returns a future; :meth:`result` waits for one,
-    passing the workers' progress to the bar meanwhile. One worker runs each piece at
-    submission, in this process, as before workers. Each piece is a run or a series of
+    passing the workers' progress to the bar meanwhile. With one worker each piece runs at
+    submission, in this process. Each piece is a run or a series of
     runs that depends on no other (its seeds are the file's), so the datasheet is the same
     for any number of workers (``test_characterize``). The workers are spawned (a fresh
     interpreter each: numba's threads and the parent's state are not forked); their CPU time
@@ -1110,15 +1110,17 @@ def characterize(params_path: str, out_dir: str, quick: bool = False,
         # the rebalance loop's shock runs are averaged before the shock and after it
         shocks = {i: farm.submit(_shock, flat, plan, peak_g=keys[i][1], loop=keys[i][0])
                   for i in sorted(range(len(keys)), key=lambda i: keys[i][0] == 'rebalance')}
+        points = farm.submit(_rate_points, flat, plan)
         long = farm.submit(_long_record, flat, plan, refusal=refusal)
         owned = farm.submit(_owned_device, flat, plan)
-        drift = farm.result(farm.submit(_drift_and_step, flat, plan, averaged=quiet))
-        table = farm.result(farm.submit(_rate_table, flat, plan, drift=_table_inputs(drift)))
+        drift = farm.submit(_drift_and_step, flat, plan, averaged=quiet)
         shocks = [farm.result(shocks[i]) for i in range(len(keys))]
-        long, owned, environment = (farm.result(f) for f in (long, owned, environment))
+        environment, points, long, owned, drift = (
+            farm.result(f) for f in (environment, points, long, owned, drift))
     finally:
         farm.close()
         bar.close()
+    table = _rate_table(plan, points, drift)
     environment.update(_settled(plan, drift['step']['time_constant_s']))
     sheet = _assemble(params_path, flat, plan, quick, loops, drift, table, shocks)
     sheet.update(owned)
@@ -1317,15 +1319,9 @@ def _allan_intervals(tau: np.ndarray, dev: np.ndarray, n_samples: int,
     return out
 
 
-def _table_inputs(drift) -> Dict[str, Any]:
-    """Return what :func:`_rate_table` reads of :func:`_drift_and_step`'s answer (no record)."""
-    return {'calibration': drift['calibration'], 'drive_amplitude_m': drift['drive_amplitude_m'],
-            'allan': {'arw_rad_sqrt_s': drift['allan']['arw_rad_sqrt_s']},
-            'step': {'time_constant_s': drift['step']['time_constant_s']}}
-
-
-def _rate_table(flat, plan: Plan, bar: _Bar, drift) -> Dict[str, Any]:
-    rows = []
+def _rate_points(flat, plan: Plan, bar: _Bar) -> List[Dict[str, Any]]:
+    """Run the rate table: per rate, the mean of ``~/rate`` at its end and the run's scales."""
+    points = []
     for dps in plan.rate_points_dps:
         rate = dps * DEG
         values = _test_parameters(flat, plan.rate_point_s,
@@ -1333,12 +1329,25 @@ def _rate_table(flat, plan: Plan, bar: _Bar, drift) -> Dict[str, Any]:
                                       'scenario.rate_values': [rate]} if rate else {}))
         rec = _simulate(values, plan.rate_point_s, bar, f'rate table {dps:+g} deg/s')
         window = rec.t > plan.rate_point_s - plan.rate_average_s
+        points.append({'rate_deg_per_s': dps, 'mean_rad_s': float(np.mean(rec.rate[window])),
+                       'rebalance': bool(rec.config.control.rebalance),
+                       'calibration': rec.scale_factor / rec.drive_amplitude_m,
+                       'drive_amplitude_m': rec.drive_amplitude_m})
+    return points
+
+
+def _rate_table(plan: Plan, points: Sequence[Mapping[str, Any]], drift) -> Dict[str, Any]:
+    """Return the rate table of :func:`_rate_points`, read with the step record's figures."""
+    rows = []
+    for point in points:
+        dps = point['rate_deg_per_s']
+        rate = dps * DEG
         # E14: the rebalance readout is not divided by the electronics' scale factor.
-        recalibrate = (1.0 if rec.config.control.rebalance else
-                       (rec.scale_factor / rec.drive_amplitude_m) / drift['calibration'])
-        amplitude_ratio = rec.drive_amplitude_m / drift['drive_amplitude_m']
+        recalibrate = (1.0 if point['rebalance'] else
+                       point['calibration'] / drift['calibration'])
+        amplitude_ratio = point['drive_amplitude_m'] / drift['drive_amplitude_m']
         rows.append({'rate_deg_per_s': dps, 'rate_rad_s': rate,
-                     'output_rad_s': float(np.mean(rec.rate[window])) * recalibrate,
+                     'output_rad_s': point['mean_rad_s'] * recalibrate,
                      'predicted_output_rad_s': rate * recalibrate,
                      'calibration_ratio': recalibrate, 'drive_amplitude_ratio': amplitude_ratio,
                      'standard_error_rad_s': _mean_noise(
