@@ -41,7 +41,7 @@ Pacing
     after every loop update closed loop), and returns for the executor's turn, the only
     time no message goes out. Inputs, services and parameter changes wait for the end of a
     tick (inputs act at the next block either way); the turn builds rclpy's wait set in
-    Python (~0.3 ms), which at four ticks a block cost ~12 % of a core at real time
+    Python (~0.3 ms), so the fewer turns the smaller the node's share of a core
     (doc/performance.md). ``duration`` > 0 ends the run after that much simulated time;
     SIGINT or SIGTERM end it at the next block boundary. Either way: final diagnostics, a
     summary in the log (peak |q1|, smallest gap, q2 amplitude before the first shock and over
