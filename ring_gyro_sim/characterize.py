@@ -627,8 +627,9 @@ class _Farm:
 
     :meth:`submit` takes a function with a ``bar`` keyword (it gets the bar, or a
     :class:`_BarClient` in a worker) and returns a future; :meth:`result` waits for one,
-    passing the workers' progress to the bar meanwhile. With one worker each piece runs at
-    submission, in this process. Each piece is a run or a series of
+    passing the workers' progress to the bar meanwhile, and raises a worker's error. With
+    one worker each piece runs at submission, in this process, and its error is raised
+    there. Each piece is a run or a series of
     runs that depends on no other (its seeds are the file's), so the datasheet is the same
     for any number of workers (``test_characterize``). The workers are spawned (a fresh
     interpreter each: numba's threads and the parent's state are not forked); their CPU time
@@ -654,11 +655,9 @@ class _Farm:
         if self.pool is not None:
             self.tasks += 1
             return self.pool.submit(_worker_task, self.tasks, function, args, kwargs)
+        # here an error (Ctrl-C too) stops the characterization at once, as it did in order
         future = concurrent.futures.Future()
-        try:
-            future.set_result(function(*args, bar=self.bar, **kwargs))
-        except BaseException as exc:  # noqa: B902 - handed to result(), as a pool would
-            future.set_exception(exc)
+        future.set_result(function(*args, bar=self.bar, **kwargs))
         return future
 
     def _drain(self, timeout: float) -> None:

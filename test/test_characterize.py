@@ -251,23 +251,35 @@ def test_the_datasheet_is_the_same_on_one_process_as_on_two(sheet, tmp_path):
 
 
 def _fails_on_purpose(bar):
-    """Report as a piece of a characterization does, then fail (run on a worker)."""
+    """Report as a piece of a characterization does, then fail."""
     bar.note('a note from a worker')
     bar.update(0.5, 'halfway')
     bar.finish_run(1.0)
     raise ParameterError('scenario.shock_peaks: refused on purpose')
 
 
-def test_a_piece_that_fails_on_a_worker_raises_its_error_here(capsys):
+def _interrupted(bar):
+    raise KeyboardInterrupt
+
+
+def test_a_piece_interrupted_in_this_process_stops_the_characterization():
+    # one worker: the pieces run in order here, and Ctrl-C in one ends them all
+    farm = ch._Farm(ch._Bar(1.0, False), 1)
+    with pytest.raises(KeyboardInterrupt):
+        farm.submit(_interrupted)
+
+
+@pytest.mark.parametrize('workers', [1, 2])
+def test_a_piece_that_fails_raises_its_error_here(capsys, workers):
     bar = ch._Bar(2.0, False)
-    farm = ch._Farm(bar, 2)
+    farm = ch._Farm(bar, workers)
     try:
         with pytest.raises(ParameterError, match='scenario.shock_peaks: refused on purpose'):
             farm.result(farm.submit(_fails_on_purpose))
     finally:
         farm.close()
-    # what the worker reported reached this process's bar (by the end: the queue's order
-    # against the result's is not kept)
+    # what the piece reported reached this process's bar (from a worker by the end: the
+    # queue's order against the result's is not kept)
     assert bar.runs == 1 and bar.done_s == 1.0 and not bar.running
     assert 'characterize: a note from a worker' in capsys.readouterr().err
 
