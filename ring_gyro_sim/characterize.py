@@ -151,10 +151,11 @@ modes need them in the table (:func:`available_loops`). The other tests run the 
 setting (a file with ``control.rebalance: true`` gets the datasheet of that readout).
 
 Processes (``workers``, :class:`_Farm`): the long record, the zero-rate and step record,
-each shock run, the device as owned, the environment series and the rate table (after the
-step record, whose calibration it reads) are independent pieces, run on a process pool of
-the standard library, the longest submitted first; each seeds from the file, so the
-datasheet does not depend on the number of processes. Not the sweep engine: a sweep point
+each shock run, the device as owned, the environment series and the rate table's runs
+are independent pieces, run on a process pool of the standard library, the longest
+submitted first (the table is read with the step record's calibration afterwards); each
+seeds from the file, so the datasheet does not depend on the number of processes. A failing
+piece or Ctrl-C ends the workers at once. Not the sweep engine: a sweep point
 (``sweep.point.evaluate``) is a paper case that keeps scalar metrics of the 100 kHz modal
 envelopes (and, on request, the envelopes); these tests need the 1 kHz rate records
 themselves (the Allan deviation, the step, the error curves of the shock plot) and the
@@ -166,6 +167,7 @@ import json
 import math
 import os
 from pathlib import Path
+import signal
 import time
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 import warnings
@@ -615,10 +617,25 @@ _WORKER_QUEUE = None
 def _worker_start(queue) -> None:
     global _WORKER_QUEUE
     _WORKER_QUEUE = queue
+    # Ctrl-C is the parent's to handle: it ends the workers (_Farm.close)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _worker_task(task: int, function, args, kwargs):
     return function(*args, bar=_BarClient(_WORKER_QUEUE, task), **kwargs)
+
+
+class _Done:
+    """A piece run in this process: its answer, as a worker's pending result gives it."""
+
+    def __init__(self, value) -> None:
+        self.value = value
+
+    def ready(self) -> bool:
+        return True
+
+    def get(self):
+        return self.value
 
 
 class _Farm:
@@ -626,14 +643,15 @@ class _Farm:
     Runs the characterization's independent pieces: here, or on ``workers`` processes.
 
     :meth:`submit` takes a function with a ``bar`` keyword (it gets the bar, or a
-    :class:`_BarClient` in a worker) and returns a future; :meth:`result` waits for one,
-    passing the workers' progress to the bar meanwhile, and raises a worker's error. With
-    one worker each piece runs at submission, in this process, and its error is raised
-    there. Each piece is a run or a series of
-    runs that depends on no other (its seeds are the file's), so the datasheet is the same
-    for any number of workers (``test_characterize``). The workers are spawned (a fresh
-    interpreter each: numba's threads and the parent's state are not forked); their CPU time
-    is counted once they have ended (:meth:`close`).
+    :class:`_BarClient` in a worker) and returns its pending result; :meth:`result` waits
+    for one, passing the workers' progress to the bar meanwhile, and raises a worker's
+    error. With one worker each piece runs at submission, in this process, and its error
+    is raised there. Each piece is a run or a series of runs that depends on no other (its
+    seeds are the file's), so the datasheet is the same for any number of workers
+    (``test_characterize``). The workers are a spawned ``multiprocessing`` pool (a fresh
+    interpreter each: numba's threads and the parent's state are not forked), which
+    :meth:`close` ends at once after an error or Ctrl-C; their CPU time is counted once
+    they have ended.
     """
 
     def __init__(self, bar: _Bar, workers: int) -> None:
@@ -642,23 +660,18 @@ class _Farm:
         self.pool = self.queue = None
         self.tasks = 0
         if self.workers > 1:
-            import concurrent.futures
             import multiprocessing
             context = multiprocessing.get_context('spawn')
             self.queue = context.Queue()
-            self.pool = concurrent.futures.ProcessPoolExecutor(
-                self.workers, mp_context=context, initializer=_worker_start,
-                initargs=(self.queue,))
+            self.pool = context.Pool(self.workers, initializer=_worker_start,
+                                     initargs=(self.queue,))
 
     def submit(self, function, *args, **kwargs):
-        import concurrent.futures
         if self.pool is not None:
             self.tasks += 1
-            return self.pool.submit(_worker_task, self.tasks, function, args, kwargs)
+            return self.pool.apply_async(_worker_task, (self.tasks, function, args, kwargs))
         # here an error (Ctrl-C too) stops the characterization at once, as it did in order
-        future = concurrent.futures.Future()
-        future.set_result(function(*args, bar=self.bar, **kwargs))
-        return future
+        return _Done(function(*args, bar=self.bar, **kwargs))
 
     def _drain(self, timeout: float) -> None:
         import queue as queue_mod
@@ -673,18 +686,25 @@ class _Farm:
         except queue_mod.Empty:
             pass
 
-    def result(self, future):
-        while self.queue is not None and not future.done():
+    def result(self, pending):
+        while self.queue is not None and not pending.ready():
             self._drain(0.2)
         if self.queue is not None:
             self._drain(0.0)
-        return future.result()
+        return pending.get()
 
-    def close(self) -> None:
-        if self.pool is not None:
-            self.pool.shutdown(wait=True, cancel_futures=True)
-            self._drain(0.0)
-            self.pool = None
+    def close(self, abort: bool = False) -> None:
+        """End the workers: once their pieces are done, or at once (``abort``)."""
+        pool, self.pool = self.pool, None
+        if pool is None:
+            return
+        if abort:
+            pool.terminate()  # a worker stopped mid-message leaves the queue unread
+            pool.join()
+            return
+        pool.close()
+        pool.join()
+        self._drain(0.0)
 
 
 def _simulate(values: Mapping[str, Any], duration_s: float, bar: _Bar, note: str) -> _Record:
@@ -1102,6 +1122,7 @@ def characterize(params_path: str, out_dir: str, quick: bool = False,
     bar = _Bar(plan.simulated_s(len(loops), output_rate) - (drift_s if quiet else 0.0), progress,
                averaged_s=(plan.long_record_s + drift_s) if quiet else 0.0)
     farm = _Farm(bar, workers)
+    finished = False
     try:
         # the longest pieces first, so that the last to end is short
         environment = farm.submit(_environment, flat, plan)
@@ -1116,8 +1137,9 @@ def characterize(params_path: str, out_dir: str, quick: bool = False,
         shocks = [farm.result(shocks[i]) for i in range(len(keys))]
         environment, points, long, owned, drift = (
             farm.result(f) for f in (environment, points, long, owned, drift))
+        finished = True
     finally:
-        farm.close()
+        farm.close(abort=not finished)
         bar.close()
     table = _rate_table(plan, points, drift)
     environment.update(_settled(plan, drift['step']['time_constant_s']))

@@ -28,6 +28,7 @@ import math
 from pathlib import Path
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -282,6 +283,23 @@ def test_a_piece_that_fails_raises_its_error_here(capsys, workers):
     # queue's order against the result's is not kept)
     assert bar.runs == 1 and bar.done_s == 1.0 and not bar.running
     assert 'characterize: a note from a worker' in capsys.readouterr().err
+
+
+def _sleeps(bar):
+    time.sleep(120.0)
+
+
+def test_a_failed_characterization_ends_its_workers_at_once():
+    # a piece fails while another has minutes to go: the workers end now, not after it
+    farm = ch._Farm(ch._Bar(1.0, False), 2)
+    try:
+        farm.submit(_sleeps)
+        with pytest.raises(ParameterError, match='refused on purpose'):
+            farm.result(farm.submit(_fails_on_purpose))
+    finally:
+        start = time.monotonic()
+        farm.close(abort=True)
+    assert time.monotonic() - start < 30.0  # (the sleeping piece had 120 s left)
 
 
 @pytest.mark.parametrize('workers', ['0', '-1'])
