@@ -247,8 +247,9 @@ def test_the_datasheet_is_the_same_on_one_process_as_on_two(sheet, tmp_path):
     timing = ('wall_time_s', 'cpu_time_s', 'workers')
     assert ({k: v for k, v in one.items() if k not in timing}
             == {k: v for k, v in sheet.items() if k not in timing})
-    # the time of both processes is counted: more CPU than wall on two
-    assert sheet['cpu_time_s'] > sheet['wall_time_s']
+    # the workers' CPU time is counted: as much work as in one process (20.8 s there, 23.3 s
+    # on two; the parent alone does a few seconds of it), whatever the host's load
+    assert sheet['cpu_time_s'] > 0.5 * one['cpu_time_s']
 
 
 def _fails_on_purpose(bar):
