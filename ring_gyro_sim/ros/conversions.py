@@ -43,7 +43,7 @@ The gyroscope's rate output ``~/rate`` is one ``sensor_msgs/msg/Imu`` per rate s
 import array
 from dataclasses import dataclass
 import math
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Collection, Dict, List, Optional, Sequence, Tuple
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -123,23 +123,24 @@ def block_arrays(msg: Float64MultiArray) -> Tuple[List[str], np.ndarray]:
 
 
 def output_blocks(samples, channel_names: Dict[str, List[str]], rows: slice = slice(None),
-                  build=block_message) -> Dict[str, Float64MultiArray]:
+                  build=block_message,
+                  topics: Optional[Collection[str]] = None) -> Dict[str, Float64MultiArray]:
     """
     Build the three block messages of a :class:`~ring_gyro_sim.core.simulator.Samples`.
 
     ``rows`` selects the samples (rows) the messages hold: all of them by default; a
     recording's decimated rows (``RunRecorder.kept_rows``) when nothing publishes the blocks.
     ``build``: :func:`block_message` (messages) or :func:`block_cdr` (their CDR, to record).
+    ``topics``: only those of the three named (default all).
     """
-    t = samples.t[rows]
-    return {
-        'modal_displacement': build([t, samples.q[rows]],
-                                    ['t'] + channel_names['modal_displacement']),
-        'radial_gap': build([t, samples.gap[rows], samples.min_gap[rows]],
-                            ['t'] + channel_names['radial_gap']),
-        'sense_electrodes': build([t, samples.capacitance[rows]],
-                                  ['t'] + channel_names['sense_electrodes']),
+    columns = {
+        'modal_displacement': lambda: [samples.q[rows]],
+        'radial_gap': lambda: [samples.gap[rows], samples.min_gap[rows]],
+        'sense_electrodes': lambda: [samples.capacitance[rows]],
     }
+    t = samples.t[rows]
+    return {name: build([t, *get()], ['t'] + channel_names[name])
+            for name, get in columns.items() if topics is None or name in topics}
 
 
 def demodulator_block(demod, rows: slice = slice(None),

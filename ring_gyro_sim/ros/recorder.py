@@ -105,7 +105,7 @@ import platform
 import queue
 import subprocess
 import threading
-from typing import Dict, Iterable, Optional, Sequence
+from typing import Dict, FrozenSet, Iterable, Optional, Sequence
 
 import numpy as np
 from ring_gyro_sim import __version__
@@ -571,6 +571,11 @@ class RunRecorder:
         if self._failure is not None:
             failure, self._failure = self._failure, None
             raise failure
+
+    @property
+    def block_topics(self) -> FrozenSet[str]:
+        """Return the block topics this recording keeps (``record.topics``)."""
+        return frozenset(self._blocks)
 
     def kept_rows(self, t_ns: int, rows: int) -> slice:
         """

@@ -58,6 +58,9 @@ def diagnostics_names(fully_qualified_name: str):
 class NullRecorder:
     """Stands in for a :class:`~ring_gyro_sim.ros.recorder.RunRecorder` when not recording."""
 
+    block_topics = frozenset()
+    """No block topic is recorded."""
+
     def kept_rows(self, t_ns: int, rows: int) -> slice:
         """Return no row: nothing is recorded."""
         return slice(0, 0)
@@ -301,15 +304,16 @@ class RosSink(run_mod.Sink):
         and offline, nothing needs the message objects: the block topics and ``~/rate`` go to the
         recorder as their CDR, packed from the rows the recording keeps
         (``record.decimation``), so a recording does not pay for building every 200 kHz sample
-        into a message, nor for rclpy's conversion of the messages back to CDR.
+        into a message, nor for rclpy's conversion of the messages back to CDR; and a block
+        topic nothing records (``record.topics``, or no recording) is not built at all.
         """
         thinned = not self.publishers.publishes_blocks
         if thinned:
             rows = self.recorder.kept_rows(block.end_ns, len(block.samples.t))
-            build = conversions.block_cdr
+            build, topics = conversions.block_cdr, self.recorder.block_topics
         else:
-            rows, build = slice(None), conversions.block_message
-        msgs = conversions.output_blocks(block.samples, self.channel_names, rows, build)
+            rows, build, topics = slice(None), conversions.block_message, None
+        msgs = conversions.output_blocks(block.samples, self.channel_names, rows, build, topics)
         if block.rate is not None:
             rate = self.rate_cdr(block.rate) if thinned else self.rate_messages(block.rate)
             self.publishers.rate(rate)
@@ -320,10 +324,11 @@ class RosSink(run_mod.Sink):
                                                       self.frame_id)
                 self.publishers.die_temperature(die)
                 self.recorder.die_temperature(die, block.end_ns)
-        if block.demod is not None:
+        if block.demod is not None and (topics is None
+                                        or conversions.DEMODULATOR_TOPIC in topics):
             msgs[conversions.DEMODULATOR_TOPIC] = conversions.demodulator_block(block.demod,
                                                                                 rows, build)
-        if block.control is not None:
+        if block.control is not None and (topics is None or conversions.CONTROL_TOPIC in topics):
             msgs[conversions.CONTROL_TOPIC] = conversions.control_block(block.control, build)
         if not thinned:
             self.publishers.blocks(msgs)

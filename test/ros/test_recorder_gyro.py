@@ -311,6 +311,30 @@ def test_blocks_nobody_subscribes_to_are_not_published_and_record_as_offline(
         assert a.end_ns == b.end_ns and np.array_equal(a.data, b.data), name
 
 
+@pytest.mark.parametrize('kept', [[], ['radial_gap'], ['demodulator', 'modal_displacement']])
+def test_a_block_topic_nothing_records_or_publishes_is_not_built(
+        tmp_path, samples, monkeypatch, kept):
+    # Neither published (no subscriber) nor recorded (record.topics): its CDR is never
+    # packed, the one the recording keeps is, and ~/rate goes out as ever.
+    built = []
+
+    def block_cdr(columns, labels):
+        built.append(list(labels))
+        return conversions.cdr.float64_multiarray(np.column_stack(columns), labels)
+
+    monkeypatch.setattr(conversions, 'block_cdr', block_cdr)
+    blocks = {name: _Unwatched() for name in conversions.OUTPUT_TOPICS + ('demodulator',)}
+    rate = _Publisher()
+    path = record(tmp_path / 'kept.mcap', samples, {**GYRO, 'record.topics': ['rate'] + kept},
+                  publishers=Publishers(blocks, _Publisher(), rate=rate))
+    names = Simulator(paper_config(GYRO)).channel_names
+    names['demodulator'] = list(conversions.DEMOD_CHANNELS)
+    assert sorted(built) == sorted(['t'] + names[name] for name in kept for _ in range(BLOCKS))
+    assert len(rate.messages) == BLOCKS
+    recorded = {m.topic for m in read_messages(path)}
+    assert recorded == {f'{NS}/{name}' for name in ['rate'] + kept}
+
+
 def test_gyro_topics_only_in_a_gyroscope_run(tmp_path, samples):
     # Without gyro.enabled the node has none of them, whatever record.topics says.
     config = paper_config({**GYRO, 'gyro.enabled': False,
