@@ -35,13 +35,14 @@ Pacing
     (``ros/rate_pacer.py``): its messages go out at their sample times, ``RATE_LATENCY_BLOCKS``
     (2) blocks of simulated time after them, a pair at a time, so that a best-effort
     subscriber (``qos_profile_sensor_data``, keep last 5) that keeps up gets every one. Paced
-    so, the timer ticks every ``MAX_TICK_PERIOD_S`` (20 ms) and a tick serves ``~/rate``
+    so, the timer ticks every ``MAX_TICK_PERIOD_S`` (100 ms) and a tick serves ``~/rate``
     until ``TICK_MARGIN_S`` before the next: it sleeps until each pair is due (no executor
     turn, no thread), computes each block as it falls due (sending what falls due meanwhile,
     after every loop update closed loop), and returns for the executor's turn, the only
-    time no message goes out. Inputs, services and parameter changes wait for the end of a
-    tick (inputs act at the next block either way); the turn builds rclpy's wait set in
-    Python (~0.3 ms), so the fewer turns the smaller the node's share of a core
+    time no message goes out. Services and parameter changes wait for the end of a tick, at
+    most 0.1 s (inputs are taken before every block and act at the next block either way);
+    a turn builds rclpy's wait set in Python (~1.3 ms of CPU at real time on
+    this project's 2-core host), so the fewer turns the smaller the node's share of a core
     (doc/performance.md). ``duration`` > 0 ends the run after that much simulated time;
     SIGINT or SIGTERM end it at the next block boundary. Either way: final diagnostics, a
     summary in the log (peak |q1|, smallest gap, q2 amplitude before the first shock and over
@@ -165,12 +166,14 @@ from std_srvs.srv import Trigger
 DIAGNOSTICS_PERIOD_S = 1.0
 TICK_BUDGET_S = 0.05
 """Most wall time one timer callback spends on blocks before serving inputs and services."""
-MAX_TICK_PERIOD_S = 0.02
-"""Longest period of the node's timer, s: inputs, services and parameter changes wait for
-the end of a tick (the inputs act at the next block either way)."""
+MAX_TICK_PERIOD_S = 0.1
+"""Longest period of the node's timer, s: services and parameter changes wait for the end of
+a tick (inputs are taken before every block and act at the next block either way). Each tick
+ends in an executor turn, ~1.3 ms of CPU at real time: 10 a second cost 1.6 % of a core, 50
+cost 6.5 % (doc/performance.md)."""
 TICK_MARGIN_S = 0.0005
 """A paced gyroscope's tick serves ``~/rate`` until this long before the next tick, s: the
-executor's turn between them (its wait set built in Python, ~0.3 ms) is the only time no
+executor's turn between them (its wait set built in Python, ~1.3 ms) is the only time no
 message goes out."""
 SPIN_TIMEOUT_S = 0.1
 """Longest wait of one executor turn (the stop flag is checked between turns)."""
@@ -493,8 +496,8 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         (no RMW reports a keep-last overwrite). Taken, every message is either applied or
         refused and counted by the run (``run.MAX_SHOCKS_PER_BLOCK`` shocks per block and
         ``run.MAX_PENDING_SHOCKS`` pending bound the work a flood can buy). The queues hold
-        1000 shocks or samples: a flood loses messages in the middleware only beyond 1000 per
-        tick (<= 20 ms), and those the RMW reports lost are counted (``lost_inputs``).
+        1000 shocks or samples: a flood loses messages in the middleware only beyond 1000
+        between two blocks, and those the RMW reports lost are counted (``lost_inputs``).
         """
         for sub, handler, most in self._input_subs:
             is_shock = handler == self._on_shock
@@ -727,7 +730,7 @@ class _StopOnSignal:
             return
         if node.stop_requested:
             raise KeyboardInterrupt  # a second signal
-        # The next timer callback (<= 20 ms) ends the run with the context still up, so the
+        # The next block (or timer callback) ends the run with the context still up, so the
         # final diagnostics and the summary are still published.
         node.stop_requested = name
 
