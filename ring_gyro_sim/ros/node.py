@@ -41,16 +41,16 @@ Pacing
     after every loop update closed loop), and returns for the executor's turn, the only
     time no message goes out. Services and parameter changes wait for the end of a tick, at
     most 0.1 s (inputs are taken before every block and act at the next block either way);
-    a turn builds rclpy's wait set in Python (~1.3 ms of CPU at real time on
-    this project's 2-core host), so the fewer turns the smaller the node's share of a core
-    (doc/performance.md). ``duration`` > 0 ends the run after that much simulated time;
-    SIGINT or SIGTERM end it at the next block boundary. Either way: final diagnostics, a
-    summary in the log (peak |q1|, smallest gap, q2 amplitude before the first shock and over
-    the last 10 ms), the recording finalised, exit code 0. A signal before that, during
-    start-up, ends the process at once, exit code 0, without a traceback (see
-    ``ring_gyro_sim.ros``). A bad parameter file or value, an unwritable ``record.path`` or a
-    failed ``drive.start_on`` orbit: one FATAL line naming the parameter, exit code 1; so does
-    another node of the same name in the graph ("Start-up").
+    a turn builds rclpy's wait set in Python (about a millisecond of CPU), so the fewer
+    turns the smaller the node's share of a core (doc/performance.md). ``duration`` > 0
+    ends the run after that much simulated time; SIGINT or SIGTERM end it at the next block
+    boundary. Either way: final diagnostics, a summary in the log (peak |q1|, smallest gap,
+    q2 amplitude before the first shock and over the last 10 ms), the recording finalised,
+    exit code 0. A signal before that, during start-up, ends the process at once, exit code
+    0, without a traceback (see ``ring_gyro_sim.ros``). A bad parameter file or value, an
+    unwritable ``record.path`` or a failed ``drive.start_on`` orbit: one FATAL line naming
+    the parameter, exit code 1; so does another node of the same name in the graph
+    ("Start-up").
 
     The node is spun with ``SingleThreadedExecutor.spin_once`` in a loop, not
     ``spin_until_future_complete``: rclpy (Jazzy) adds a done-callback to the future on
@@ -169,12 +169,12 @@ TICK_BUDGET_S = 0.05
 MAX_TICK_PERIOD_S = 0.1
 """Longest period of the node's timer, s: services and parameter changes wait for the end of
 a tick (inputs are taken before every block and act at the next block either way). Each tick
-ends in an executor turn, ~1.3 ms of CPU at real time: 10 a second cost 1.6 % of a core, 50
-cost 6.5 % (doc/performance.md)."""
+ends in an executor turn, about a millisecond of CPU (doc/performance.md): the node ticks no
+more often than that wait allows."""
 TICK_MARGIN_S = 0.0005
 """A paced gyroscope's tick serves ``~/rate`` until this long before the next tick, s: the
-executor's turn between them (its wait set built in Python, ~1.3 ms) is the only time no
-message goes out."""
+executor's turn between them (its wait set built in Python, about a millisecond) is the only
+time no message goes out."""
 SPIN_TIMEOUT_S = 0.1
 """Longest wait of one executor turn (the stop flag is checked between turns)."""
 LAG_WARN_S = 0.5
