@@ -327,6 +327,18 @@ class Sink:
     def input(self, event: Input) -> None:
         """Take an accepted event; it acts now (``event.at_ns``: its acting time, ns)."""
 
+    @property
+    def needs_channels(self) -> bool:
+        """
+        Tell whether the next block's samples must carry every channel (gaps, capacitances).
+
+        True here (the block :meth:`Run.advance` returns has them). A sink that neither
+        publishes nor records them says False: an averaged stretch then leaves them out
+        (``Samples.gap`` None) and gives only their smallest gap, which the statistics take
+        (``core.fidelity.AveragedStretch``).
+        """
+        return True
+
     def block(self, block: Block) -> None:
         """Take a simulated block; every sample in it is finite."""
 
@@ -392,7 +404,7 @@ class RunStats:
             return
         self.samples += len(s)
         self.peak = np.maximum(self.peak, np.max(np.abs(s.q), axis=0))
-        block_min = float(np.min(s.min_gap))
+        block_min = s.least_gap()
         self.min_gap = min(self.min_gap, block_min)
         self.interval_min_gap = min(self.interval_min_gap, block_min)
         self.last_min_gap = block_min
@@ -952,7 +964,7 @@ class Run:
                     stop = int(math.floor(fast / sim.period_s + 1e-9)) // window * window
                     limit = min(limit, max(0, stop - now))
                 if limit > 0:
-                    parts.append(stretch.advance(limit))
+                    parts.append(stretch.advance(limit, self.sink.needs_channels))
                     self._stale = True
                     count -= limit
                     if between is not None:

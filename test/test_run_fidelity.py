@@ -29,7 +29,8 @@ from ring_gyro_sim import offline
 from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.params import build_config, STANDARD_GRAVITY
 from ring_gyro_sim.recording.reader import read_handoffs
-from ring_gyro_sim.run import AmbientTemperature, AngularRate, ParameterChange, Run, Shock
+from ring_gyro_sim.run import (AmbientTemperature, AngularRate, ParameterChange, Run, Shock,
+                               Sink)
 
 HUNDRED_DEG_S = math.radians(100.0)
 QUIET = {'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0,
@@ -97,6 +98,58 @@ def test_the_averaged_blocks_channels_are_those_of_their_coordinates(quiet_pair)
     ref = auto.sim.outputs_for(s.q)
     assert np.array_equal(ref.capacitance, s.capacitance)
     assert np.array_equal(ref.gap, s.gap) and np.array_equal(ref.min_gap, s.min_gap)
+
+
+class _NoChannels(Sink):
+    """A sink that keeps no channel (a node nobody subscribes to that records none)."""
+
+    needs_channels = False
+
+
+def test_without_channels_the_averaged_blocks_keep_their_smallest_gap(quiet_pair):
+    # (R5) The same run with a sink that keeps no channel: its averaged blocks carry no gaps
+    # or capacitances, their smallest gap is that of all their samples to the bit, and
+    # nothing else changes.
+    (auto, a), _ = quiet_pair
+    run = Run(auto.config, calibration=None, sink=_NoChannels())
+    b = [run.advance(len(block)) for block in a]
+    assert run.handoffs == auto.handoffs
+    averaged = 0
+    for x, y in zip(a, b):
+        assert y.samples.least_gap() == x.samples.least_gap() == np.min(x.samples.min_gap)
+        assert np.array_equal(y.rate.rate, x.rate.rate)
+        assert np.array_equal(y.samples.q, x.samples.q)
+        if y.samples.gap is None:
+            assert y.samples.min_gap is None and y.samples.capacitance is None
+            averaged += 1
+    assert averaged == len(a) - 1   # the full model's first block has its channels
+    assert run.stats.min_gap == auto.stats.min_gap
+    assert run.summary().min_gap_m == auto.summary().min_gap_m
+
+
+@pytest.mark.parametrize('motion', ['driven', 'circular', 'random'])
+def test_the_smallest_gap_from_the_samples_that_can_hold_it(quiet_pair, motion):
+    # (R5) against the kernel on every sample: a driven pair (8 % of the samples are
+    # candidates), a circular orbit whose radius varies by 1e-8, less than the estimate's
+    # error (0 to 7e-6 of the radius here: the grid and parabola decide, not the radius;
+    # every sample is a candidate, and taking the largest radius alone fails), noise.
+    (auto, _), _ = quiet_pair
+    stretch = auto._stretch
+    rng = np.random.default_rng(7)
+    phase = np.linspace(0.0, 40.0 * math.pi, 2000)
+    a = 2e-6
+    if motion == 'driven':
+        pair = np.column_stack([a * np.cos(phase), 1e-3 * a * np.sin(phase)])
+    elif motion == 'circular':
+        radius = a * (1.0 + 1e-8 * rng.standard_normal(phase.size))
+        pair = np.column_stack([radius * np.cos(phase), radius * np.sin(phase)])
+    else:
+        pair = a * rng.standard_normal((2000, 2))
+    q = np.zeros((pair.shape[0], auto.sim.model.n_coordinates))
+    q[:, [1, auto.config.modes.count + 1]] = pair
+    every = np.min(auto.sim.outputs_for(q).min_gap)
+    assert stretch._smallest_gap(np.ascontiguousarray(pair)) == every
+    assert every < auto.sim.model.gap - 0.99 * np.max(np.hypot(pair[:, 0], pair[:, 1]))
 
 
 def test_inputs_hand_to_the_full_model_and_back():

@@ -219,10 +219,13 @@ def joined_samples(parts: Sequence['Samples']) -> 'Samples':
     demod = rate_output = None
     if all(p.demod is not None and p.rate_output is not None for p in parts):
         demod, rate_output = _joined(t, [(p.demod, p.rate_output) for p in parts])
-    return Samples(t=t, q=cat('q'), v=cat('v'), gap=cat('gap'), min_gap=cat('min_gap'),
+    min_gap = cat('min_gap')
+    return Samples(t=t, q=cat('q'), v=cat('v'), gap=cat('gap'), min_gap=min_gap,
                    capacitance=cat('capacitance'), drive_phase=cat('drive_phase'),
                    applied_rate=cat('applied_rate'), control=cat('control'), demod=demod,
-                   rate_output=rate_output, die_temperature=parts[-1].die_temperature)
+                   rate_output=rate_output, die_temperature=parts[-1].die_temperature,
+                   smallest_gap=(None if min_gap is not None
+                                 else min(p.least_gap() for p in parts)))
 
 
 def _check_acceleration(name: str, x: float, y: float = 0.0) -> None:
@@ -367,11 +370,13 @@ class Samples:
         Sample times, s.
     q, v : ndarray, shape (K, n)
         Coordinates (m) and their velocities (m/s), columns as :attr:`Simulator.coordinates`.
-    gap : ndarray, shape (K, E)
-        Outer gap at each electrode centre, m.
-    min_gap : ndarray, shape (K,)
+    gap : ndarray, shape (K, E), or None
+        Outer gap at each electrode centre, m. None: not computed (an averaged stretch whose
+        run's sink keeps no channel: ``run.Sink.needs_channels``), nor are ``min_gap`` and
+        ``capacitance``; :attr:`smallest_gap` is then the smallest of the samples' ``min_gap``.
+    min_gap : ndarray, shape (K,), or None
         Smallest outer gap around the ring, m.
-    capacitance : ndarray, shape (K, E)
+    capacitance : ndarray, shape (K, E), or None
         Capacitance of each outer electrode, F (untruncated parallel plate).
     drive_phase : ndarray, shape (K,) or None
         Phase of the drive force ``A cos(phase)`` at each sample time, rad (the reference of
@@ -389,24 +394,34 @@ class Samples:
         off.
     die_temperature : float or None
         The die temperature at the last sample, K (core.thermal, T2).
+    smallest_gap : float or None
+        With the channels not computed (``gap`` None): the smallest of the samples' smallest
+        gaps, m, the value ``min(min_gap)`` would have. :meth:`least_gap` gives it either way.
 
     """
 
     t: np.ndarray
     q: np.ndarray
     v: np.ndarray
-    gap: np.ndarray
-    min_gap: np.ndarray
-    capacitance: np.ndarray
+    gap: Optional[np.ndarray]
+    min_gap: Optional[np.ndarray]
+    capacitance: Optional[np.ndarray]
     drive_phase: Optional[np.ndarray] = None
     applied_rate: Optional[np.ndarray] = None
     control: Optional[np.ndarray] = None
     demod: Optional[electronics.DemodSamples] = None
     rate_output: Optional[electronics.RateSamples] = None
     die_temperature: Optional[float] = None
+    smallest_gap: Optional[float] = None
 
     def __len__(self) -> int:
         return int(self.t.size)
+
+    def least_gap(self) -> float:
+        """Return the smallest of the samples' smallest gaps, m (inf without a sample)."""
+        if self.min_gap is None:
+            return math.inf if self.smallest_gap is None else self.smallest_gap
+        return float(np.min(self.min_gap)) if self.min_gap.size else math.inf
 
 
 class Simulator:

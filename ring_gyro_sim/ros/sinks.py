@@ -48,6 +48,9 @@ from ring_gyro_sim.ros import conversions
 
 __all__ = ['NullPublishers', 'NullRecorder', 'Publishers', 'RosSink', 'diagnostics_names']
 
+CHANNEL_TOPICS = frozenset(('radial_gap', 'sense_electrodes'))
+"""The block topics of the samples' channels (gaps, capacitances: ``Samples.gap``)."""
+
 
 def diagnostics_names(fully_qualified_name: str):
     """Return ``(status name, hardware_id)`` of a node's diagnostics."""
@@ -295,6 +298,18 @@ class RosSink(run_mod.Sink):
             self._imu_stream = key, conversions.imu_stream(self.frame_id, self._rate_covariance)
         return conversions.rate_cdr(rate, self._imu_stream[1])
 
+    @property
+    def needs_channels(self) -> bool:
+        """
+        Tell whether the next block must carry its gaps and capacitances (``Run``).
+
+        Only when a subscriber is matched on a block topic or the recording keeps
+        ``radial_gap`` or ``sense_electrodes``: otherwise nothing reads them, and an averaged
+        stretch leaves them out (``core.fidelity.AveragedStretch``, R5).
+        """
+        return (self.publishers.publishes_blocks
+                or not CHANNEL_TOPICS.isdisjoint(self.recorder.block_topics))
+
     def block(self, block) -> None:
         """
         Convert a block to messages once; publish and record them, and ``/clock``.
@@ -307,7 +322,9 @@ class RosSink(run_mod.Sink):
         into a message, nor for rclpy's conversion of the messages back to CDR; and a block
         topic nothing records (``record.topics``, or no recording) is not built at all.
         """
-        thinned = not self.publishers.publishes_blocks
+        # A block computed without its channels (nobody subscribed then: needs_channels) is
+        # not published to a subscriber matched meanwhile: its first block is the next one.
+        thinned = not self.publishers.publishes_blocks or block.samples.gap is None
         if thinned:
             rows = self.recorder.kept_rows(block.end_ns, len(block.samples.t))
             build, topics = conversions.block_cdr, self.recorder.block_topics

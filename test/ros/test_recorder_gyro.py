@@ -26,6 +26,7 @@ with ours.
 
 # Google import order, as ament_flake8 checks it; ruff's default isort order differs.
 # isort: off
+import dataclasses
 import functools
 import math
 import pathlib
@@ -333,6 +334,43 @@ def test_a_block_topic_nothing_records_or_publishes_is_not_built(
     assert len(rate.messages) == BLOCKS
     recorded = {m.topic for m in read_messages(path)}
     assert recorded == {f'{NS}/{name}' for name in ['rate'] + kept}
+
+
+def test_the_sink_asks_for_the_channels_only_when_it_publishes_or_records_them(
+        tmp_path, samples):
+    # RosSink.needs_channels: a matched subscriber on a block topic, or radial_gap or
+    # sense_electrodes recorded. A block without them (computed while nobody watched) is
+    # not published to a subscriber matched meanwhile; the rest goes out as ever.
+    config = paper_config(GYRO)
+    names = Simulator(config).channel_names
+    unwatched = {name: _Unwatched() for name in conversions.OUTPUT_TOPICS + ('demodulator',)}
+    assert not RosSink(names, NS, publishers=Publishers(unwatched, _Publisher())).needs_channels
+    watched = {**unwatched, 'radial_gap': _Publisher()}
+    rate = _Publisher()
+    publishers = Publishers(watched, _Publisher(), rate=rate)
+    assert RosSink(names, NS, publishers=publishers).needs_channels
+    for kept, needs in ((['rate', 'modal_displacement', 'demodulator'], False),
+                        (['radial_gap'], True), (['sense_electrodes'], True)):
+        path = tmp_path / f'{kept[-1]}.mcap'
+        recorder = RunRecorder(str(path), paper_config({**GYRO, 'record.topics': kept}),
+                               names, NS)
+        sink = RosSink(names, NS, recorder=recorder,
+                       publishers=Publishers(unwatched, _Publisher()))
+        assert sink.needs_channels == needs, kept
+        sink.close()
+    path = tmp_path / 'without.mcap'
+    sink = RosSink(names, NS, recorder=RunRecorder(
+        str(path), paper_config({**GYRO, 'record.topics': ['rate', 'modal_displacement']}),
+        names, NS), publishers=publishers, frame_id='gyro_link')
+    for k in range(BLOCKS):
+        block = gyro_block(samples, k)
+        s = block.samples
+        sink.block(dataclasses.replace(block, samples=dataclasses.replace(
+            s, gap=None, min_gap=None, capacitance=None, smallest_gap=s.least_gap())))
+    sink.close()
+    assert not any(pub.messages for pub in watched.values())
+    assert len(rate.messages) == BLOCKS
+    assert len(read_block_topic(path, 'modal_displacement').data) == BLOCKS * 200
 
 
 def test_gyro_topics_only_in_a_gyroscope_run(tmp_path, samples):

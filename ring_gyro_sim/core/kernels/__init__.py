@@ -146,7 +146,8 @@ angles vectorise. The measured costs, and what was tried and not kept, are in
   compiles to a ``memset`` call.
 """
 
-from ring_gyro_sim.core.kernels.channels import Channels, output_channels, OutputGeometry
+from ring_gyro_sim.core.kernels.channels import (Channels, output_channels, OutputGeometry,
+                                                 RING_MAX_MARGIN)
 from ring_gyro_sim.core.kernels.drift import (linear_propagators, pair_propagators,
                                               pair_system)
 from ring_gyro_sim.core.kernels.envelope import (EnvelopeModel, force_harmonic,
@@ -171,8 +172,8 @@ __all__ = ['STATUS_OK', 'STATUS_OUTER_CONTACT', 'STATUS_INNER_CONTACT', 'STATUS_
            'STATUS_NONFINITE', 'NEEDS_GENERAL', 'Force', 'Drive', 'Forcing', 'Method', 'Scratch',
            'ESTRIN_MAX_SLOTS', 'estrin_layout', 'orbit_angle', 'describe_status',
            'splitting_coefficients', 'linear_propagators', 'pair_propagators', 'pair_system',
-           'member_basis', 'nl_accel',
-           'drive_phasor', 'run_samples', 'OutputGeometry', 'Channels', 'output_channels',
+           'member_basis', 'nl_accel', 'drive_phasor', 'run_samples', 'OutputGeometry',
+           'Channels', 'output_channels', 'RING_MAX_MARGIN',
            'pickoff_volts', 'iq_fit', 'Stops', 'stop_accel', 'stop_angles',
            'stop_max_substep', 'STOP_IMPACTS', 'STOP_IN_CONTACT', 'STOP_LAST_CONTACT',
            'STOP_SUBSTEPS', 'EnvelopeModel', 'force_harmonic', 'pickoff_harmonic',

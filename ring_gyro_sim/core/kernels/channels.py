@@ -27,7 +27,7 @@ import numpy as np
 
 from ring_gyro_sim.core.kernels.force import _angle_values
 
-__all__ = ['OutputGeometry', 'Channels', 'output_channels']
+__all__ = ['OutputGeometry', 'Channels', 'output_channels', 'RING_MAX_MARGIN']
 
 
 class OutputGeometry(NamedTuple):
@@ -105,12 +105,14 @@ class Channels(NamedTuple):
 _LANES = 8
 
 
-_RING_MAX_MARGIN = 1e-3
+RING_MAX_MARGIN = 1e-3
 """
 Bound on the error of the ring's smallest gap (grid and parabola, :func:`output_channels`) in
 units of ``sum n^2 |q_n|``: the third derivative of w is at most ``n_max sum n^2 |q_n|``, so
 the error ``|w_3| delta^3 / (9 sqrt 3)`` is at most ``n_max delta^3 / (9 sqrt 3)`` of it, with
-``n_max delta <= 2 pi / 32`` (``simulator.GAP_GRID_POINTS_PER_MODE``): below 5e-4.
+``n_max delta <= 2 pi / 32`` (``simulator.GAP_GRID_POINTS_PER_MODE``): below 5e-4. Twice
+that: the estimate ``w_max`` is within this times ``sum n^2 |q_n|`` of the largest w, round-off
+included (the kernel's refinement test and ``core.fidelity.AveragedStretch`` rely on it).
 """
 
 
@@ -234,9 +236,9 @@ def output_channels(q, geometry, out):
         for i in range(n):
             c2 += curvature[i] * abs(qs[i])
         # No electrode node can be nearer than the ring's smallest gap (less the parabola's
-        # error, _RING_MAX_MARGIN): far from contact the nodes' own maxima are not needed to
+        # error, RING_MAX_MARGIN): far from contact the nodes' own maxima are not needed to
         # know that no electrode is refined.
-        near = gap - w_max < (refine_coeff + _RING_MAX_MARGIN) * c2
+        near = gap - w_max < (refine_coeff + RING_MAX_MARGIN) * c2
         for k in range(n_k):
             top = -np.inf
             if near:
