@@ -26,10 +26,16 @@ end of that header, strings as a uint32 length with the terminating NUL, sequenc
 uint32 count. The padding bytes, which rclpy leaves as they were in its buffer, are zeros.
 ``test/recording/test_cdr.py`` checks the bytes against ``serialize_message`` (padding aside)
 and what rclpy, mcap_ros2 and rosbags decode.
+
+:func:`serialize` packs any other message the same way, walking its fields: rclpy's
+``serialize_message`` leaves its padding bytes as they were in the buffer it allocated (bytes
+of the process: ``es``, ``::``, ...), which a recording must not carry, and which made two
+recordings of one run differ in their bytes.
 """
 
+import re
 import struct
-from typing import Optional, Sequence
+from typing import Any, Optional, Sequence
 
 import numpy as np
 
@@ -51,6 +57,91 @@ def _string(text: str) -> bytes:
 
 def _pad(offset: int, alignment: int) -> bytes:
     return b'\x00' * (-offset % alignment)
+
+
+_PRIMITIVES = {
+    'boolean': '?', 'octet': 'B', 'byte': 'B', 'char': 'B', 'uint8': 'B', 'int8': 'b',
+    'int16': 'h', 'uint16': 'H', 'int32': 'i', 'uint32': 'I', 'int64': 'q', 'uint64': 'Q',
+    'float': 'f', 'double': 'd',
+}
+"""IDL primitive types (as rclpy's ``get_fields_and_field_types`` names them) -> struct codes."""
+_SEQUENCE = re.compile(r'^sequence<(.+?)(, ?\d+)?>$')
+_ARRAY = re.compile(r'^(.+)\[(\d+)\]$')
+_STRING = re.compile(r'^string(<=\d+)?$')
+
+
+def serialize(message: Any) -> bytes:
+    """
+    Return the CDR of an rclpy message as ``serialize_message`` lays it out, padding zeroed.
+
+    XCDR1 little endian after the encapsulation header, each primitive aligned to its size
+    from the end of the header; a message without fields holds one zero byte (rosidl's
+    ``structure_needs_at_least_one_member``), padded to four as rmw_fastrtps sizes it.
+
+    Raises
+    ------
+    TypeError
+        A field of a type this packer does not know (``wstring``).
+
+    """
+    if not message.get_fields_and_field_types():
+        return ENCAPSULATION + bytes(4)
+    out = bytearray(ENCAPSULATION)
+    _pack_message(message, out)
+    return bytes(out)
+
+
+def _align(out: bytearray, size: int) -> None:
+    out.extend(b'\x00' * (-(len(out) - 4) % size))
+
+
+def _pack_message(message: Any, out: bytearray) -> None:
+    fields = message.get_fields_and_field_types()
+    if not fields:
+        out.append(0)
+        return
+    for name, kind in fields.items():
+        _pack_value(kind, getattr(message, name), out)
+
+
+def _pack_value(kind: str, value: Any, out: bytearray) -> None:
+    code = _PRIMITIVES.get(kind)
+    if code is not None:
+        size = struct.calcsize(code)
+        _align(out, size)
+        if code == 'B' and isinstance(value, (bytes, bytearray)):
+            value = value[0]
+        out.extend(struct.pack('<' + code, value))
+        return
+    if _STRING.match(kind):
+        _align(out, 4)
+        out.extend(_string(value))
+        return
+    match = _SEQUENCE.match(kind)
+    if match is not None:
+        _align(out, 4)
+        out.extend(_U32.pack(len(value)))
+        _pack_items(match.group(1), value, out)
+        return
+    match = _ARRAY.match(kind)
+    if match is not None:
+        _pack_items(match.group(1), value, out)
+        return
+    if '/' in kind:
+        _pack_message(value, out)
+        return
+    raise TypeError(f'cdr.serialize: field type {kind!r} is not supported')
+
+
+def _pack_items(kind: str, values: Any, out: bytearray) -> None:
+    code = _PRIMITIVES.get(kind)
+    if code is not None and len(values):
+        size = struct.calcsize(code)
+        _align(out, size)
+        out.extend(np.asarray(values, dtype=np.dtype(code).newbyteorder('<')).tobytes())
+        return
+    for value in values:
+        _pack_value(kind, value, out)
 
 
 def float64_multiarray(data: np.ndarray, labels: Sequence[str],

@@ -66,10 +66,9 @@ from mcap import __version__ as mcap_version
 from mcap.data_stream import RecordBuilder
 from mcap.exceptions import UnsupportedCompressionError
 from mcap.writer import CompressionType, IndexType, Writer
-from rclpy.serialization import serialize_message
 
 from ring_gyro_sim import __version__
-from ring_gyro_sim.recording import _rosbag2
+from ring_gyro_sim.recording import _rosbag2, cdr
 from ring_gyro_sim.recording._filelock import is_being_written, lock_exclusive
 from ring_gyro_sim.recording.errors import OutputBusyError, OutputExistsError, RecordingError
 from ring_gyro_sim.recording.schemas import (
@@ -539,7 +538,7 @@ class BagWriter:
                 if actual != info.type_name:
                     raise TypeError(
                         f'topic {topic!r} records {info.type_name}, got a {actual} message')
-                data = serialize_message(message)
+                data = cdr.serialize(message)
             info.message_count += 1
             try:
                 self._writer.add_message(
