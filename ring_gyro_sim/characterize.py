@@ -2105,12 +2105,12 @@ def _random_entry(results, shift, sine) -> Optional[Dict[str, Any]]:
     sine's ``A_1^2 / 2``; the prediction is the sine's shift per mean square (the smallest
     amplitude of the series) times the profile's.
     """
-    from ring_gyro_sim.core.simulator import _environment_of
+    from ring_gyro_sim.core.ring.environment import environment_of
     found = [(r, o, c) for r, o, c in results if r['test'] == 'random']
     if not found:
         return None
     run, out, config = found[0]
-    rv = _environment_of(config).random
+    rv = environment_of(config).random
     f = rv.lines * rv.df
     w = 2.0 * math.pi * f
     w1 = 2.0 * math.pi * config.modes.coordinate_frequencies()[0]

@@ -79,8 +79,9 @@ from ring_gyro_sim.core.errors import InputError, SimulationError
 from ring_gyro_sim.core.gyro import calibration as gyro_calibration, control, electronics
 from ring_gyro_sim.core.gyro.channel import SenseChain
 from ring_gyro_sim.core.params import (BOLTZMANN, build_config, EPSILON_0, MAX_ACCELERATION,
-                                       SimConfig, STANDARD_GRAVITY, to_flat)
+                                       SimConfig, to_flat)
 from ring_gyro_sim.core.rate_profile import RateProfile
+from ring_gyro_sim.core.ring.environment import environment_of
 
 THERMAL_UPDATE_S = 0.01
 """How often the die temperature is followed, s of simulated time (T2)."""
@@ -235,51 +236,6 @@ def _check_acceleration(name: str, x: float, y: float = 0.0) -> None:
         raise InputError(f'{name}: {magnitude:.6g} m/s^2 is beyond the physical bound of '
                          f'{MAX_ACCELERATION:.6g} m/s^2 (10^6 g: no ring survives such a shock; '
                          f'far beyond it the arithmetic of a contact overflows)')
-
-
-@dataclass(frozen=True)
-class _Environment:
-    """
-    The scenario's base acceleration in the ring's plane (:func:`_environment_of`), m/s^2.
-
-    ``steady + sine_peak sin(omega (t - t_ref) + phase) + direction a_r(n)``: the steady part,
-    the sine's peak along x and y (its phase reference is the simulator's, which keeps it
-    continuous across changes), the random vibration's multisine ``a_r`` at output sample
-    ``n`` (``core.vibration``) and its direction.
-    """
-
-    steady: Tuple[float, float]
-    sine_peak: Tuple[float, float]
-    omega: float
-    random: Optional[vibration.RandomVibration]
-    direction: Tuple[float, float]
-
-
-def _environment_of(config: SimConfig) -> Optional[_Environment]:
-    """
-    Return the scenario's environment, None without one.
-
-    ``scenario.acceleration`` steady, the sine vibration of ``scenario.vibration_amplitude``
-    (peak) at ``scenario.vibration_frequency`` and the random vibration of
-    ``scenario.vibration_psd_*`` (seeded by ``gyro.noise_seed``), both along
-    ``scenario.vibration_angle`` (from x towards y). It enters the equations as a streamed
-    base acceleration does (eq. 32's forcing).
-    """
-    r = config.run
-    steady = tuple(r.acceleration) if r.acceleration else (0.0, 0.0)
-    peak = r.vibration_amplitude if r.vibration_frequency > 0.0 else 0.0
-    random = None
-    if r.vibration_psd_frequencies:
-        random = vibration.random_vibration(
-            tuple(r.vibration_psd_frequencies), tuple(r.vibration_psd_values), r.output_rate,
-            config.gyro.noise_seed, STANDARD_GRAVITY)
-    if peak == 0.0 and steady == (0.0, 0.0) and random is None:
-        return None
-    angle = math.radians(r.vibration_angle)
-    return _Environment(steady=(float(steady[0]), float(steady[1])),
-                        sine_peak=(peak * math.cos(angle), peak * math.sin(angle)),
-                        omega=2.0 * math.pi * r.vibration_frequency, random=random,
-                        direction=(math.cos(angle), math.sin(angle)))
 
 
 def _first_nonfinite(*arrays: Optional[np.ndarray]) -> Optional[int]:
@@ -481,7 +437,7 @@ class Simulator:
         self._profile_x: List[float] = []
         self._profile_y: List[float] = []
         self._profile_head = 0
-        self._environment = _environment_of(config)
+        self._environment = environment_of(config)
         # The sine vibration's phase reference: its phase is continuous across a change of
         # its frequency (as the drive's), so a change moves the reference to its time.
         self._vibration_t_ref = 0.0
@@ -805,7 +761,7 @@ class Simulator:
             self._rephase_drive()
         if config.run.vibration_frequency != self._config.run.vibration_frequency:
             self._rephase_vibration()
-        self._environment = _environment_of(config)
+        self._environment = environment_of(config)
         self._config = config
         self._build(thermal.device_at(config, self.device_temperature))
         if self.pickoff is not None:  # the voltages set the amplifiers' gains
@@ -1474,7 +1430,7 @@ class Simulator:
         Return the base acceleration (s, m/s^2, m/s^2) of a stretch of ``count`` samples.
 
         The streamed profile (:meth:`_profile_arrays`) plus the environment of the scenario
-        (``scenario.vibration_*``, ``scenario.acceleration``; :func:`_environment_of`),
+        (``scenario.vibration_*``, ``scenario.acceleration``; :func:`environment_of`),
         evaluated at every output sample from two before the stretch to two after it (the
         kernel's stages stay within two steps of it) and at the streamed samples there: the
         kernel interpolates the sum linearly. The sine is evaluated at every time of the

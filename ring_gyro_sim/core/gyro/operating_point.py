@@ -39,6 +39,7 @@ from ring_gyro_sim.core import forces, harmonic_balance, structure
 from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.gyro import electronics
 from ring_gyro_sim.core.params import SimConfig
+from ring_gyro_sim.core.ring.environment import environment_of
 from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
@@ -397,7 +398,7 @@ def with_environment_response(config: SimConfig, state):
     """
     Return a copy of a start state with the 1theta pair on its answer to the environment.
 
-    The scenario's base acceleration (``core.simulator._environment_of``: a steady ``a``, a
+    The scenario's base acceleration (``core.ring.environment.environment_of``: a steady ``a``, a
     sine ``A sin(w t)`` and a random multisine ``sum_k A_k cos(w_k t + phi_k)`` along the
     vibration's direction) forces the 1theta pair as eq. (27):
     ``q1'' + c q1' + k q1 = -a_x(t)`` (``q1s`` with ``a_y``), ``k`` the coordinate's linear
@@ -413,8 +414,7 @@ def with_environment_response(config: SimConfig, state):
     transient (the other modes' static and slow parts, which the electrostatic coupling brings
     in from t = 0). ``state`` is ``(x, v)`` (None: the ring at rest); the others are kept.
     """
-    from ring_gyro_sim.core.simulator import _environment_of  # the simulator's own reading
-    env = _environment_of(config)
+    env = environment_of(config)
     frequencies = config.modes.coordinate_frequencies()
     if state is None:
         x, v = np.zeros(len(frequencies)), np.zeros(len(frequencies))
@@ -510,10 +510,9 @@ def start_state(config: SimConfig,
     not start with the step that would ring the 1theta mode for ``2 Q_1 / omega_1``. ``log``
     as :func:`resting_orbit`.
     """
-    from ring_gyro_sim.core.simulator import _environment_of  # the simulator's own reading
     orbit = resting_orbit(config, log)
     state = None if orbit is None else with_rate_response(config, orbit)
-    if _environment_of(config) is None:
+    if environment_of(config) is None:
         return state
     return with_environment_response(config, state)
 
