@@ -1425,7 +1425,7 @@ def _owned_device(flat, plan: Plan, bar: _Bar) -> Dict[str, Any]:
     and with the compensation fitted at ``compensation_points_k`` (or the file's
     ``gyro.calibration.temperature_points``).
     """
-    from ring_gyro_sim.core.gyro import calibration
+    from ring_gyro_sim.core.bench import factory
     values = {k: v for k, v in flat.items() if not k.startswith('scenario.')}
     values.update({'gyro.calibration.source': 'factory', 'gyro.temperature': 0.0,
                    'gyro.input_noise_density': 0.0, 'gyro.bias_instability': 0.0})
@@ -1435,7 +1435,7 @@ def _owned_device(flat, plan: Plan, bar: _Bar) -> Dict[str, Any]:
         values['gyro.calibration.temperature_points'] = fit_points
     bar.note('the device as owned: its factory calibration and temperature series')
     config = build_config(values)
-    held = calibration.factory(config)
+    held = factory.factory(config)
     record = _simulate(dict(values, **{'duration': plan.rate_point_s}), plan.rate_point_s,
                        bar, 'quadrature at zero rate')
     window = record.t > record.t[-1] - plan.rate_average_s
@@ -1445,7 +1445,7 @@ def _owned_device(flat, plan: Plan, bar: _Bar) -> Dict[str, Any]:
     rows = []
     for kelvin in plan.temperature_points_k:
         bar.note(f'temperature series: the table at {kelvin - 273.15:g} deg C')
-        scale_t, zero_t = calibration.table_at(config, kelvin, held)
+        scale_t, zero_t = factory.table_at(config, kelvin, held)
         bias_c, scale_c = held.at(kelvin)
         rows.append({'temperature_k': float(kelvin),
                      'bias_deg_per_h': (zero_t / scale0 - bias0) * RAD_S_TO_DEG_H,

@@ -105,6 +105,7 @@ import numpy as np
 
 from ring_gyro_sim.core import thermal
 from ring_gyro_sim.core.averaged import fast_mode_amplitude, HAND_BACK_THRESHOLD
+from ring_gyro_sim.core.bench import factory
 from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.fidelity import AveragedStretch, CHECK_S, unsupported
 from ring_gyro_sim.core.gyro import calibration as gyro_calibration, operating_point, validity
@@ -540,7 +541,7 @@ class Run:
         if start_state is None:  # on the device at the die's start temperature (T2)
             start_state = operating_point.start_state(thermal.start_state_device(config), log)
         if isinstance(calibration, str) and calibration == 'auto':
-            calibration = gyro_calibration.for_config(config, log)
+            calibration = factory.for_config(config, log)
         self.calibration: Optional[gyro_calibration.Calibration] = calibration
         self._stretch: Optional[AveragedStretch] = None
         self._stale = False

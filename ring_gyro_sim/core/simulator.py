@@ -390,11 +390,10 @@ class Simulator:
         Validated configuration. ``scenario.shock_times`` / ``shock_peaks`` are scheduled.
     start_state : (q, v), optional
         Initial coordinates (m) and velocities (m/s); None: at rest.
-    calibration : Calibration, None or 'auto'
-        The rate output's held calibration (``core.gyro.calibration``, K1); None: the
-        model's own readout (``ideal``); ``'auto'`` (default): what
-        ``gyro.calibration.source`` asks for (``factory`` measures the device once per
-        process).
+    calibration : Calibration or None
+        The rate output's held calibration (``core.gyro.calibration``, K1); None (default):
+        the model's own readout (``ideal``). What ``gyro.calibration.source`` asks for is
+        measured above the model (``core.bench.factory.for_config``), which ``Run`` does.
 
     Attributes
     ----------
@@ -406,9 +405,7 @@ class Simulator:
 
     def __init__(self, config: SimConfig,
                  start_state: Optional[Tuple[np.ndarray, np.ndarray]] = None,
-                 calibration: Any = 'auto') -> None:
-        if isinstance(calibration, str) and calibration == 'auto':
-            calibration = gyro_calibration.for_config(config)
+                 calibration: Optional[gyro_calibration.Calibration] = None) -> None:
         self.calibration: Optional[gyro_calibration.Calibration] = calibration
         self._config = config
         self.period_ns = config.run.output_period_ns

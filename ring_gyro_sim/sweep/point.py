@@ -78,6 +78,7 @@ from ring_gyro_sim import __version__
 from ring_gyro_sim.analysis import cases
 from ring_gyro_sim.analysis import envelope as env
 from ring_gyro_sim.analysis import environment as environment_runs
+from ring_gyro_sim.core.bench import factory
 from ring_gyro_sim.core.gyro import calibration
 from ring_gyro_sim.core.params import SimConfig, to_flat
 from ring_gyro_sim.sweep.spec import ALL_ENVELOPES, Point
@@ -234,7 +235,7 @@ def setup_task(point: Point):
     """
     try:
         if point.kind == 'gyroscope':
-            return calibration.factory_tables(point.nominal_config())
+            return factory.factory_tables(point.nominal_config())
         if point.kind == 'environment':
             return environment_runs.mean_output(_reference_config(point), point.duration_s,
                                                 point.window_s)
@@ -289,7 +290,7 @@ def device_figures(config: SimConfig) -> Dict[str, float]:
 
 def gyroscope_figures(tables, nominal_scale_factor: float) -> Dict[str, float]:
     """
-    Return the :data:`FIGURES` of a device's factory tables (``calibration.factory_tables``).
+    Return the :data:`FIGURES` of a device's factory tables (``factory.factory_tables``).
 
     Parameters
     ----------
@@ -320,9 +321,9 @@ def gyroscope_figures(tables, nominal_scale_factor: float) -> Dict[str, float]:
 def _gyroscope(point: Point, nominal=None) -> Dict[str, Any]:
     """Return the metrics of a gyroscope point and its nominal device's figures."""
     if nominal is None:
-        nominal = calibration.factory_tables(point.nominal_config())
+        nominal = factory.factory_tables(point.nominal_config())
     config = point.config()
-    tables = calibration.factory_tables(config)
+    tables = factory.factory_tables(config)
     reference = nominal[0].scale_factor
     metrics = {**gyroscope_figures(tables, reference), **device_figures(config)}
     return {'metrics': metrics, 'nominal': gyroscope_figures(nominal, reference)}

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from ring_gyro_sim.core.gyro import calibration
+from ring_gyro_sim.core.bench import factory
 from ring_gyro_sim.core.gyro.control import KAPPA_2
 from ring_gyro_sim.core.params import build_config
 from ring_gyro_sim.sweep import load_spec, point, results, run_sweep
@@ -51,7 +51,7 @@ def population(tmp_path_factory):
     d = tmp_path_factory.mktemp('population')
     spec = load_spec(str(write_spec(d, SPEC)))
     with pytest.MonkeyPatch.context() as mp:  # the workers' tables: measured, stored apart
-        mp.setenv(calibration.CACHE_ENV, str(d / 'cache'))
+        mp.setenv(factory.CACHE_ENV, str(d / 'cache'))
         outcome = run_sweep(spec, d / 'out', workers=2, progress=False,
                             dashboard_address=None, plots=True)
     return spec, d / 'out', outcome
@@ -102,8 +102,8 @@ def test_one_point_run_again_gives_the_same_numbers_bit_for_bit(population, monk
     p = spec.points()[1]
     stored = PointStore(out, create=False).read(p.key)
     # this process runs the tables again: no stored tables, none memoised
-    monkeypatch.setenv(calibration.CACHE_ENV, '')
-    monkeypatch.setattr(calibration, '_MEMO', type(calibration._MEMO)())
+    monkeypatch.setenv(factory.CACHE_ENV, '')
+    monkeypatch.setattr(factory, '_MEMO', type(factory._MEMO)())
     again = point.compute(p)  # its own nominal device and tables
     for key in ('metrics', 'nominal'):  # the JSON text: repr, every bit of every float
         assert json.dumps(again[key], sort_keys=True) == json.dumps(stored[key], sort_keys=True)

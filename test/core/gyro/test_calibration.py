@@ -25,8 +25,8 @@ import math
 
 import numpy as np
 import pytest
+from ring_gyro_sim.core.bench import factory
 from ring_gyro_sim.core.errors import ParameterError
-from ring_gyro_sim.core.gyro import calibration
 from ring_gyro_sim.core.gyro.control import KAPPA_2
 from ring_gyro_sim.core.params import build_config
 from ring_gyro_sim.run import ParameterChange, Run
@@ -59,7 +59,7 @@ def test_the_factory_measures_what_the_readout_shows():
     # is the force per rad/s the table measures: as far from 2 kappa omega X, and the
     # factory-calibrated output reads the rate itself.
     config = build_config(QUIET)
-    cal = calibration.factory(config)
+    cal = factory.factory(config)
     ideal, run = mean_rate({**QUIET, 'gyro.calibration.source': 'ideal'}, TEN_DEG_S)
     loop = run.sim.loop
     closed_form = 2.0 * KAPPA_2 * loop.omega * loop.amplitude
@@ -100,29 +100,29 @@ def test_the_factory_reads_the_quadrature_of_a_split_in_rate_units():
     # K_sc / (2 kappa omega) (P2; doc/imperfections.md), here -5.05e-2 rad/s; the perfect
     # ring has none. The tables are those the calibration holds (memoised: run once).
     config = build_config(IMPERFECT)
-    tables = calibration.factory_tables(config)
+    tables = factory.factory_tables(config)
     k, _ = config.modes.pair_matrices(2)
     closed_form = k[0, 1] / (2.0 * KAPPA_2 * 2.0 * math.pi * 15800.01)
     print(f'quadrature {tables[0].quadrature:.6e} rad/s, closed form {closed_form:.6e}')
     assert len(tables) == 1 and tables[0].temperature_k == 298.15
     assert tables[0].quadrature == pytest.approx(closed_form, rel=1e-3)
-    cal = calibration.factory(config)
+    cal = factory.factory(config)
     assert (cal.bias, cal.scale_factor) == (tables[0].bias, tables[0].scale_factor)
     assert cal.readout_reference_v == tables[0].readout_reference_v  # the trim it read with
-    perfect = calibration.factory_tables(build_config(QUIET))[0]
+    perfect = factory.factory_tables(build_config(QUIET))[0]
     assert abs(perfect.quadrature) < 1e-9 * abs(closed_form)
 
 
 def test_a_given_calibration_is_applied_as_set():
     # (K1) rate = r / S - b: S and b given against the factory's
-    factory = calibration.factory(build_config(QUIET))
+    measured = factory.factory(build_config(QUIET))
     values = {**QUIET, 'gyro.calibration.source': 'given',
-              'gyro.calibration.scale_factor': 1.01 * factory.scale_factor,
+              'gyro.calibration.scale_factor': 1.01 * measured.scale_factor,
               'gyro.calibration.bias': 0.001}
     rate, run = mean_rate(values, TEN_DEG_S)
     reference, _ = mean_rate(QUIET, TEN_DEG_S)
     assert run.calibration.source == 'given'
-    assert rate == pytest.approx((reference + factory.bias) / 1.01 - 0.001, rel=1e-9)
+    assert rate == pytest.approx((reference + measured.bias) / 1.01 - 0.001, rel=1e-9)
     with pytest.raises(ParameterError, match='gyro.calibration.scale_factor'):
         build_config({'gyro.calibration.source': 'given'})
 
@@ -150,26 +150,26 @@ def test_a_factory_calibration_is_kept_in_a_file_and_read_back(tmp_path, monkeyp
     # running the table again (three simulated runs); a damaged file is measured again;
     # another device, or an empty RING_GYRO_SIM_CACHE, stores its own or none.
     config = build_config(QUIET)
-    monkeypatch.setenv(calibration.CACHE_ENV, str(tmp_path))
-    monkeypatch.setattr(calibration, '_MEMO', type(calibration._MEMO)())
-    measured = calibration.factory(config)
+    monkeypatch.setenv(factory.CACHE_ENV, str(tmp_path))
+    monkeypatch.setattr(factory, '_MEMO', type(factory._MEMO)())
+    measured = factory.factory(config)
     files = list(tmp_path.glob('calibration-*.json'))
     assert len(files) == 1
 
     def no_table(*args, **kwargs):
         raise AssertionError('measured again')
-    calibration._MEMO.clear()
-    monkeypatch.setattr(calibration, 'measure', no_table)
-    assert calibration.factory(config) == measured
-    calibration._MEMO.clear()
+    factory._MEMO.clear()
+    monkeypatch.setattr(factory, 'measure', no_table)
+    assert factory.factory(config) == measured
+    factory._MEMO.clear()
     files[0].write_text('{"source": "factory", "bias_rad_s": ', encoding='utf-8')
     with pytest.raises(AssertionError, match='measured again'):
-        calibration.factory(config)
+        factory.factory(config)
     other = build_config({**QUIET, 'drive.amplitude': 0.9 * config.drive.amplitude})
     with pytest.raises(AssertionError, match='measured again'):
-        calibration.factory(other)
-    monkeypatch.setenv(calibration.CACHE_ENV, '')
-    assert calibration._stored_path(calibration._bench(config)) is None
+        factory.factory(other)
+    monkeypatch.setenv(factory.CACHE_ENV, '')
+    assert factory._stored_path(factory._bench(config)) is None
 
 
 def test_the_factory_bench_leaves_the_scenario_out():
@@ -183,4 +183,4 @@ def test_the_factory_bench_leaves_the_scenario_out():
                            'scenario.vibration_psd_values': [0.01, 0.01],
                            'scenario.acceleration': [9.8, 0.0]})
     assert shaken != base
-    assert calibration._bench(shaken) == calibration._bench(base)
+    assert factory._bench(shaken) == factory._bench(base)
