@@ -69,10 +69,10 @@ import numba
 from numba import njit
 import numpy as np
 from ring_gyro_sim.core import forces, kernels
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.gyro.operating_point import start_state
 from ring_gyro_sim.core.params import SimConfig
-from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.paramfile import load_yaml
 from ring_gyro_sim.run import Run
 import scipy
@@ -123,7 +123,7 @@ t0 = time.perf_counter()
 import numpy as np
 from ring_gyro_sim.core import kernels
 from ring_gyro_sim.core.params import build_config
-from ring_gyro_sim.core.simulator import Simulator
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.paramfile import load_yaml
 t1 = time.perf_counter()
 sim = Simulator(build_config({}))
@@ -599,7 +599,7 @@ import json, os, shutil, sys, tempfile, time
 tree, path, overrides, duration, pairs = sys.argv[1:6]
 sys.path.insert(0, tree)
 from ring_gyro_sim.core.params import build_config, to_flat
-from ring_gyro_sim.core.simulator import channel_names
+from ring_gyro_sim.core.engine.full import channel_names
 from ring_gyro_sim.paramfile import load_yaml
 from ring_gyro_sim.ros.recorder import RunRecorder
 from ring_gyro_sim.ros.sinks import RosSink

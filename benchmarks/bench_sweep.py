@@ -96,9 +96,9 @@ DASK_ENV = {'MALLOC_TRIM_THRESHOLD_': '65536', 'OMP_NUM_THREADS': '1',
 PINNING = {'split': 'alone on CPU 1, paired on CPUs 1 and 0',
            'same': 'alone on CPU 1, paired both on CPU 1: one core time-shared'}
 """``pair --pin``: where the processes run (``none``: where the kernel puts them)."""
-PARTS = [('ring_gyro_sim.core.simulator', 'Simulator', '_integrate', 'kernel'),
-         ('ring_gyro_sim.core.simulator', 'Simulator', '_channels', 'channels'),
-         ('ring_gyro_sim.core.simulator', 'Simulator', 'advance_samples', 'sim_other'),
+PARTS = [('ring_gyro_sim.core.engine.full', 'Simulator', '_integrate', 'kernel'),
+         ('ring_gyro_sim.core.engine.full', 'Simulator', '_channels', 'channels'),
+         ('ring_gyro_sim.core.engine.full', 'Simulator', 'advance_samples', 'sim_other'),
          ('ring_gyro_sim.run', 'RunStats', 'add', 'run_stats'),
          ('ring_gyro_sim.run', 'Run', 'advance', 'run_other'),
          ('ring_gyro_sim.run', 'Run', '__init__', 'run_init'),

@@ -35,10 +35,10 @@ from typing import Any, Callable, List, Optional, Sequence
 
 import numpy as np
 
+from ring_gyro_sim.core.engine.full import channel_names
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.gyro.calibration import Calibration
 from ring_gyro_sim.core.params import build_config, SimConfig, to_flat
-from ring_gyro_sim.core.simulator import channel_names
 from ring_gyro_sim.paramfile import load_text
 from ring_gyro_sim.progress import Progress
 from ring_gyro_sim.recording.reader import (block_sample_counts, decode, read_messages,

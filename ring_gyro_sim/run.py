@@ -106,6 +106,8 @@ import numpy as np
 from ring_gyro_sim.core import thermal
 from ring_gyro_sim.core.averaged import fast_mode_amplitude, HAND_BACK_THRESHOLD
 from ring_gyro_sim.core.bench import factory
+from ring_gyro_sim.core.engine.full import (channel_names, joined_samples, Samples, Simulator,
+                                            Status)
 from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.fidelity import AveragedStretch, CHECK_S, unsupported
 from ring_gyro_sim.core.gyro import calibration as gyro_calibration, operating_point, validity
@@ -113,7 +115,6 @@ from ring_gyro_sim.core.gyro.control import ControlSamples, update_rows
 from ring_gyro_sim.core.gyro.electronics import DemodSamples, RateSamples
 from ring_gyro_sim.core.gyro.stats import describe, DriveStats, RateStats
 from ring_gyro_sim.core.params import SimConfig, TEMPERATURE_RANGE_K
-from ring_gyro_sim.core.simulator import channel_names, joined_samples, Samples, Simulator, Status
 
 __all__ = ['AmbientTemperature', 'AngularRate', 'BaseAcceleration', 'Block', 'Diagnostics',
            'DriveAmplitude', 'DriveFrequency', 'FINISHED',

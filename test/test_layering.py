@@ -34,7 +34,7 @@ import pytest
 PACKAGE_DIR = Path(__file__).resolve().parents[1] / 'ring_gyro_sim'
 CORE_DIR = PACKAGE_DIR / 'core'
 CORE_MODULES = ['ring_gyro_sim.core.params', 'ring_gyro_sim.core.forces',
-                'ring_gyro_sim.core.kernels', 'ring_gyro_sim.core.simulator',
+                'ring_gyro_sim.core.kernels', 'ring_gyro_sim.core.engine.full',
                 'ring_gyro_sim.core.structure']
 UPPER_LAYERS = ('ring_gyro_sim.ros', 'ring_gyro_sim.recording', 'ring_gyro_sim.analysis')
 

@@ -31,10 +31,10 @@ from mcap_ros2.decoder import DecoderFactory
 import numpy as np
 import pytest
 from ring_gyro_sim import offline, progress, run
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.gyro.operating_point import start_state
 from ring_gyro_sim.core.params import build_config, paper_config, STANDARD_GRAVITY
-from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.paramfile import load_yaml
 from ring_gyro_sim.recording.reader import read_block_topic, read_rate
 from ring_gyro_sim.run import (BaseAcceleration, DriveAmplitude, DriveFrequency,

@@ -504,7 +504,7 @@ def gyro_recording(tmp_path_factory):
     from ring_gyro_sim import run as run_mod
     from ring_gyro_sim.core.gyro.control import update_rows
     from ring_gyro_sim.core.gyro.electronics import DemodSamples, RateSamples
-    from ring_gyro_sim.core.simulator import Simulator
+    from ring_gyro_sim.core.engine.full import Simulator
     from ring_gyro_sim.ros.recorder import RunRecorder
     from ring_gyro_sim.ros.sinks import RosSink
     path = tmp_path_factory.mktemp('replay_gyro') / 'gyro.mcap'

@@ -25,7 +25,7 @@ import time
 import numpy as np
 import pytest
 from ring_gyro_sim import run as run_mod
-from ring_gyro_sim.core import simulator
+from ring_gyro_sim.core.engine import full as simulator
 from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.params import build_config, paper_config, STANDARD_GRAVITY
 from ring_gyro_sim.run import (AngularRate, BaseAcceleration, DriveAmplitude, ParameterChange,

@@ -60,10 +60,10 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 from ring_gyro_sim.analysis import envelope as env
 from ring_gyro_sim.analysis import plotting
+from ring_gyro_sim.core.engine.full import coordinate_names, Status
 from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.gyro import operating_point
 from ring_gyro_sim.core.params import paper_config, SimConfig, STANDARD_GRAVITY
-from ring_gyro_sim.core.simulator import coordinate_names, Status
 from ring_gyro_sim.progress import Progress
 from ring_gyro_sim.run import format_number, Run, Shock
 

@@ -21,9 +21,10 @@ does not load numba):
 
 - ``params``: the parameter table, :class:`~ring_gyro_sim.core.params.SimConfig` and
   :func:`~ring_gyro_sim.core.params.build_config`;
-- ``simulator``: :class:`~ring_gyro_sim.core.simulator.Simulator`, its
-  :class:`~ring_gyro_sim.core.simulator.Samples` and
-  :class:`~ring_gyro_sim.core.simulator.Status`;
+- ``engine``: the engines that advance the gyroscope, the full model
+  :class:`~ring_gyro_sim.core.engine.full.Simulator`, its
+  :class:`~ring_gyro_sim.core.engine.full.Samples` and
+  :class:`~ring_gyro_sim.core.engine.full.Status`;
 - ``structure``: mass and stiffness matrices of the supported ring and its frequencies;
 - ``forces``: the electrostatic force (:func:`~ring_gyro_sim.core.forces.build_force_model`,
   :func:`~ring_gyro_sim.core.forces.nonlinear_acceleration`, energies, Jacobian);
@@ -34,4 +35,4 @@ Every module of the core uses one coordinate order, the simulator's: ``q1 .. qN`
 cos(n theta) modes), then ``q1s .. qNs`` (their sine companions, when enabled).
 """
 
-__all__ = ['errors', 'forces', 'kernels', 'params', 'simulator', 'structure']
+__all__ = ['engine', 'errors', 'forces', 'kernels', 'params', 'structure']

@@ -691,7 +691,7 @@ class AveragedGyro:
     def __init__(self, config: SimConfig, start_state=None, calibration=None,
                  simulator=None) -> None:
         from ring_gyro_sim.core.gyro import control, operating_point
-        from ring_gyro_sim.core.simulator import Simulator
+        from ring_gyro_sim.core.engine.full import Simulator
         from scipy import signal
         if not (config.control.closed and config.control.rebalance):
             raise ParameterError('control.rebalance: the closed-loop averaged model needs '
@@ -864,7 +864,7 @@ class AveragedGyro:
         farad (T6) are rebuilt once the die has moved ``THERMAL_STEP_K`` from the
         temperature they were built at. The loops keep the gains they were designed with.
         """
-        from ring_gyro_sim.core.simulator import THERMAL_STEP_K
+        from ring_gyro_sim.core.engine.full import THERMAL_STEP_K
         kelvin = self.die.advance_to(self.time_s)
         self._die_temperature = kelvin
         if abs(kelvin - self.device_temperature) < THERMAL_STEP_K:
@@ -951,7 +951,7 @@ class AveragedGyro:
         channels (the pick-off's first harmonics, S4, mixed with the sense chain's
         references, E3), the die and the flicker bank: ``Simulator.resume`` takes it.
         """
-        from ring_gyro_sim.core.simulator import ResumeState
+        from ring_gyro_sim.core.engine.full import ResumeState
         e = kernels.envelope
         st = self._loop
         m = self.model

@@ -48,9 +48,9 @@ from typing import List, Optional, Tuple
 import numpy as np
 from ring_gyro_sim.core import kernels, thermal
 from ring_gyro_sim.core.averaged import AveragedGyro, fast_mode_amplitude, HAND_BACK_THRESHOLD
+from ring_gyro_sim.core.engine.full import Samples, Simulator, Status
 from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.params import FIDELITIES, SimConfig
-from ring_gyro_sim.core.simulator import Samples, Simulator, Status
 
 __all__ = ['CHECK_S', 'AutoGyro', 'AutoSamples', 'AveragedStretch', 'unsupported']
 

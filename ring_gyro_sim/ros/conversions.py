@@ -126,7 +126,7 @@ def output_blocks(samples, channel_names: Dict[str, List[str]], rows: slice = sl
                   build=block_message,
                   topics: Optional[Collection[str]] = None) -> Dict[str, Float64MultiArray]:
     """
-    Build the three block messages of a :class:`~ring_gyro_sim.core.simulator.Samples`.
+    Build the three block messages of a :class:`~ring_gyro_sim.core.engine.full.Samples`.
 
     ``rows`` selects the samples (rows) the messages hold: all of them by default; a
     recording's decimated rows (``RunRecorder.kept_rows``) when nothing publishes the blocks.

@@ -25,10 +25,10 @@ import numpy as np
 import pytest
 from ring_gyro_sim.core import harmonic_balance
 from ring_gyro_sim.core.averaged import AveragedModel, envelope_of, state_of
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.gyro import operating_point
 from ring_gyro_sim.core.params import build_config
-from ring_gyro_sim.core.simulator import Simulator
 
 TEN_DEG_S = math.radians(10.0)
 KAPPA = 0.8

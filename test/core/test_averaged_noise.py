@@ -29,9 +29,9 @@ import pytest
 from ring_gyro_sim import characterize
 from ring_gyro_sim.core import kernels, noise, thermal
 from ring_gyro_sim.core.averaged import AveragedGyro
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.gyro import control, electronics, operating_point
 from ring_gyro_sim.core.params import BOLTZMANN, build_config
-from ring_gyro_sim.core.simulator import Simulator
 from scipy import signal
 
 RATE_HZ = 1000.0

@@ -27,9 +27,9 @@ import math
 
 import numpy as np
 import pytest
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.params import paper_config, STANDARD_GRAVITY
-from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.run import ParameterChange, Run
 from scipy import signal
 

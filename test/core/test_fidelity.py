@@ -85,7 +85,7 @@ def test_the_next_scheduled_input_is_what_the_averaged_model_must_hand_over_befo
     # Simulator.next_scheduled_s: a pulse from its start until it ends, a scheduled input at
     # its sample, a base-acceleration profile from its first sample in use while it is not
     # over (its last value holds: a last value not zero never ends it); not a rate.
-    from ring_gyro_sim.core.simulator import Simulator
+    from ring_gyro_sim.core.engine.full import Simulator
     sim = Simulator(build_config({}), calibration=None)
     assert sim.next_scheduled_s() == math.inf
     sim.set_rate(2_000_000, 0.1)

@@ -36,9 +36,9 @@ import math
 
 import numpy as np
 import pytest
+from ring_gyro_sim.core.engine.full import GAP_FLOOR_RATIO, GAP_GRID_POINTS_PER_MODE, Simulator
 from ring_gyro_sim.core.errors import InputError
 from ring_gyro_sim.core.params import paper_config, STANDARD_GRAVITY
-from ring_gyro_sim.core.simulator import GAP_FLOOR_RATIO, GAP_GRID_POINTS_PER_MODE, Simulator
 from scipy import integrate, optimize
 
 GAP = 10e-6  # electrodes.gap default, m
@@ -264,7 +264,7 @@ def test_rest_and_floor_in_contact():
                                              rel=1e-14)
     # q1 = 2 d_g: over all of electrode e0 (|theta| <= 22.5 deg, w >= 1.85 d_g) the ring is
     # through the electrode; the published gaps stop at 0 and the integrand at the floor
-    # GAP_FLOOR_RATIO d_g (documented in simulator.py), so e0 = cap_scale span / floor.
+    # GAP_FLOOR_RATIO d_g (documented in core/engine/full.py), so e0 = cap_scale span / floor.
     deep = sim.outputs_for([2 * GAP, 0, 0, 0, 0, 0])
     assert deep.gap[0, 0] == 0.0 and deep.min_gap[0] == 0.0
     assert deep.capacitance[0, 0] == pytest.approx(CAP_SCALE * span / (GAP_FLOOR_RATIO * GAP),

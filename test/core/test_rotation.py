@@ -26,9 +26,9 @@ import math
 import numpy as np
 import pytest
 from ring_gyro_sim.core import forces, structure
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.errors import InputError
 from ring_gyro_sim.core.params import BOLTZMANN, paper_config, STANDARD_GRAVITY
-from ring_gyro_sim.core.simulator import Simulator
 from scipy.integrate import solve_ivp
 
 GYRO = {'gyro.enabled': True, 'modes.companions': True, 'gyro.temperature': 0.0}

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of core/simulator.py and core/kernels/: accuracy, conservation, determinism, inputs."""
+"""Tests of core/engine/full.py and core/kernels/: accuracy, conservation, determinism, inputs."""
 
 from dataclasses import replace
 import json
@@ -21,10 +21,10 @@ import math
 import numpy as np
 import pytest
 from ring_gyro_sim.core import forces, kernels
+from ring_gyro_sim.core.engine.full import _kernel_status, Simulator, Status
 from ring_gyro_sim.core.errors import InputError
 from ring_gyro_sim.core.kernels.forcing import _stage_rotations
 from ring_gyro_sim.core.params import build_config, paper_config, STANDARD_GRAVITY
-from ring_gyro_sim.core.simulator import _kernel_status, Simulator, Status
 from scipy.integrate import solve_ivp
 
 SHOCK = 10_000 * STANDARD_GRAVITY

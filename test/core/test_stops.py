@@ -21,9 +21,9 @@ import numpy as np
 import pytest
 
 from ring_gyro_sim.core import forces
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.params import build_config
-from ring_gyro_sim.core.simulator import Simulator
 
 G = 9.80665
 F1 = 11200.0

@@ -36,8 +36,8 @@ from node_harness import (connected, MATCH_TIMEOUT_S, node_env, Probe, process_c
                           start_node)
 import numpy as np
 import pytest
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.params import paper_config, to_flat
-from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.offline import resimulate
 from ring_gyro_sim.paramfile import parameters_from_yaml_text
 from ring_gyro_sim.recording.reader import decode, read_messages, read_metadata

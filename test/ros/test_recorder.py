@@ -38,9 +38,9 @@ import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from ring_gyro_sim import cli
+from ring_gyro_sim.core.engine.full import Samples, Simulator
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.params import paper_config, STANDARD_GRAVITY
-from ring_gyro_sim.core.simulator import Samples, Simulator
 from ring_gyro_sim.recording.errors import OutputBusyError, OutputExistsError, RecordingError
 from ring_gyro_sim.recording.reader import (
     block_end_times_ns, block_sample_counts, decode, read_messages, read_metadata)

@@ -32,9 +32,9 @@ from mcap_ros2.decoder import DecoderFactory
 import numpy as np
 import pytest
 from ring_gyro_sim import cli
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.gyro.control import CONTROL_CHANNELS, ControlSamples
 from ring_gyro_sim.core.params import paper_config, to_flat
-from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.paramfile import load_yaml
 from ring_gyro_sim.recording.reader import (
     block_end_times_ns, read_block_topic, read_messages, read_metadata)

@@ -36,10 +36,10 @@ from mcap_ros2.decoder import DecoderFactory
 import numpy as np
 import pytest
 from ring_gyro_sim import run as run_mod
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.gyro.electronics import DEMOD_CHANNELS, DemodSamples, RateSamples
 from ring_gyro_sim.core.gyro.validity import NOT_MEASURED_VARIANCE
 from ring_gyro_sim.core.params import paper_config
-from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.recording.reader import (
     block_end_times_ns, read_angular_rate, read_block_topic, read_messages, read_metadata,
     read_rate)

@@ -17,5 +17,5 @@ The bench above the instrument: what is measured on a running model before a run
 
 ``factory``: the factory calibration on a simulated rate table (K2, K3); ``start``: the
 operating point's shooting (the start state on the drive's branch). Both run the full model
-(``core.simulator``), which is why they sit above it: the model never calls them.
+(``core.engine.full``), which is why they sit above it: the model never calls them.
 """

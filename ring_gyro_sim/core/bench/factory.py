@@ -35,12 +35,12 @@ import warnings
 
 import numpy as np
 from ring_gyro_sim.core import thermal
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.errors import SimulationError
 from ring_gyro_sim.core.gyro import operating_point
 from ring_gyro_sim.core.gyro.calibration import (Calibration, fit_temperature_series, given,
                                                  readout_unit, TableReading)
 from ring_gyro_sim.core.params import build_config, SimConfig, to_flat
-from ring_gyro_sim.core.simulator import Simulator
 
 __all__ = ['CACHE_ENV', 'FACTORY_AVERAGE_S', 'FACTORY_RATE', 'FACTORY_SETTLE_TIME_CONSTANTS',
            'factory', 'factory_tables', 'for_config', 'measure', 'table_at']

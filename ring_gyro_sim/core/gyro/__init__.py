@@ -25,7 +25,7 @@ Modules (import from them directly; nothing is re-exported here):
   (E1-E14);
 - ``control``: the closed loops: PLL, AGC and force-to-rebalance (C1-C9);
 - ``channel``: :class:`~ring_gyro_sim.core.gyro.channel.SenseChain`, the electronics at the
-  operating point, which the :class:`~ring_gyro_sim.core.simulator.Simulator` owns and
+  operating point, which the :class:`~ring_gyro_sim.core.engine.full.Simulator` owns and
   rebuilds on every parameter change;
 - ``stats``: the figures of a run's rate output and drive (recovery after a shock, means).
 

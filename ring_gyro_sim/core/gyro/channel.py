@@ -15,7 +15,7 @@
 """
 The sense chain of a gyroscope run: the electronics at the drive's operating point.
 
-The :class:`~ring_gyro_sim.core.simulator.Simulator` owns its :class:`SenseChain` as it owns
+The :class:`~ring_gyro_sim.core.engine.full.Simulator` owns its :class:`SenseChain` as it owns
 the drive loop: it builds it at the start state, feeds it every stretch it integrates (the
 pick-off amplifiers' volts, which the loops read too, the drive phase, the loops' rows) and
 builds it again whenever a parameter change acts, so that the amplifiers' gains follow the

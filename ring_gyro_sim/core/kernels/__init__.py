@@ -81,7 +81,7 @@ named tuples (:class:`Force`, :class:`Drive`, :class:`Forcing`, :class:`Method`,
 :func:`output_channels`; inside the step, ``step.Span`` and ``forcing.DrivePhasors``), so
 that a call reads like its meaning and two arrays cannot be swapped silently (a tuple in the
 wrong place does not compile); a kernel's other arguments are its state, counts and outputs.
-``core/simulator.py`` builds the tuples (once per configuration where they do not change),
+``core/engine/full.py`` builds the tuples (once per configuration where they do not change),
 validates inputs, calls the kernels, and checks the result. A state that leaves the model's
 range stops the kernel with a status code and the index of the angle (never NaN).
 The two entry points (``run_samples``, ``output_channels``) release the GIL, so that a

@@ -17,7 +17,7 @@ The output channels of every sample: the electrodes' gaps, the smallest gap, the
 
 :func:`output_channels` is the entry point (its docstring gives the accuracy); the mode shapes
 and quadrature it takes are built once per configuration by
-``core/simulator.py`` (``Simulator._build_outputs``).
+``core/engine/full.py`` (``Simulator._build_outputs``).
 """
 
 from typing import NamedTuple
@@ -34,7 +34,7 @@ class OutputGeometry(NamedTuple):
     """
     A configuration's gap, mode shapes and quadrature, as :func:`output_channels` takes them.
 
-    Built once per configuration by ``Simulator._build_outputs`` (``core/simulator.py``). The
+    Built once per configuration by ``Simulator._build_outputs`` (``core/engine/full.py``). The
     shapes are stored coordinate-major, so that every loop runs over the angles innermost and
     vectorises.
 
@@ -171,7 +171,7 @@ def output_channels(q, geometry, out):
     covers at most half a period of the highest harmonic, and an electrode whose smallest
     node gap g is below ``refine_coeff * sum n^2 |q_n|`` is summed again on the first finer
     level whose panels number at least ``sqrt(refine_coeff * sum n^2 |q_n| / g)`` per panel
-    (``simulator.py`` derives the coefficient). In contact the integrand is
+    (``core/engine/full.py`` derives the coefficient). In contact the integrand is
     ``1 / max(gap, gap_floor)``: finite.
 
     Parameters

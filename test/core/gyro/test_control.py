@@ -30,11 +30,11 @@ import warnings
 import numpy as np
 import pytest
 from ring_gyro_sim.analysis import hbm
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.errors import InputError, ParameterError
 from ring_gyro_sim.core.gyro import control
 from ring_gyro_sim.core.gyro.operating_point import cos_only, start_state
 from ring_gyro_sim.core.params import paper_config
-from ring_gyro_sim.core.simulator import Simulator
 from ring_gyro_sim.paramfile import check_params_file
 from ring_gyro_sim.run import AngularRate, Run
 

@@ -27,12 +27,12 @@ import math
 import allantools
 import numpy as np
 import pytest
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.errors import InputError
 from ring_gyro_sim.core.gyro import electronics
 from ring_gyro_sim.core.gyro.electronics import (FlickerNoise, orbit_sense_response,
                                                  SenseElectronics)
 from ring_gyro_sim.core.params import BOLTZMANN, EPSILON_0, paper_config
-from ring_gyro_sim.core.simulator import Simulator
 from scipy import signal
 
 GYRO = {'gyro.enabled': True, 'modes.companions': True, 'drive.amplitude': 0.0065,

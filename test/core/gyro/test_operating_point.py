@@ -26,10 +26,10 @@ import math
 import numpy as np
 import pytest
 from ring_gyro_sim.core import forces
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.gyro.operating_point import (drive_orbit, forced_orbit, ForcedOrbit,
                                                      start_state)
 from ring_gyro_sim.core.params import paper_config
-from ring_gyro_sim.core.simulator import Simulator
 from scipy.integrate import solve_ivp
 
 DRIVE_HZ = 15798.3

@@ -24,9 +24,9 @@ accuracy against brute force is test/core/test_outputs.py's.
 import numpy as np
 import pytest
 from ring_gyro_sim.core import kernels
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.kernels.channels import _first_argmax, _LANES
 from ring_gyro_sim.core.params import paper_config
-from ring_gyro_sim.core.simulator import Simulator
 
 
 @pytest.mark.parametrize('m', [1, 2, _LANES - 1, _LANES, _LANES + 1, 3 * _LANES, 3 * _LANES + 5])

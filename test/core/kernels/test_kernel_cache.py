@@ -38,7 +38,7 @@ CHILD = textwrap.dedent("""
     sys.meta_path = [f for f in sys.meta_path if 'editable' not in getattr(f, '__module__', '')]
     from ring_gyro_sim.core import kernels
     from ring_gyro_sim.core.params import paper_config
-    from ring_gyro_sim.core.simulator import Simulator
+    from ring_gyro_sim.core.engine.full import Simulator
     sim = Simulator(paper_config({'drive.start_on': 'rest'}))
     sim.shock(1000.0)
     sim.advance(0.001)
@@ -107,7 +107,7 @@ def test_cold_kernels_tells_an_empty_cache_from_a_filled_one(tmp_path):
     # issue 22 item 20: the first compile (~25 s of CPU) was silent; the command line asks
     # this before it runs anything (it compiles nothing itself).
     from ring_gyro_sim.core.params import paper_config
-    from ring_gyro_sim.core.simulator import Simulator
+    from ring_gyro_sim.core.engine.full import Simulator
     Simulator(paper_config({'drive.start_on': 'rest'})).advance(0.001)  # fills the cache
     assert cold_in_a_fresh_process() == []
     empty = tmp_path / 'numba'

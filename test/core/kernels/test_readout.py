@@ -25,9 +25,9 @@ import math
 
 import numpy as np
 from ring_gyro_sim.core import kernels
+from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.gyro import electronics
 from ring_gyro_sim.core.params import paper_config
-from ring_gyro_sim.core.simulator import Simulator
 
 GYRO = {'gyro.enabled': True, 'modes.companions': True, 'drive.amplitude': 0.0065,
         'drive.frequency': 15800.0}
