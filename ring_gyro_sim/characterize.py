@@ -70,8 +70,8 @@ device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
      time to 63.2 % of the step is given beside it.
 
 1b. The long zero-rate record (:func:`_long_record`, :func:`_long_allan`; issue 25): 3 h /
-   200 s at zero rate on the averaged model (``core.averaged.AveragedGyro``, ~1 500 x real time on
-   the default gyroscope with its noises: 3 h in ~8.5 s), run first, when
+   200 s at zero rate on the averaged model (``core.averaged.AveragedGyro``, hours in seconds:
+   doc/averaged.md, "Speed"), run first, when
    ``integrator.fidelity`` is ``auto`` or ``averaged`` and the averaged model runs the device
    (the closed loop with force-to-rebalance, the truncated force). Its Allan deviation goes to
    ``T / 8`` (1 349 s / 24.75 s) with 68.3 % intervals (allantools: Greenhall's degrees of

@@ -55,7 +55,7 @@ def quick(tmp_path_factory):
     """
     One ``ring_gyro characterize config/gyro.yaml --quick --workers 2``: (exit code, stdout, DIR).
 
-    On two worker processes, as on this 2-core machine by default: their notes reach this
+    On two worker processes, the default on a 2-core machine: their notes reach this
     process's stderr through the farm.
     """
     out = tmp_path_factory.mktemp('datasheet')

@@ -49,10 +49,8 @@ The uniforms and Box-Muller are one compiled loop (:func:`_box_muller`, numba, t
 released), with the same operations per value as the formulas above, in the platform's libm
 (``log``, ``cos``, ``sin``; numpy's own vectorised versions, used on some CPUs, may differ
 in the last bit, so a compiled loop also makes the numbers the same across CPUs with one
-libm). Measured on this machine (2-core AMD EPYC, slow state, numpy 2.4): a block of 2000 x
-6 (the Brownian force noise of 6 coordinates, 10 ms at 200 kHz) 0.45 ms, 37 ns per normal
-(numpy's ufuncs over the block: 0.62 ms, 51 ns); 2000 x 12 22 ns per normal (36), 2000 x 2
-32 (44). The Philox words are ~0.1 ms of a block.
+libm). The loop is also faster than numpy's ufuncs over the same block, and the Philox words
+are a small part of it (doc/performance.md, "The normals").
 
 :func:`block_normals` is what the simulator and the electronics call: the same numbers,
 memoised (the loop's pick-off and the sense electronics' draw the same block of

@@ -62,8 +62,8 @@ Start-up
     nothing to tell them apart, which a warning would not undo. Before it publishes anything
     the node looks once (after its parameters, start state and kernels: what discovery found
     meanwhile); then for its first ``NAMESAKE_WATCH_S`` (5 s) it looks again every
-    ``NAMESAKE_CHECK_PERIOD_S`` (0.1 s), since discovery may take longer (up to 2.35 s on a
-    loaded 2-core host). Found, the node stops: one FATAL line naming the name, its recording
+    ``NAMESAKE_CHECK_PERIOD_S`` (0.1 s), since discovery may take longer (up to 2.35 s under
+    load). Found, the node stops: one FATAL line naming the name, its recording
     deleted, exit code 1; a namesake found late may have seen a few seconds of its blocks.
     Two nodes started within those seconds of each other both stop. Waiting for discovery
     before the first block instead (2.5 s) made every start 2.4 s longer. After its first
@@ -182,7 +182,7 @@ LAG_WARN_S = 0.5
 REJECT_LOG_PERIOD_S = 5.0
 NAMESAKE_WATCH_S = 5.0
 """How long after its creation the node stops at once when another node of its name shows up,
-s: discovery showed one after 0-2.35 s on a loaded 2-core host (Fast DDS announces a
+s: discovery showed one after 0-2.35 s under load on two cores (Fast DDS announces a
 participant 5 times in its first 0.5 s, then every 3 s; module doc, "Start-up")."""
 NAMESAKE_CHECK_PERIOD_S = 0.1
 """How often the node looks at the graph for a namesake in its first ``NAMESAKE_WATCH_S``, s
@@ -506,9 +506,9 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
             for _ in range(most):
                 # A flood's excess: once the run refuses every shock until the next block,
                 # the waiting ones are taken undecoded and counted as refused (the reason is
-                # the same for all of them). Taking one decoded costs 35-40 us of the node's
-                # only thread, raw 6-7 us (measured with rclpy's take on this project's
-                # host): 10 000 per second no longer starve the simulation. Once refused, a
+                # the same for all of them). Taking one raw costs the node's only thread about
+                # a sixth of a decoded take (doc/performance.md, "The node under a shock
+                # flood"): 10 000 per second do not starve the simulation. Once refused, a
                 # shock stays refused until the next block (the drain does not advance it), so
                 # the reason is asked only until then, not formatted for every message.
                 raw = is_shock and (raw or self.run.shock_refusal() is not None)

@@ -38,9 +38,9 @@ As fast as possible (``real_time_factor`` 0) nothing is paced: the messages go o
 block. The order is kept; :meth:`RatePacer.flush` sends what is held (the end of a run).
 
 Not a thread that sleeps until each message is due: it wakes once per message and takes the
-GIL from the simulation each time, which cost the default gyroscope 10-24 % more CPU per
-simulated second on this project's 2-core host under load (and a third of its speed with a
-0.5 ms switch interval); single-threaded, the cost is within the noise of that measurement.
+GIL from the simulation each time, which costs the simulation CPU time and, with a short
+switch interval, speed; single-threaded, the pacing costs nothing measurable
+(doc/performance.md, "``~/rate`` paced", has the figures).
 """
 
 import collections
@@ -61,7 +61,7 @@ CATCH_UP = 1.5
 Most messages sent per rate period over time, when they are late (a token bucket).
 
 Barely faster than the rate: a subscriber that keeps up with the rate keeps up with a backlog
-(rclpy's executor takes 100-200 us per message on a loaded host: at 4 times the rate a
+(rclpy's executor takes 100-200 us per message under load: at 4 times the rate a
 ``qos_profile_sensor_data`` subscriber lost 4 % of them); a backlog of N messages drains in
 N / (CATCH_UP - 1) periods.
 """
@@ -73,11 +73,11 @@ Latest a message waits for a token, s: one later than this goes out at once.
 
 After a lag (the host busy elsewhere, the node behind and catching up as fast as it can) the
 messages come late faster than ``CATCH_UP`` drains them: unbounded, they fell up to 1.3 s
-behind the blocks on a loaded 2-core host, and the flush at the end of the run sent them all
+behind the blocks under load on two cores, and the flush at the end of the run sent them all
 at once, more than ``~/rate``'s reliable history of 500 holds for a subscriber that has not
-acknowledged them. Bounded, a stall of the node shorter than this (80-100 ms were common on
-that host, also at nice -10) drains as a stream; a longer one makes a burst of the excess, as
-a node that cannot keep real time does, and nothing more.
+acknowledged them. Bounded, a stall of the node shorter than this (80-100 ms were common
+under that load, also at nice -10) drains as a stream; a longer one makes a burst of the
+excess, as a node that cannot keep real time does, and nothing more.
 """
 
 

@@ -303,7 +303,7 @@ def test_a_rate_flood_keeps_the_node_paced_and_every_message_counted(ros, tmp_pa
     # 8 000), and about a quarter of the messages vanished uncounted. Stamps 1 to 2 s ahead,
     # 100 us apart: the first 1 000 are held, the next refused until the first of them act.
     # What the flood costs, not the physics: the cheapest step (Strang, one 50 us step per
-    # sample) and the node at nice -10, so that others' load on this shared 2-core host does
+    # sample) and the node at nice -10, so that others' load on two shared cores does
     # not decide its pace (a bm6 node without priority ran at x0.50 without a flood at load 5).
     node = start_node(tmp_path, {**GYRO, 'integrator.method': 'strang',
                                  'integrator.max_step': 5e-5}, nice=-10)
@@ -356,15 +356,15 @@ def test_a_rate_flood_keeps_the_node_paced_and_every_message_counted(ros, tmp_pa
         assert sent[0] / wall > 0.8 * RATE_FLOOD_HZ
         assert progress > 0.5
         # Every message accepted, refused or reported lost, but for what a keep-last queue of
-        # 1 000 (0.2 s of this flood) overwrites unreported while the node is held up on this
-        # shared host: 5 % once in 7 runs here, 44 % before (emulated), as the shock flood.
+        # 1 000 (0.2 s of this flood) overwrites unreported while the node is held up by
+        # others' load (5 % once in 7 runs on two shared cores), as in the shock flood.
         assert sum(counted.values()) >= 0.95 * sent[0]
         assert counted['accepted_angular_rate'] >= 1000 and counted['rejected_angular_rate'] > 0
 
 
 RATE_WARM_UP_S = 4.0
 """How long the rate test lets the node settle after its subscriber started, s: starting it
-(imports, discovery) takes the 2-core host from the node, which then catches up (up to 0.5 s
+(imports, discovery) takes two shared cores from the node, which then catches up (up to 0.5 s
 behind for the first 3.3 s once, at a load of 6.6)."""
 RATE_LISTEN_S = 4.0
 """How long the best-effort subscriber listens to ``~/rate`` after that, s."""
@@ -376,14 +376,14 @@ def test_a_sensor_data_subscriber_gets_every_rate_message(ros, tmp_path):
     # The subscriber runs in its own process (rate_listener.py), as a user's node would, and
     # notes when each message was sent (the middleware's source timestamp).
     # The plumbing, not the physics: the cheapest step (Strang, one 50 us step per sample), and
-    # the node's process at nice -10, so that the node keeps real time on this shared 2-core
-    # host (x0.56-0.82 with bm6 and no priority under others' load): pacing is the contract of
+    # the node's process at nice -10, so that the node keeps real time on two shared cores
+    # (x0.56-0.82 with bm6 and no priority under others' load): pacing is the contract of
     # a node that keeps its pace, as receiving everything is that of a subscriber keeping up.
     node = start_node(tmp_path, {**GYRO, 'integrator.method': 'strang',
                                  'integrator.max_step': 5e-5}, nice=-10)
     with connected(node, lambda: Probe(topics=('modal_displacement',))) as probe:
         with open(tmp_path / 'listener.log', 'wb') as log:
-            # A subscriber that keeps up: on this shared host its process gets the priority
+            # A subscriber that keeps up: on shared cores its process gets the priority
             # of one (nice -10, ~10 % of a core), so that what it misses is the node's doing.
             listener = subprocess.Popen(
                 [sys.executable, str(pathlib.Path(__file__).with_name('rate_listener.py')),
@@ -402,7 +402,7 @@ def test_a_sensor_data_subscriber_gets_every_rate_message(ros, tmp_path):
     stamps, sent = stamps[listened], sent[listened]
     # Judged while the node kept its pace: in 100 ms windows of sample time whose messages
     # all went out less than 50 ms later than the promptest (the node's own jitter is a few
-    # ms). On this shared host even a node at nice -10 stalled for 250 ms at times, and a
+    # ms). On shared cores even a node at nice -10 stalls for 250 ms at times, and a
     # stall longer than rate_pacer.MAX_LATE_S makes a burst by design.
     late = (sent - stamps) * 1e-6
     late -= late.min()  # ms

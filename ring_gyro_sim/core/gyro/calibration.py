@@ -55,8 +55,8 @@ The factory procedure (K2)
     the reading: the loops together are slower than each one's bandwidth says (on the
     default gyroscope the reading's transient decays tenfold per 0.2 s, a 87 ms time
     constant against the AGC's 32 ms), and the open-loop drive and sense modes ring down
-    with their own 1.3 s. 3.0 simulated s for the default gyroscope (about 3.6 s of CPU),
-    28.6 s for the open loops of ``config/gyro.yaml`` (12 s of CPU); at 313.15 K the table
+    with their own 1.3 s. 3.0 simulated s for the default gyroscope, 28.6 s for the open
+    loops of ``config/gyro.yaml`` (doc/performance.md has their CPU time); at 313.15 K the table
     then reads the scale factor the temperature laws give within 0.13 % (after 10 time
     constants alone it was 3.5 % off). A device is calibrated at
     ``thermal.reference_temperature`` whatever the run's ambient, once: ``factory``
