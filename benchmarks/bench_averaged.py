@@ -17,7 +17,7 @@ The averaged model's speed against the full model's (issue 25): ``make bench-ave
 
 One open-loop case for both: ``benchmarks/gyro.yaml``'s operating point (N_R = 3 with the
 companions, 0.0065 m/s^2 at 15 800 Hz, 10 deg/s from t = 0) without its shock and with the
-noise off (the averaged model has neither yet), started on the drive orbit. The full model
+noise off (the open-loop averaged model has neither), started on the drive orbit. The full model
 runs through :class:`ring_gyro_sim.run.Run` in its 10 ms blocks (integration, outputs and
 the sense chain at 200 kHz); the averaged model (``core.averaged``) from the envelope of the
 same start state, its samples at 1 kHz (the rate output's rate, 100 s) and at 200 kHz (the
@@ -28,7 +28,7 @@ printed: simulated seconds per CPU second of each, best of the repetitions, and 
 CPU time, not wall time: the host is shared (``make bench-averaged`` runs it with one
 OpenBLAS thread: the dense output's matrix products otherwise count idle threads). The
 averaged model computes less (the pair's envelopes only: no sense chain, no q1, q3): the
-ratio is that of this first step, not of the issue's goal (closed loop, noise, outputs).
+open-loop ratio is not the closed loop's (below).
 
 The closed loop (``--closed``, run by default after the open loop): the default gyroscope
 (``config/default.yaml``: PLL, AGC, force-to-rebalance, the factory calibration) with the

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The averaged (slow-flow) model of the driven 2theta pair, open loop (issue 25, first step).
+The averaged (slow-flow) model of the driven 2theta pair, open loop and closed loop.
 
 What it is
 ----------
@@ -37,15 +37,16 @@ the frame of the NCO's phase, with the pick-off's first harmonic and the output 
 equivalents (S9-S11); the averaged force of both is the closed form (S3) of
 ``kernels.envelope``.
 
-What it is not (yet)
---------------------
+What it is not
+--------------
 In :class:`AveragedModel`: the loops and the sense electronics (:class:`AveragedGyro` has
 them), the noises (:class:`AveragedGyro` has them, S9-S11). :class:`AveragedModel` takes
 the device at the die temperature of t = 0; :class:`AveragedGyro` follows the die (S12). In
 both: the open-loop sense readout of ``~/rate``, ``~/demodulator``, the other modes (q1, q3,
 ...: see "Validity"), shocks, base
-acceleration, vibration and contact are not represented. A later step wires them in with
-the hand-off to the full model (doc/averaged.md).
+acceleration, vibration and contact are not represented: a run hands the stretches they act
+in to the full model, and builds ``~/demodulator`` of an averaged stretch from the envelopes
+(``core.fidelity``; doc/averaged.md, "The hand-offs in a run").
 
 Derivation
 ----------
@@ -291,8 +292,8 @@ class AveragedModel:
             raise ParameterError('drive.frequency: the averaged model turns at the drive '
                                  f'frequency and needs it > 0, got {config.drive.frequency}')
         if config.control.closed or config.control.rebalance:
-            raise ParameterError('control.drive_loop: the averaged model is open loop (the '
-                                 'PLL, AGC and force-to-rebalance are not modelled yet)')
+            raise ParameterError('control.drive_loop: this averaged model is open loop (the '
+                                 'PLL, AGC and force-to-rebalance are in AveragedGyro)')
         # The device at the die temperature of t = 0 (core.thermal, T3-T6), as the full
         # model starts; later temperature changes are not followed.
         self.config = thermal.device_at(config, thermal.DieTemperature(config).kelvin)
@@ -631,7 +632,8 @@ class AveragedGyro:
     each amplifier's first harmonic, as the loops read it, gets ``N(0, e_o^2 / T)`` per
     period, independent across components, amplifiers and periods. It reaches ``~/rate`` as
     in the full model: through the loops (the rebalance force and the measured amplitude
-    that scales it, C7); the sense chain's own reading (``~/demodulator``) is not built.
+    that scales it, C7); not into the sense chain's own reading (``~/demodulator``, which
+    ``core.fidelity`` builds from the envelopes without it).
 
     (S11) The flicker: the full model's bank (E13, ``electronics.FlickerNoise``, the same
     seed and rate-sample indices), added to ``~/rate`` after the calibration as E13 adds it:

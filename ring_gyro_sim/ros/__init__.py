@@ -29,8 +29,9 @@ and record a run), ``recorder`` (recording a run as a ROS 2 bag).
 
 # The handlers go in before anything else runs: ``signal`` (a thin wrapper of the interpreter's
 # own ``_signal``, already loaded at start-up) converts its constants to enums on import, 1 ms
-# idle and several under load, and a Ctrl-C landing in that import raised KeyboardInterrupt in
-# this file (CI, stop 20). ``_signal``, ``os`` and ``sys`` are loaded before any code of ours.
+# idle and several under load, and a Ctrl-C landing in that import would raise
+# KeyboardInterrupt in this file. ``_signal``, ``os`` and ``sys`` are loaded before any code
+# of ours.
 import _signal
 import os
 import sys

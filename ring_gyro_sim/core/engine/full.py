@@ -137,7 +137,7 @@ def default_max_step(config: SimConfig) -> float:
     um, q5 ~0.02 um against q1 ~4 um), and their own flow is exact at any step. Measured on
     N_R = 5 with companions (``benchmarks/nr5_companions.yaml``, drive on): 7.9e-6 of the peak
     q1 at this step (5 us; 59.2 kHz 5theta mode: omega h = 1.9), 1.5e-8 at the 1.67 us that
-    1/8 of the 5theta period gave before, at three times the cost.
+    1/8 of the 5theta period would give, at three times the cost.
     """
     if config.integrator.max_step > 0.0:
         return config.integrator.max_step

@@ -57,8 +57,8 @@ The factory procedure (K2)
     constant against the AGC's 32 ms), and the open-loop drive and sense modes ring down
     with their own 1.3 s. 3.0 simulated s for the default gyroscope, 28.6 s for the open
     loops of ``config/gyro.yaml`` (doc/performance.md has their CPU time); at 313.15 K the table
-    then reads the scale factor the temperature laws give within 0.13 % (after 10 time
-    constants alone it was 3.5 % off). A device is calibrated at
+    then reads the scale factor the temperature laws give within 0.13 % (10 time
+    constants alone leave it 3.5 % off). A device is calibrated at
     ``thermal.reference_temperature`` whatever the run's ambient, once: ``factory``
     keeps its tables (``factory_tables``, from which the calibration is derived) in this
     process and, as a part keeps its calibration in its memory, in a file
