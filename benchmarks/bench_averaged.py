@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The averaged model's speed against the full model's (issue 25): ``make bench-averaged``.
+The averaged model's speed against the full model's: ``make bench-averaged``.
 
 One open-loop case for both: ``benchmarks/gyro.yaml``'s operating point (N_R = 3 with the
 companions, 0.0065 m/s^2 at 15 800 Hz, 10 deg/s from t = 0) without its shock and with the

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The imperfect gyroscope's cost against the perfect one's (issue 23): ``make bench-imperfect``.
+The imperfect gyroscope's cost against the perfect one's: ``make bench-imperfect``.
 
 ``benchmarks/gyro_closed.yaml`` (the perfect ring, closed loops, force-to-rebalance) and
 ``benchmarks/gyro_imperfect.yaml`` (the same run on a ring with a coupled 2theta pair and the

@@ -22,7 +22,7 @@ fastest) but without an end (``duration: 0``), waits until it runs (its start-up
 and a warm-up after that, then reads ``VmRSS`` from ``/proc/<pid>/status`` every
 ``--interval`` seconds for ``--minutes``. It prints the least-squares slope of RSS against
 time (kB/s, kB as /proc gives them: 1024 bytes), the growth from the first to the last sample
-and the verdict against the target of issue 10: flat within 5 MB over 10 minutes, i.e. a
+and the verdict against the target: flat within 5 MB over 10 minutes, i.e. a
 slope below 5 * 1024 kB / 600 s = 8.5 kB/s and a measured growth below 5 MB scaled to the run
 length.
 
@@ -54,7 +54,7 @@ from typing import List, Optional, Tuple
 
 REPO_ROOT = pathlib.Path(__file__).resolve().parents[1]
 TARGET_KB = 5 * 1024
-"""Growth allowed over ``TARGET_S`` (issue 10: flat within 5 MB over 10 minutes), kB."""
+"""Growth allowed over ``TARGET_S`` (the target: flat within 5 MB over 10 minutes), kB."""
 TARGET_S = 600.0
 """The time over which ``TARGET_KB`` is allowed, s."""
 MAX_SLOPE_KB_S = TARGET_KB / TARGET_S

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Real-time factor of the node with the gyroscope on (issues 12, 14), as fast as it goes.
+Real-time factor of the node with the gyroscope on, as fast as it goes.
 
 Starts ``ring_gyro_node`` on ``benchmarks/gyro.yaml`` (N_R = 3 with the companions, the
 sense electronics at 200 kHz, ``~/rate`` at 1 kHz, every noise on, a 10 000 g shock at

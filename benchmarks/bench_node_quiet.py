@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The node's share of a core at real time in a quiet stretch, per model (issue 25).
+The node's share of a core at real time in a quiet stretch, per model.
 
 Starts ``ring_gyro_node`` with the default parameters (the closed-loop gyroscope, every noise
 on, ``real_time_factor: 1``) at ``integrator.fidelity: auto`` (the averaged model throughout:

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Benchmark of the simulator (issues 3, 5 and 11): ``make bench``.
+Benchmark of the simulator: ``make bench`` (doc/performance.md).
 
 Every configuration is a parameter file, so that ``ring_gyro run benchmarks/<name>.yaml``
 reproduces it: ``paper.yaml`` (the paper configuration, drive on its upper branch, 10 000 g
@@ -37,7 +37,7 @@ along x), ``nr3_companions.yaml`` (N_R = 3 with the sine companions, the shock a
 4. speed-up over scipy ``solve_ivp`` (DOP853, Python right-hand side) on the paper
    configuration at matched accuracy: the loosest rtol whose error against a tight DOP853
    reference is no larger than the simulator's;
-5. recording overhead (issues 5 and 22): the default gyroscope (every parameter at its
+5. recording overhead: the default gyroscope (every parameter at its
    default, config/default.yaml, with the demo's scenario: 10 deg/s and a 10 000 g shock at
    0.5 s) and the paper configuration, each run offline as ``ring_gyro run`` runs it, with and
    without an MCAP recording, the two alternating in one child process per tree; the ratio
@@ -46,7 +46,7 @@ along x), ``nr3_companions.yaml`` (N_R = 3 with the sine companions, the shock a
    defaults and with ``record.decimation: 1`` (every 200 kHz sample). ``--only recording``
    runs this section alone; with ``--baseline`` the older tree's runs alternate with these.
 
-Targets from the issues are printed next to the results; a missed target is reported with
+The targets (doc/performance.md) are printed next to the results; a missed target is reported with
 what limits it, never hidden. The machine's load average is printed with the numbers: on a
 shared machine compare ``rtf_cpu`` and the old/new ratio of one session, not wall times.
 Progress goes to stderr, results to stdout; ``--json FILE`` also writes the numbers,
@@ -86,7 +86,7 @@ CHUNK_S = 0.01
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 CASES = (
-    # (parameter file, label, goal of issue 11 for the whole run's real-time factor)
+    # (parameter file, label, goal for the whole run's real-time factor)
     ('paper.yaml', 'paper N_R=3, drive + 10 000 g', 10.0),
     ('nr3_companions.yaml', 'N_R=3 + companions, 45 deg', 6.0),
     ('nr5_companions.yaml', 'N_R=5 + companions, 45 deg', 3.0),
@@ -95,9 +95,9 @@ CASES = (
 )
 TARGET_SPEEDUP = 200.0
 TARGET_RTF_RECORDING = 1.0
-"""Issue 5: recording must not pull the paper configuration below real time."""
+"""Recording must not pull the paper configuration below real time."""
 TARGET_RECORDING_RATIO = 1.3
-"""Issue 22: a recorded run with the defaults costs at most 1.3 times an unrecorded one."""
+"""A recorded run with the defaults costs at most 1.3 times an unrecorded one."""
 DEFAULT_SCENARIO = """\
 /**:
   ros__parameters:
@@ -681,7 +681,7 @@ def recording_pairs(tree: str, path: str, overrides: Dict[str, Any], duration_s:
 
 def bench_recording(duration_s: float, pairs: int,
                     baseline: Optional[str]) -> List[Dict[str, Any]]:
-    """Section 5: runs with and without a recording (issues 5 and 22), ratios per pair."""
+    """Section 5: runs with and without a recording, ratios per pair."""
     rows = []
     with tempfile.TemporaryDirectory(prefix='ring_gyro_bench_') as tmp:
         default = os.path.join(tmp, 'default_gyroscope.yaml')

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Issue 11's integrator levers, measured for accuracy: longer steps with dense output, others.
+The integrator's levers, measured for accuracy: longer steps with dense output, others.
 
 The simulator takes one bm6 step per output sample. Each lever below is a prototype in plain
 Python (the kernel's force, its exact linear flows; slow, a few seconds a run), run on

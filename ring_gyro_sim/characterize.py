@@ -69,7 +69,7 @@ device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
      ``bandwidth_hz = 1 / (2 pi tau)``, the -3 dB frequency of that first-order fit. The
      time to 63.2 % of the step is given beside it.
 
-1b. The long zero-rate record (:func:`_long_record`, :func:`_long_allan`; issue 25): 3 h /
+1b. The long zero-rate record (:func:`_long_record`, :func:`_long_allan`): 3 h /
    200 s at zero rate on the averaged model (``core.averaged.AveragedGyro``, hours in seconds:
    doc/averaged.md, "Speed"), run first, when
    ``integrator.fidelity`` is ``auto`` or ``averaged`` and the averaged model runs the device
@@ -126,7 +126,7 @@ device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
    zero rate (one ``rate_point_s`` run, noise off) and the temperature series (the factory's
    tables at each temperature: ``core.gyro.calibration``, run until settled and kept).
 
-5. Environment (12.17's environment series; issue 24): g-sensitivity (a steady 1 g, + and -
+5. Environment (12.17's environment series): g-sensitivity (a steady 1 g, + and -
    along x and y: its odd part per g and per m/s^2, and its even part), vibration
    rectification (10 g sine along x at 100 Hz, 1 kHz and 3 kHz; at 1 kHz along 0, 22.5 and
    45 deg; a random profile, 20-2 000 Hz at 0.01 g^2/Hz, 4.45 g rms, along x) and the

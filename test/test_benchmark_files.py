@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The benchmark's parameter files (``benchmarks/*.yaml``, issue 11) load and run.
+The benchmark's parameter files (``benchmarks/*.yaml``) load and run.
 
 ``make bench`` times these files; ``ring_gyro run benchmarks/<file>`` must reproduce each, so
 each one is loaded as the CLI loads it and run offline past the start of its shock (10 ms)
@@ -39,7 +39,7 @@ def test_every_benchmark_file_is_tested():
 
 
 def test_the_gyroscope_benchmark_file_runs_with_its_rate_output():
-    # benchmarks/gyro.yaml (issue 12): config/gyro.yaml's operating point, 10 deg/s, a
+    # benchmarks/gyro.yaml: config/gyro.yaml's operating point, 10 deg/s, a
     # 10 000 g shock at 0.5 s, nothing recorded; 20 ms here: the rate output is on and right.
     config = load_yaml(str(BENCH / 'gyro.yaml'))
     assert config.run.record_path == '' and config.run.real_time_factor == 0.0
@@ -52,7 +52,7 @@ def test_the_gyroscope_benchmark_file_runs_with_its_rate_output():
 
 
 def test_the_closed_loop_benchmark_file_is_the_gyroscope_file_with_the_loops():
-    # benchmarks/gyro_closed.yaml (issue 14): the same run with PLL, AGC and rebalance.
+    # benchmarks/gyro_closed.yaml: the same run with PLL, AGC and rebalance.
     open_loop = load_yaml(str(BENCH / 'gyro.yaml'))
     closed = load_yaml(str(BENCH / 'gyro_closed.yaml'))
     assert closed.control.closed and closed.control.rebalance
@@ -63,7 +63,7 @@ def test_the_closed_loop_benchmark_file_is_the_gyroscope_file_with_the_loops():
 
 
 def test_the_imperfect_benchmark_file_is_the_closed_loop_file_on_an_imperfect_ring():
-    # benchmarks/gyro_imperfect.yaml (issue 23): the same run, a coupled 2theta pair and the
+    # benchmarks/gyro_imperfect.yaml: the same run, a coupled 2theta pair and the
     # pick-off's errors; factory-calibrated, it reads 10 deg/s as the perfect ring does
     closed = load_yaml(str(BENCH / 'gyro_closed.yaml'))
     imperfect = load_yaml(str(BENCH / 'gyro_imperfect.yaml'))

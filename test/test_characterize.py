@@ -97,7 +97,7 @@ def test_the_run_succeeds_and_prints_its_summary_last(quick, sheet):
 
 
 def test_it_says_when_it_computes_a_start_state(quick):
-    # issue 22 item 20: the start state (seconds each, ~30 s for a new device) was silent
+    # The start state takes seconds (~30 s for a new device): the user is told before
     notes = [line for line in QUICK_STDERR[0].splitlines()
              if line.startswith('characterize: computing the start state (upper_branch')]
     assert notes, QUICK_STDERR[0]
@@ -413,7 +413,7 @@ def test_the_drive_figures_tell_a_drive_that_stays_down_from_one_that_returns():
 
 
 def test_whole_numbers_are_written_in_full(quick):
-    # issue 22 item 21: the shock table said "1e+04" for 10 000 g
+    # 10 000 g, not "1e+04"
     text = (quick[2] / 'datasheet.md').read_text(encoding='utf-8')
     rows = [line for line in text.splitlines() if line.startswith('| 10 000 | ')]
     assert rows and '1e+04' not in text, text
@@ -503,7 +503,7 @@ UNITS = ('_g', '_hz', '_deg', '_s', '_deg_per_s', '_deg_per_h', '_per_g', '_per_
 
 
 def test_the_environment_entries_are_finite_with_units(sheet):
-    # issue 24's must-show: the datasheet's JSON has the g-sensitivity and rectification
+    # The datasheet's JSON has the g-sensitivity and rectification
     # entries, finite, with their units in the key names (as the sheet's other entries).
     e = sheet['environment']
     g = {r['axis']: r for r in e['g_sensitivity']['axes']}
@@ -629,7 +629,7 @@ def test_a_random_profile_rectifies_as_the_mean_square_of_its_answer(imperfect):
 
 # ----------------------------------------------------------------------------- stops
 def test_the_shock_survival_entries_are_finite_with_units(sheet, quick):
-    # issue 24 item 4: the largest shock without impact and, per level, the impacts, the
+    # The largest shock without impact and, per level, the impacts, the
     # survival, the time ~/rate is not a measurement and the recovery. config/gyro.yaml has
     # no stops: the test says it put them at the plan's 0.6 d_g.
     s = sheet['environment']['stops']
@@ -725,7 +725,7 @@ def with_fidelity(tmp_path, source, fidelity):
 
 
 def test_the_plans_long_records_reach_their_tau():
-    # The issue's goal: Allan to tau = 1 000 s from a record of at least 3 h.
+    # The datasheet's goal: Allan to tau = 1 000 s from a record of at least 3 h.
     assert ch.FULL.long_record_s >= 3 * 3600.0
     for plan in (ch.FULL, ch.QUICK):
         top = (plan.long_record_s - plan.zero_rate_skip_s) / ch.TAU_FRACTION
@@ -830,7 +830,7 @@ def test_a_fidelity_that_cannot_be_kept_is_refused_before_any_run(tmp_path, caps
 def test_the_averaged_record_of_the_step_is_the_full_one():
     # Noise off, the drift-and-step run's scenario (10 deg/s at 1 s here, 1.5 s after): the
     # first-order fit's time constant and gain of the averaged model's record against the
-    # full model's, within 1e-3 (the issue's must-show on the reading after the first time
+    # full model's, within 1e-3 (the required agreement of the reading after the first time
     # constant; the readings agree to 5.4e-4 just after it, 3e-6 from 0.1 s on:
     # doc/averaged.md).
     flat = dict(ch.load_device(str(DEFAULT)))

@@ -130,8 +130,8 @@ def test_run_json_prints_exactly_one_object(tmp_path, capsys):
 
 
 def test_run_prints_json_on_stdout_and_the_readable_summary_on_stderr(tmp_path, capsys):
-    # issue 22 item 19: every verb prints one JSON object on stdout; `run` did so only with
-    # --json (its text summary went to stdout), which is now kept for scripts: JSON only.
+    # Every verb prints one JSON object on stdout, `run` with or without --json; its readable
+    # summary goes to stderr, and --json (kept for scripts) leaves that out: JSON only.
     path = scenario(tmp_path / 's.yaml', duration=0.01)
     assert cli.main(['run', str(path), '--no-progress']) == 0
     captured = capsys.readouterr()
@@ -146,7 +146,7 @@ def test_run_prints_json_on_stdout_and_the_readable_summary_on_stderr(tmp_path, 
 
 
 def test_every_verb_prints_one_json_object(tmp_path, capsys):
-    # issue 22 item 19: recover printed text on stdout, replay nothing
+    # recover and replay too: their notes go to stderr, the JSON object to stdout
     path = scenario(tmp_path / 's.yaml', duration=0.02)
     recording = tmp_path / 'r.mcap'
     assert cli.main(['run', str(path), '-o', str(recording), '--no-progress']) == 0
@@ -279,7 +279,7 @@ def test_zero_duration_is_refused(tmp_path, capsys):
 @pytest.mark.parametrize('where', ['under_a_file', 'directory'])
 def test_unwritable_output_fails_at_start(tmp_path, capsys, where):
     # 100 s of simulation if it started: the failure must come before the run. (Missing
-    # parent directories are created, issue 9; a path through a regular file cannot be.)
+    # parent directories are created; a path through a regular file cannot be.)
     path = scenario(tmp_path / 's.yaml', duration=100.0)
     (tmp_path / 'no').write_text('a file, not a directory')
     target = tmp_path / 'no' / 'such' / 'dir' / 'x.mcap' if where == 'under_a_file' else tmp_path
@@ -321,7 +321,7 @@ def test_console_script_in_its_own_process(tmp_path):
     assert 'Traceback' not in result.stderr
 
 
-# ----------------------------------------------------- where the results go (issue 22 item 16)
+# ----------------------------------------------------- where the results go
 def unwritable_directory():
     """Return an existing directory nothing can be created in (root included), or skip."""
     try:
@@ -371,8 +371,8 @@ def boom(monkeypatch):
 ])
 def test_an_unusable_output_is_one_line_before_any_work(tmp_path, capsys, boom, verb, args,
                                                         where, reason):
-    # issue 22 item 16: these were tracebacks, and characterize into a read-only directory
-    # computed for 13 s (20 minutes for the full sheet) before losing it all.
+    # One line, not a traceback, and before any work: characterize into a read-only
+    # directory would otherwise compute for 13 s (20 minutes for the full sheet) and lose it.
     ro = unwritable_directory()
     (tmp_path / 'FILE').write_text('a file')
     (tmp_path / 'REC').write_bytes(b'\x89MCAP0\r\n')
@@ -395,7 +395,7 @@ def test_an_unusable_output_is_one_line_before_any_work(tmp_path, capsys, boom, 
                                             '[HOST]:PORT'),
 ])
 def test_a_bad_dask_address_is_one_line(tmp_path, capsys, args, message):
-    # issue 22 item 16: ValueError and RuntimeError tracebacks from distributed
+    # One line, not distributed's ValueError or RuntimeError traceback
     spec = tmp_path / 'spec.yaml'
     spec.write_text('duration: 0.01\naxes: {shock.peak_g: [1000.0]}\n')
     assert cli.main(['sweep', str(spec), '--out', str(tmp_path / 'o')] + args) == 1
@@ -426,8 +426,8 @@ def read_only_mount_shell(directory):
 
 
 def test_a_read_only_file_system_is_one_line_per_verb(tmp_path):
-    # issue 22 item 16: `recover -o`, `rate --out`, `sweep --out` and `characterize --out` on
-    # a read-only file system (EROFS, which root meets too).
+    # `recover -o`, `rate --out`, `sweep --out` and `characterize --out` on a read-only file
+    # system (EROFS, which root meets too).
     ro = tmp_path / 'ro'
     ro.mkdir()
     shell = read_only_mount_shell(ro)
@@ -452,7 +452,6 @@ def test_a_read_only_file_system_is_one_line_per_verb(tmp_path):
 
 
 def test_version_prints_the_package_version(capsys):
-    # issue 22 item 19: there was no `ring_gyro --version`
     from ring_gyro_sim import __version__
     with pytest.raises(SystemExit) as exc:
         cli.main(['--version'])
@@ -469,7 +468,6 @@ def subparsers():
 
 
 def test_every_option_of_every_verb_has_help():
-    # issue 22 item 19: `calibrate --target-hz` had none
     missing = [f'{verb} {act.option_strings or act.dest}'
                for verb, parser in subparsers().items() for act in parser._actions
                if not act.help]
@@ -477,7 +475,6 @@ def test_every_option_of_every_verb_has_help():
 
 
 def test_the_loops_help_names_every_loop_mode():
-    # issue 22 item 19: `characterize --loops` help omitted rebalance
     from ring_gyro_sim.characterize import LOOP_MODES
     loops = next(a for a in subparsers()['characterize']._actions if a.dest == 'loops')
     assert [m for m in LOOP_MODES if m not in loops.help] == []
@@ -485,7 +482,7 @@ def test_the_loops_help_names_every_loop_mode():
 
 @pytest.mark.parametrize('peak_g, status', [(10_000, 'finished'), (40_000, 'contact')])
 def test_the_json_status_says_how_the_run_ended(tmp_path, capsys, peak_g, status):
-    # issue 22 item 19: every run that had ended said "status": "running"
+    # "running" is not a status a finished run may report
     path = scenario(tmp_path / 's.yaml', duration=0.01)
     path.write_text(path.read_text().replace(repr(SHOCK_10000G),
                                              repr(peak_g * STANDARD_GRAVITY)))
@@ -500,7 +497,7 @@ def test_the_json_status_says_how_the_run_ended(tmp_path, capsys, peak_g, status
                                          ('the amplitude turned back at 6e-06 m', 'stopped')])
 def test_the_continuations_say_finished_or_stopped(tmp_path, capsys, monkeypatch, verb, why,
                                                    status):
-    # issue 22 item 19: backbone and frf printed "status": "" when they had finished
+    # "finished" or "stopped", never an empty status
     from ring_gyro_sim.analysis import hbm
 
     class Result:
@@ -528,7 +525,7 @@ WRITES = {'run': 'FILE.mcap', 'recover': 'FILE.mcap', 'backbone': 'FILE.csv',
 
 
 def test_every_verb_that_writes_takes_o_and_out():
-    # issue 22 item 19: `-o/--output` on some verbs, a required `--out` on others
+    # One spelling for every verb: `-o` / `--out`
     parsers = subparsers()
     for verb, metavar in WRITES.items():
         where = [a for a in parsers[verb]._actions if '--out' in a.option_strings]
@@ -549,7 +546,7 @@ def test_the_three_spellings_reach_the_same_option(tmp_path, capsys):
 
 
 def test_run_says_when_it_computes_the_start_state(tmp_path, capsys, monkeypatch):
-    # issue 22 item 20: the start state (30 s for config/paper.yaml) was computed in silence
+    # The start state takes up to 30 s (config/paper.yaml): the user is told before
     from collections import OrderedDict
     from ring_gyro_sim.core.gyro import operating_point
     monkeypatch.setattr(operating_point, '_MEMO', OrderedDict())
@@ -566,8 +563,7 @@ def test_run_says_when_it_computes_the_start_state(tmp_path, capsys, monkeypatch
 @pytest.mark.parametrize('cold, said', [(['run_samples'], True), ([], False), (None, False)])
 def test_run_says_it_compiles_when_the_cache_is_cold(tmp_path, capsys, monkeypatch, cold,
                                                      said):
-    # issue 22 item 20: the first compile (~25 s of CPU, ~45 s wall on the loaded 2 cores)
-    # was silent
+    # The first compile takes tens of seconds (cache.COMPILE_CPU_S): the user is told before
     from ring_gyro_sim.core.kernels import cache
     monkeypatch.setattr(cache, 'cold_kernels', lambda: cold)
     path = scenario(tmp_path / 's.yaml', duration=0.002)
@@ -577,8 +573,9 @@ def test_run_says_it_compiles_when_the_cache_is_cold(tmp_path, capsys, monkeypat
 
 
 def test_calibrate_shows_each_evaluation_as_it_goes(capsys, monkeypatch):
-    # issue 22 item 20: ~70 s without a word. The backbone (seconds each) is replaced by a
-    # line in V_o here: what is tested is what the verb says, not the shooting.
+    # A calibration takes about a minute: it says each evaluation as it goes. The backbone
+    # (seconds each) is replaced by a line in V_o here: what is tested is what the verb
+    # says, not the shooting.
     from ring_gyro_sim.analysis import nnm
 
     def backbone_at(config, amplitude_m, mode=1):

@@ -42,8 +42,8 @@ def test_the_json_summary_is_valid_json_with_non_finite_numbers():
 
 
 def test_run_prints_a_huge_held_state_in_a_few_characters(monkeypatch, capsys, tmp_path):
-    # issue 10 item 8: a 1.7e308 input leaves a held state whose summary printed a 293-digit
-    # number (f'{x:.4f}'); here the summary the run returns holds such numbers.
+    # A 1.7e308 input leaves a held state whose summary must not print a 293-digit number
+    # (f'{x:.4f}'); here the summary the run returns holds such numbers.
     huge = 1.7e300  # m; times 1e6 for um stays finite
     summary = offline.RunSummary(
         sim_time_s=0.1, wall_time_s=0.2, real_time_factor=0.5,

@@ -74,7 +74,7 @@ def broken_links(page: Path):
 
 
 def test_there_are_doc_pages():
-    # The README points to these pages (the split of issue 9).
+    # The README points to these pages.
     names = {p.name for p in DOC_PAGES}
     assert {'architecture.md', 'calibration.md', 'numerics.md', 'paper_reproduction.md',
             'performance.md', 'recording.md', 'ros_workspace.md'} <= names

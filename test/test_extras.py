@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The verbs say at their start which libraries they miss (issue 22 item 23).
+The verbs say at their start which libraries they miss.
 
 In a ROS workspace rosdep installs no allantools, dask or xarray (no rosdep key): each verb
 runs here in a Python process whose first act puts a blocker on ``sys.meta_path`` that

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The gyroscope end to end: ``Run``, ``ring_gyro run`` and ``ring_gyro rate`` (issue 12).
+The gyroscope end to end: ``Run``, ``ring_gyro run`` and ``ring_gyro rate``.
 
 The rate output against the applied rate, its bandwidth, its noise against the prediction
 from the noise sources, the shock figures and the collapse of the scale factor (the node:
@@ -39,7 +39,7 @@ from scipy import signal
 import yaml
 
 REPO = Path(__file__).resolve().parents[1]
-TEN_DEG_S = math.radians(10.0)  # 0.174533 rad/s, the issue's rate
+TEN_DEG_S = math.radians(10.0)  # 0.174533 rad/s, the gyroscope's test rate
 
 
 def gyro_values(**extra):
@@ -79,7 +79,7 @@ def write_params(path, values):
 
 
 def test_ring_gyro_run_measures_10_deg_s_within_1_percent(tmp_path, capsys):
-    # The issue's check through the command line users run, the recording and `ring_gyro
+    # The 1 % check through the command line users run, the recording and `ring_gyro
     # rate` (which rebuilds the applied rate from the recording alone).
     rec = tmp_path / 'gyro.mcap'
     assert cli.main(['run', str(REPO / 'config' / 'gyro.yaml'), '--duration', '1.5', '--json',
@@ -158,7 +158,7 @@ def test_angle_random_walk_matches_the_noise_sources():
     # (2 Q / omega = 10 ms) is short against the Allan times used; N_R = 2 (the 3theta mode
     # does not enter the rate). 30 s of record: the overlapping estimator's standard error
     # is ~2.4 / 3.3 / 4.7 % of the deviation at 0.05 / 0.1 / 0.2 s (edf ~ 3 N / (2 m)), so
-    # the 10 % check of the issue is made where it is >= 3 standard errors: 0.05 and 0.1 s
+    # the 10 % check is made where it is >= 3 standard errors: 0.05 and 0.1 s
     # (at 0.2 s this seed gives -10.7 %, 2.3 standard errors; 60 s of seed 6 gave 0.99,
     # 0.976, 1.011, 1.053, 1.071 of the prediction at 0.05, 0.1, 0.2, 0.5, 1 s). The filters'
     # share is in the prediction (30 % of the variance at 0.05 s); at 5 s it is N / sqrt(tau).
@@ -352,7 +352,7 @@ def unlimited():
 
 
 def test_1000_deg_s_into_a_300_deg_s_range_reads_300_deg_s_flagged(unlimited):
-    # Issue 24: the output word saturates at gyro.range (E15), reads the full scale exactly,
+    # The output word saturates at gyro.range (E15), reads the full scale exactly,
     # and says that it is not a measurement (V1b): the covariance and /diagnostics.
     free, _ = unlimited
     assert free['saturated'] is None  # no range: nothing to saturate

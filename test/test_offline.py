@@ -543,10 +543,10 @@ def test_a_failed_run_records_every_block_and_resimulates_bit_for_bit(tmp_path):
     """
     A run that fails on a non-finite value records every block, and --from reproduces it.
 
-    Issue 22, item 8: the blocks after a non-finite value were withheld, so the recording had
-    holes, and --from then failed ('reset: acts at the current simulation time only') or
-    simulated a shorter run. Here the closed loops overflow at their first update (a denormal
-    bias, 1e-320 V) and again after a reset at 50 ms.
+    No block after a non-finite value is withheld: a recording with holes would make --from
+    fail ('reset: acts at the current simulation time only') or simulate a shorter run. Here
+    the closed loops overflow at their first update (a denormal bias, 1e-320 V) and again
+    after a reset at 50 ms.
     """
     from ring_gyro_sim.core.params import build_config
     from ring_gyro_sim.recording.reader import block_sample_counts
@@ -587,8 +587,8 @@ def default_recording(tmp_path_factory):
 
 
 def test_the_default_recording_is_small(default_recording):
-    # Issue 22 item 22: every 200 kHz sample of the four block topics made 44 MB per
-    # simulated second of the default gyroscope; the defaults keep ~0.35 MB of it.
+    # Every 200 kHz sample of the four block topics would make 44 MB per simulated second
+    # of the default gyroscope; the defaults keep ~0.35 MB of it.
     path, config = default_recording
     assert config.run.record_decimation == 200
     assert path.stat().st_size < 1e6 * 0.3, f'{path.stat().st_size / 0.3e6:.2f} MB per s'
@@ -628,7 +628,7 @@ def test_the_default_recording_resimulates_bit_for_bit(default_recording, tmp_pa
 
 def test_live_environment_changes_resimulate_bit_for_bit(tmp_path):
     """
-    Environment parameters changed mid-run (issue 24): recorded, and --from repeats them.
+    Environment parameters changed mid-run: recorded, and --from repeats them.
 
     A sine whose frequency changes (its phase runs on), a random profile whose level and band
     change, a steady acceleration switched on: the re-simulation from the recording has the

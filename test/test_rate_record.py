@@ -35,7 +35,7 @@ RESONATOR = """\
 
 
 def test_a_recording_without_the_rate_is_refused(tmp_path, capsys):
-    # issue 22 item 17: it exited 0 with an empty rate.csv and a blank rate.png
+    # Refused, not an exit 0 with an empty rate.csv and a blank rate.png
     params = tmp_path / 'resonator.yaml'
     params.write_text(RESONATOR, encoding='utf-8')
     recording = tmp_path / 'r.mcap'
@@ -52,7 +52,7 @@ def test_a_recording_without_the_rate_is_refused(tmp_path, capsys):
 
 
 def test_the_plot_is_given_the_recovery(tmp_path, monkeypatch):
-    # issue 22 item 21: rate.png did not mark the recovery; the figures' rate_recovery_s
+    # rate.png marks the recovery: the figures' rate_recovery_s
     # (None: not back by the end of this 0.1 s after the shock) is what the plot gets
     from ring_gyro_sim.analysis import plotting
     seen = {}

@@ -16,7 +16,7 @@
 The physics did not change: a short run of the paper's resonator against a stored reference.
 
 ``test/data/demo_reference.npz`` was written by ``test/data/make_demo_reference.py`` with the
-tree before the run-path redesign (issue 9), and regenerated with an unchanged tree when the
+tree before the run-path redesign, and regenerated with an unchanged tree when the
 numerical libraries or the machine changed (CHANGELOG.md says when and why). Under the library
 versions and on the CPU it records, every output channel must come out bit for bit the same
 (the SHA-256 of each complete channel, and the stored samples for a readable diff). Under other

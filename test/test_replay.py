@@ -311,10 +311,10 @@ def test_bad_arguments_fail_before_ros(recording, tmp_path, capsys):
     assert 'missing.mcap' in capsys.readouterr().err
 
 
-# ------------------------------------------------------------------ hardening (issue 10 item 5)
+# ------------------------------------------------------------------ hardening
 
 FAR_FUTURE_NS = 2_145_916_800 * 1_000_000_000
-"""2038-01-01T00:00:00Z in ns: an input stamped in 2038 (issue 10 item 5)."""
+"""2038-01-01T00:00:00Z in ns: an input stamped in 2038."""
 
 
 class SignalAfter:

@@ -24,7 +24,7 @@ def summary_md(quick):
 
 @pytest.mark.parametrize('quick', [True, False])
 def test_the_quick_summary_says_whose_numbers_its_notes_quote(quick):
-    # issue 22 item 21: `report --quick`'s summary.md quoted the full run's return times and
+    # `report --quick`'s summary.md must not quote the full run's return times and
     # frequencies (Case 1: 4.2 s, 10.75 kHz) as its own, against its own tables
     text = summary_md(quick)
     notes = text.split('## Where we differ from the paper, and why\n', 1)[1]

@@ -270,8 +270,8 @@ def test_pending_rates_are_bounded_refused_with_the_reason_and_replaceable(monke
 
 
 def test_the_cost_of_a_rate_does_not_grow_with_the_rates_pending(monkeypatch):
-    # A flood of rates stamped ahead (issue 22: 49 us each with 1 000 pending, 245 us with
-    # 8 000, the profile read whole for every one) must cost each message a bounded time.
+    # A flood of rates stamped ahead must cost each message a bounded time (the profile read
+    # whole for every one costs 49 us each with 1 000 pending, 245 us with 8 000).
     monkeypatch.setattr(run_mod, 'MAX_PENDING_RATES', 8000, raising=False)
 
     def cost(pending):
@@ -294,7 +294,7 @@ def test_the_cost_of_a_rate_does_not_grow_with_the_rates_pending(monkeypatch):
 
 
 def test_rates_beyond_the_range_of_the_model_are_refused_with_the_reason():
-    # Issue 22, item 11: 1e6 and 1e308 rad/s were accepted and ended in contact or failure.
+    # 1e6 and 1e308 rad/s, accepted, would end in contact or failure.
     run = Run(paper_config(GYRO))
     for rate in (1e6, -1e308, 703.72):
         with pytest.raises(InputError, match=r'angular_rate\.z: .* beyond the range of the '
@@ -333,8 +333,8 @@ def test_a_contact_right_after_a_reset_names_what_is_in_force():
 
 
 def test_accelerations_beyond_the_physical_bound_are_refused_with_the_reason():
-    # Issue 22, item 8: a 1.7e308 shock held the ring at 3e292 m with non-finite gaps, and
-    # every block after it was withheld. Beyond 10^6 g an input is refused.
+    # A 1.7e308 shock would hold the ring at 3e292 m with non-finite gaps. Beyond 10^6 g an
+    # input is refused.
     run = rest_run()
     bound = 9.80665e6
     for event in (Shock(x=1.7e308), Shock(x=0.8 * bound, y=0.8 * bound),
@@ -355,8 +355,8 @@ def test_accelerations_beyond_the_physical_bound_are_refused_with_the_reason():
 
 
 def test_the_closed_loop_refuses_an_unbiased_pick_off_at_start_and_at_run_time():
-    # Issue 22, item 8: electrodes.outer_voltage 0 with the closed loop divided by zero in the
-    # loops (drive_amplitude_m = inf, status still running) and every block was withheld.
+    # electrodes.outer_voltage 0 with the closed loop would divide by zero in the loops
+    # (drive_amplitude_m = inf, status still running).
     closed = {'drive.start_on': 'rest', 'output.rate': 20000.0}
     reason = (r'electrodes\.outer_voltage: must not be 0 with control\.drive_loop: closed: the '
               r'loops read the drive through the pick-off')
@@ -387,9 +387,9 @@ def all_finite(block):
 
 
 def test_a_non_finite_value_is_a_failure_and_every_block_goes_out(monkeypatch):
-    # Issue 22, item 8: the 1.7e308 shock (let through here: its bound is the first line of
-    # defence) held the ring at 3e292 m with non-finite gaps, and the run withheld every block
-    # from then on. Now the run fails at once, holds the ring at rest and goes on.
+    # The 1.7e308 shock (let through here: its bound is the first line of defence) holds the
+    # ring at 3e292 m with non-finite gaps: the run fails at once, holds the ring at rest and
+    # goes on, every block published.
     monkeypatch.setattr(simulator, 'MAX_ACCELERATION', math.inf)
     sink = Collect()
     run = rest_run(sink)
@@ -424,7 +424,7 @@ def test_loops_that_overflow_fail_the_run_with_finite_outputs():
 
 
 def test_a_shock_into_the_stops_runs_on_and_counts_the_impacts():
-    # Issue 24 item 2: with stops at 0.6 d_g a 30 000 g shock bounces the ring instead of
+    # With stops at 0.6 d_g a 30 000 g shock bounces the ring instead of
     # ending the run in contact; the impacts are on /diagnostics and in the summary.
     run = rest_run(**{'stops.gap': 6e-6})
     run.advance(BLOCK)

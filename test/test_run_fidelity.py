@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-A run on the averaged and the full model (``run.Run`` at ``integrator.fidelity``, issue 25).
+A run on the averaged and the full model (``run.Run`` at ``integrator.fidelity``).
 
 The blocks of an averaged stretch against those of a full-only run of the same gyroscope;
 the hand-offs an input causes; a recording's hand-offs repeated by ``--from`` bit for bit.

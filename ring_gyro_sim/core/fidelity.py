@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The closed-loop gyroscope at two fidelity levels, handed between them (issue 25's ``auto``).
+The closed-loop gyroscope at two fidelity levels, handed between them (``auto``).
 
 :class:`AutoGyro` runs the gyroscope offline and returns its ``~/rate``: on the averaged model
 (``core.averaged.AveragedGyro``) while nothing fast acts, on the full model (``Simulator``)

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Tests of analysis/plotting.py: what the figures say (issue 22 item 21).
+Tests of analysis/plotting.py: what the figures say.
 
 Each figure is taken as matplotlib drew it, just before it is written and closed (``_save``
 is wrapped), so that its titles, labels, ticks and colour bars can be read back.
@@ -89,7 +89,7 @@ def test_sweep_axis_names_are_the_readers():
 
 
 def test_the_spectrogram_has_a_colour_bar(tmp_path, drawn):
-    # issue 22 item 21: fig07's grey levels had no scale
+    # fig07's grey levels need a scale
     from ring_gyro_sim.analysis import envelope as env
     rate = 200e3
     t = np.arange(int(0.05 * rate)) / rate
@@ -102,7 +102,7 @@ def test_the_spectrogram_has_a_colour_bar(tmp_path, drawn):
 
 @pytest.mark.parametrize('recovery_s', [1.25, None])
 def test_the_rate_plot_marks_the_recovery(tmp_path, drawn, recovery_s):
-    # issue 22 item 21: rate.png marked the shock, not when the rate was back (or that not)
+    # rate.png marks when the rate was back (or that it was not), not only the shock
     t = np.linspace(0.0, 3.0, 301)
     applied = np.full_like(t, 0.1745)
     rate = applied + np.where(t > 0.5, 0.5 * np.exp(-(t - 0.5) / 0.2), 0.0)

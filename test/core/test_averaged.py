@@ -255,7 +255,7 @@ def test_the_closed_loop_averaged_gyroscope_reads_the_full_models_rate():
     # The default gyroscope (PLL, AGC, force-to-rebalance), noise off, 10 deg/s from t = 0,
     # both from the Run's start state: the rebalance readout (~/rate before calibration) at
     # every 1 kHz sample after the loops' first 50 ms within 0.1 % of the reading (the
-    # issue's must-show). Measured 3.1e-6 of the reading.
+    # must-show). Measured 3.1e-6 of the reading.
     from ring_gyro_sim.core import thermal
     from ring_gyro_sim.core.averaged import AveragedGyro
     cfg = build_config({'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0,

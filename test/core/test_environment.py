@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The scenario's environment: sine, random vibration, steady acceleration (issue 24, item 1).
+The scenario's environment: sine, random vibration, steady acceleration.
 
 The resonator without its drive, at rest: linear, so the 1theta coordinate answers a base
 acceleration ``a(t)`` along x as ``q1'' + c q1' + omega_1^2 q1 = -a(t)`` (eq. 32's forcing,
@@ -129,7 +129,7 @@ def steady_state_start(config, rv):
 
 def test_a_random_profile_drives_q1_with_the_variance_of_its_psd_through_the_mode():
     """
-    Must show (issue 24): var(q1) = integral S_a(f) |H(f)|^2 df within 5 %.
+    Must show: var(q1) = integral S_a(f) |H(f)|^2 df within 5 %.
 
     One period of the multisine (2^20 samples, 5.24 s at 200 kHz): its amplitudes are
     deterministic, so q1's variance over a whole period has no statistical error; what is

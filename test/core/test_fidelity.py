@@ -13,9 +13,9 @@
 # limitations under the License.
 
 """
-The gyroscope handed between the averaged and the full model (``core.fidelity``, issue 25).
+The gyroscope handed between the averaged and the full model (``core.fidelity``).
 
-Against a full-only run of the same gyroscope: the issue's must-show through a 10 000 g shock.
+Against a full-only run of the same gyroscope: the must-show through a 10 000 g shock.
 """
 
 import math
@@ -39,7 +39,7 @@ def test_auto_goes_through_a_10000_g_shock_on_the_full_model_and_back():
     # throughout: within 0.1 % of the reading at every sample before the shock and after
     # the hand-back (measured 5.7e-6 and 2.7e-5). In between the full models differ (up to
     # 5e-3 in the shock's recovery): the shock meets states 1e-5 apart, which its response
-    # amplifies; the issue's "identical until the hand-back" holds only from a common state.
+    # amplifies; "identical until the hand-back" holds only from a common state.
     cfg = build_config({**QUIET, 'scenario.shock_times': [1.05],
                         'scenario.shock_peaks': [10000.0 * STANDARD_GRAVITY]})
     auto = AutoGyro(cfg, calibration=None)

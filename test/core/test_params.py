@@ -429,7 +429,7 @@ def test_voltage_limit_with_folded_frequencies():
     build_config({'electrodes.outer_voltage': -0.999 * v_limit})
     message = rejects({'electrodes.outer_voltage': 1.001 * v_limit}, 'electrodes.outer_voltage')
     assert 'pull-in' in message and '215.6 V' in message
-    rejects({'electrodes.outer_voltage': 1e6}, 'electrodes.outer_voltage')  # issue 9
+    rejects({'electrodes.outer_voltage': 1e6}, 'electrodes.outer_voltage')
     # Both together: each alone is below its limit, the sum of eq. (26) is not.
     v_o, v_i = config.voltage_limits()
     build_config({'electrodes.outer_voltage': 0.7 * v_o, 'electrodes.inner_voltage': 0.7 * v_i})
@@ -441,9 +441,9 @@ def test_voltage_limit_with_folded_frequencies():
 
 @pytest.mark.parametrize('values, name', [
     ({'electrodes.relative_permittivity': 0.5}, 'electrodes.relative_permittivity'),
-    ({'output.rate': 1e9}, 'output.rate'),                          # issue 10 item 4
+    ({'output.rate': 1e9}, 'output.rate'),
     ({'output.rate': 2e7}, 'output.rate'),
-    ({'output.block_duration': 10.0}, 'output.block_duration'),      # issue 10 item 4
+    ({'output.block_duration': 10.0}, 'output.block_duration'),
     ({'duration': 2.0 ** 31}, 'duration'),
     ({'scenario.shock_times': [2.0 ** 31], 'scenario.shock_peaks': [1.0]},
      'scenario.shock_times'),

@@ -58,7 +58,7 @@ def pattern_angle(q_c, q_s, n):
 def test_free_standing_wave_precesses_by_bryans_factor(n):
     # Drive off, a free n-theta vibration (10 nm, far below the nonlinear range), a constant
     # rate of 20 rad/s: after 50 ms the sensor has turned by 1 rad, the pattern by
-    # -2/(n^2+1) rad in the sensor frame. The issue's 1 % budget is checked at 1e-3.
+    # -2/(n^2+1) rad in the sensor frame. The 1 % budget is checked at 1e-3.
     rate = 20.0
     config = gyro_config(**{'drive.amplitude': 0.0, 'drive.start_on': 'rest',
                             'scenario.rate_times': [0.0], 'scenario.rate_values': [rate]})
@@ -119,7 +119,7 @@ def rotating_reference(config, t_end, t_eval, rate_of):
 
 
 def test_accuracy_against_dop853_with_a_fast_rate_ramp():
-    # The issue-11 budget (largest error in any q below 1e-4 of the peak q1, 20 ms after a
+    # The step's error budget (largest error in any q below 1e-4 of the peak q1, 20 ms after a
     # 10 000 g shock, here at 30 deg so both members of every pair move) with the sensor
     # spinning up from 0 to 50 rad/s (2 900 deg/s) over the window: Coriolis, centrifugal and
     # angular-acceleration terms all act, far beyond any rate table.

@@ -64,8 +64,8 @@ def reference_solution(config, t_end, t_eval):
 
 
 def test_accuracy_against_dop853_20ms_after_10000g():
-    # Issue 3: largest error in any q below 1e-4 of the peak q1, paper configuration; the
-    # default bm6 and the cheaper bm4 (README "Performance": its margin is small).
+    # The step's budget: largest error in any q below 1e-4 of the peak q1, paper configuration;
+    # the default bm6 and the cheaper bm4 (README "Performance": its margin is small).
     config = paper_shock()
     ref = None
     for method in ('bm6', 'bm4'):
@@ -134,7 +134,7 @@ def _flat(config):
 
 
 def test_undamped_energy_does_not_drift():
-    # Issue 3: no damping, N_T = 10, 5 um oscillation, 1 s: drift < 1e-6 relative.
+    # No damping, N_T = 10, 5 um oscillation, 1 s: drift < 1e-6 relative.
     config = paper_config({'modes.quality_factors': [1e30, 1e30, 1e30],
                            'drive.amplitude': 0.0, 'drive.start_on': 'rest'})
     sim = Simulator(config)
@@ -154,7 +154,7 @@ def test_undamped_energy_does_not_drift():
 
 
 def test_free_decay_matches_exponential():
-    # Issue 3: damping on, no electrostatics: amplitude follows exp(-omega t / 2Q) to 0.1 %.
+    # Damping on, no electrostatics: amplitude follows exp(-omega t / 2Q) to 0.1 %.
     config = paper_config({'electrodes.outer_voltage': 0.0, 'drive.amplitude': 0.0,
                            'drive.start_on': 'rest'})
     sim = Simulator(config)

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The mechanical stops (issue 24 item 2): restitution, a 30 000 g shock, the refusals."""
+"""The mechanical stops: restitution, a 30 000 g shock, the refusals."""
 
 import math
 import warnings
@@ -85,7 +85,7 @@ def test_one_impact_of_one_mode_keeps_e_squared_of_the_normal_kinetic_energy(res
     u_max = _stop_energy(lo, config)
     expected = 1.0 - (1.0 - restitution ** 2) * u_max / k_in
     ratio = k_out / k_in
-    # the issue's criterion: (1 - e^2) of the normal kinetic energy dissipated within 5 %
+    # the criterion: (1 - e^2) of the normal kinetic energy dissipated within 5 %
     assert ratio == pytest.approx(restitution ** 2, rel=0.05)
     # and the closed form with the spring's share, to the integrator's accuracy
     assert ratio == pytest.approx(expected, rel=1e-3)
@@ -112,7 +112,7 @@ def test_without_stops_a_shock_beyond_the_gap_is_contact_as_before():
 
 
 def test_30000_g_into_stops_at_0p6_dg_bounces_saturates_and_runs_on():
-    # The issue's must-show on the default gyroscope with a 300 deg/s output word, turning at
+    # The must-show on the default gyroscope with a 300 deg/s output word, turning at
     # 100 deg/s: the stops at 0.6 d_g, 30 000 g along x at 50 ms, 1 s in all. The run goes on
     # (no contact), the impacts are counted, nothing is NaN, |w| stays below 0.7 d_g (the
     # Taylor series within its range), the rate output is flagged (not a measurement,

@@ -109,7 +109,7 @@ def test_a_cut_file_recovers_every_complete_chunk(tmp_path, keep):
     killed.write_bytes(data[:cut])
     ours = list(read_messages(killed))
     assert 0 < len(ours) <= len(list(read_messages(full)))
-    with open(killed, 'rb') as stream:  # what the issue reports: the other readers see nothing
+    with open(killed, 'rb') as stream:  # what a user meets: the other readers see nothing
         try:
             summary = mcap.reader.make_reader(stream).get_summary()
         except McapError:  # what the footer position holds is not a footer
@@ -317,8 +317,8 @@ def test_a_sigkilled_run_recovers_and_resimulates_bit_for_bit(tmp_path):
 
 
 def test_an_output_where_nothing_can_be_written_is_one_error(tmp_path, capsys):
-    # issue 22 item 16: `recover -o` on a read-only file system was an OSError traceback
-    # (the temporary file beside the output); /sys refuses new files to root as well.
+    # One error line, not an OSError traceback from the temporary file beside the output;
+    # /sys refuses new files to root as well.
     try:
         os.close(os.open('/sys/ring_gyro_probe', os.O_WRONLY | os.O_CREAT | os.O_EXCL))
     except OSError:
@@ -337,7 +337,7 @@ def test_an_output_where_nothing_can_be_written_is_one_error(tmp_path, capsys):
 
 @pytest.mark.parametrize('keep', ['magic', 'header'])
 def test_a_file_with_nothing_after_its_header_is_refused(tmp_path, capsys, keep):
-    # issue 22 item 17: an 8-byte file (the MCAP magic alone) "succeeded" with an empty MCAP
+    # An 8-byte file (the MCAP magic alone) is refused, not "recovered" into an empty MCAP
     full = many_chunks(tmp_path / 'full.mcap', blocks=10)
     data = full.read_bytes()
     if keep == 'magic':

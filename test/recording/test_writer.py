@@ -192,7 +192,7 @@ def write_chunks(bag, topics, chunks, first_ns=0):
 
 
 def test_a_chunk_keeps_only_its_index_record_in_memory(tmp_path):
-    # Item 18 of issue 22: a recording node grew with its file. What a writer keeps per chunk
+    # A recording node must not grow with its file. What a writer keeps per chunk
     # until finish() is the chunk's index for the summary: mcap's ChunkIndex objects took
     # ~1.5 kB each for 15 channels, their records take 77 + 10 per channel bytes.
     topics = [f'/ring_gyro/t{i}' for i in range(15)]

@@ -113,8 +113,8 @@ def test_closed_loop_node_publishes_and_records_control(ros, tmp_path):
 
 
 def test_a_failure_is_published_at_once_and_leaves_no_hole(ros, tmp_path):
-    # Issue 22, item 8: a non-finite value made the node withhold every block after it (holes
-    # in the stream and the recording; --from then failed). Here a bias of 1e-320 V set at run
+    # A non-finite value fails the run, and no block after it is withheld (holes in the
+    # stream and the recording, which --from cannot repeat). Here a bias of 1e-320 V set at run
     # time (0 V is refused; a params file cannot hold a subnormal number, ros2 param set can)
     # makes the closed loops' measured amplitude overflow at their next update: the run fails,
     # says so on /diagnostics with the block it failed in, and every block still goes out.

@@ -51,7 +51,7 @@ NS = '/ring_gyro'
 # 20 kHz output (a whole multiple of the 1 kHz rate output), paced, from rest.
 GYRO = {'drive.start_on': 'rest', 'modes.companions': True, 'gyro.enabled': True,
         'output.rate': 20000.0, 'gyro.frame_id': 'gyro_link', 'duration': 0.0}
-TEN_DEG_S = math.radians(10.0)  # 0.174533 rad/s: the issue's test rate
+TEN_DEG_S = math.radians(10.0)  # 0.174533 rad/s: the gyroscope's test rate
 
 
 class GyroProbe(Probe):
@@ -96,7 +96,7 @@ def test_gyro_node_offers_the_gyro_topics_and_records_them(ros, tmp_path):
         # Open loop (control.drive_loop: open, the default): no ~/control (test_node_control).
         assert not probe.get_publishers_info_by_topic(f'{NS}/control')
         probe.angular_rate(TEN_DEG_S, x=0.5)
-        # Accepted (the physics merged) or refused (not yet): either way once, and counted.
+        # Accepted (x ignored, with a warning) or refused: either way once, and counted.
         probe.spin_for(1.0)
         stop(node)
     log = node.output()
@@ -225,7 +225,7 @@ def test_rate_output_end_to_end(ros, tmp_path):
     assert np.array_equal(live, series.rate[-len(live):])
     cov = probe.rate[-1].angular_velocity_covariance
     assert cov[8] > 0.0 and cov[0] == cov[4] == 1e6  # x, y not measured, finite
-    # /diagnostics carries the rate channel's state (issue 12, item 6)
+    # /diagnostics carries the rate channel's state
     diag = probe.latest_diagnostics()
     assert diag is not None
     for key in ('rate_scale_factor_v_per_rad_s', 'rate_quadrature_rad_s', 'noise_seed',
@@ -298,9 +298,10 @@ def caught_up(probe):
 
 
 def test_a_rate_flood_keeps_the_node_paced_and_every_message_counted(ros, tmp_path):
-    # Issue 22, item 10: 5 kHz of ~/angular_rate stamped ahead for 2 s dropped the node to
-    # x0.02 real time (each rate read the whole profile: 49 us with 1 000 pending, 245 us with
-    # 8 000), and about a quarter of the messages vanished uncounted. Stamps 1 to 2 s ahead,
+    # 5 kHz of ~/angular_rate stamped ahead for 2 s: the node keeps its pace (a rate that
+    # read the whole profile would cost 49 us with 1 000 pending, 245 us with 8 000) and
+    # counts every message (doc/performance.md, "The node under an angular-rate flood").
+    # Stamps 1 to 2 s ahead,
     # 100 us apart: the first 1 000 are held, the next refused until the first of them act.
     # What the flood costs, not the physics: the cheapest step (Strang, one 50 us step per
     # sample) and the node at nice -10, so that others' load on two shared cores does
@@ -371,8 +372,8 @@ RATE_LISTEN_S = 4.0
 
 
 def test_a_sensor_data_subscriber_gets_every_rate_message(ros, tmp_path):
-    # Issue 22, item 6: ~/rate went out in bursts of 10 per 10 ms block, and a subscriber with
-    # rclpy's qos_profile_sensor_data (best effort, keep last 5) got 79-80 % of the messages.
+    # ~/rate goes out paced, not in bursts of 10 per 10 ms block, of which a subscriber with
+    # rclpy's qos_profile_sensor_data (best effort, keep last 5) gets 79-80 % of the messages.
     # The subscriber runs in its own process (rate_listener.py), as a user's node would, and
     # notes when each message was sent (the middleware's source timestamp).
     # The plumbing, not the physics: the cheapest step (Strang, one 50 us step per sample), and

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-What a careless or hostile user does to the node (issue 10), on one paced node process.
+What a careless or hostile user does to the node, on one paced node process.
 
 Inputs stamped far ahead are refused with the reason and counted, and do not lock a topic;
 ``~/reset`` discards everything pending; ``/diagnostics`` is stamped with the node's ROS
@@ -135,8 +135,8 @@ def test_diagnostics_header_is_the_node_clock(hostile):
 
 
 def test_a_shock_beyond_the_physical_bound_is_refused_with_its_reason(hostile):
-    # Issue 22, item 8: a 1.7e308 ~/shock held the ring at 3e292 m with non-finite gaps and the
-    # node withheld every block after it (1.6-2.0 s holes in the stream and the recording).
+    # A 1.7e308 ~/shock let through would hold the ring at 3e292 m with non-finite gaps; it is
+    # refused with its reason, and the blocks go on.
     node, probe = hostile
     keys = ('rejected_shock', 'accepted_shocks', 'status')
     before = counters(probe, 0.0, keys)
@@ -151,8 +151,8 @@ def test_a_shock_beyond_the_physical_bound_is_refused_with_its_reason(hostile):
 
 
 def test_a_second_node_of_the_same_name_refuses_to_start(hostile, tmp_path):
-    # Issue 22, item 12: two nodes of one name and different record.path started without a
-    # word, and their streams interleaved on one topic. The second one, a real process too,
+    # Two nodes of one name (and different record.path) would interleave their streams on one
+    # topic without a word. The second one, a real process too,
     # sees the first in the graph before it publishes anything and refuses.
     node, probe = hostile
     # Past its own first seconds (ros/node.py, NAMESAKE_WATCH_S: 5 s), in which the first one
@@ -181,8 +181,8 @@ def test_a_second_node_of_the_same_name_refuses_to_start(hostile, tmp_path):
 
 
 def test_a_namesake_that_appears_later_is_reported(hostile):
-    # Discovery may show a namesake after the start-up check (it took up to 2.35 s on a loaded
-    # host): the running node then logs an ERROR. The namesake here: a bare rclpy node.
+    # Discovery may show a namesake after the start-up check (it took up to 2.35 s under
+    # load): the running node then logs an ERROR. The namesake here: a bare rclpy node.
     node, probe = hostile
     probe.wait_sim_time(6_000_000_000, timeout=30.0)  # past its first seconds (above)
     namesake = Node(NAME)

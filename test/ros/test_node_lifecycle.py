@@ -156,7 +156,7 @@ def _topics_and_diagnostics_keys(path):
 
 
 def test_node_and_offline_recordings_look_the_same(processes, tmp_path):
-    """Issue 9: the same scenario recorded by the node and by ring_gyro run."""
+    """The same scenario recorded by the node and by ring_gyro run."""
     proc, workdir = processes['duration']
     assert proc.wait(EXIT_TIMEOUT_S) == 0, proc.output()
     offline_path = tmp_path / 'offline.mcap'

@@ -13,11 +13,11 @@
 # limitations under the License.
 
 """
-Memory of a paced, recording node (issue 10 item 1): ``benchmarks/bench_memory.py`` as tests.
+Memory of a paced, recording node: ``benchmarks/bench_memory.py`` as tests.
 
 The node (demo.yaml-like, real_time_factor 1, recording, no end) runs in its own process; its
-RSS is read from /proc. The leak of issue 10 (one done-callback lambda per executor wake added
-by ``rclpy.spin_until_future_complete``, ros2/rclpy#1371) grows it by 40-110 kB/s; the
+RSS is read from /proc. The leak it guards against (one done-callback lambda per executor wake
+added by ``rclpy.spin_until_future_complete``, ros2/rclpy#1371) grows it by 40-110 kB/s; the
 target is flat within 5 MB over 10 minutes (8.5 kB/s).
 """
 

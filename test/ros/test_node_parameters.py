@@ -13,9 +13,9 @@
 # limitations under the License.
 
 """
-Parameter refusals of the real node, across processes (issue 10 items 3 and 4).
+Parameter refusals of the real node, across processes.
 
-And the environment changed live (issue 24): ``ros2 param set`` of the vibration.
+And the environment changed live: ``ros2 param set`` of the vibration.
 
 rclpy refuses undeclared, read-only and out-of-range changes before the node's callback
 runs; they must be counted on ``/diagnostics`` by kind and answered with a reason naming the

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Ctrl-C and SIGTERM early in the life of ``ring_gyro_node`` (issue 10 item 5).
+Ctrl-C and SIGTERM early in the life of ``ring_gyro_node``.
 
 The real node process gets the signal at several moments of its start-up: the imports (rclpy,
 numpy, numba: about 0.5 s here), ``rclpy.init``, the start state. Every time it must end with
@@ -36,8 +36,8 @@ from node_harness import node_command, node_env, params_yaml, REPO_ROOT
 import pytest
 
 MOMENTS_S = (0.05, 0.1, 0.2, 0.3, 0.4, 0.6, 0.8, 1.0)
-"""When the signal is sent after the process started, s: across the imports (issue 10
-measured tracebacks in the first ~0.4 s; here they took up to 0.9 s under load), rclpy.init
+"""When the signal is sent after the process started, s: across the imports (tracebacks
+came in the first ~0.4 s, and up to 0.9 s under load, before the early handlers), rclpy.init
 and the start state."""
 EXIT_TIMEOUT_S = 60.0
 """The imports go on after a noted signal (then the process ends at once), generously."""

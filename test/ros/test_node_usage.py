@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""``ring_gyro_node -h`` prints its usage and does not start the node (issue 22 item 19)."""
+"""``ring_gyro_node -h`` prints its usage and does not start the node."""
 
 from pathlib import Path
 import subprocess

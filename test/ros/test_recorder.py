@@ -577,7 +577,7 @@ def test_ring_gyro_run_on_a_full_disk_prints_one_error_line(tiny_disk, tmp_path)
 
 
 def test_the_node_on_a_full_disk_logs_one_fatal_line(tiny_disk, tmp_path):
-    """Issue 10 item 6: a full disk gave a FATAL line, then two tracebacks from close()."""
+    """A full disk gives one FATAL line, and no traceback from close() after it."""
     params = tmp_path / 'full.yaml'
     params.write_text(params_yaml({**FAST, 'duration': 1.0, 'real_time_factor': 0.0,
                                    'drive.start_on': 'rest',

@@ -112,7 +112,7 @@ def test_the_report_runs_case4_through_the_sweep_engine(tmp_path, monkeypatch, c
     assert ran_here == []                                         # not in this process
     err = capsys.readouterr().err
     assert 'dashboard: none (disabled)' in err and 'http' not in err  # no dashboard URL
-    assert '\r' not in err  # issue 22 item 20: no carriage-return frames in a log
+    assert '\r' not in err  # no carriage-return frames in a log
     sweep = summary['case4_sweep']
     assert sweep['workers'] == 1 and sweep['computed'] == len(specs)
     keys = sweep['point_keys']

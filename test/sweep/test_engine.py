@@ -216,8 +216,8 @@ def test_ctrl_c_then_resume_recomputes_nothing_finished(reference, tmp_path):
 
 
 def test_two_sweeps_into_one_directory_the_second_is_refused(reference, tmp_path):
-    # issue 22 item 14: two sweeps started together into one --out both exited 0, and one's
-    # results replaced the other's. The first holds the directory's lock; the second says so.
+    # Two sweeps started together into one --out would both exit 0, one's results replacing
+    # the other's. The first holds the directory's lock; the second says so.
     spec, _, ref = reference
     out = tmp_path / 'out'
     first = subprocess.Popen(cli('sweep', spec, '--out', out, '--workers', '1',
@@ -260,8 +260,8 @@ def test_a_held_lock_refuses_the_sweep_before_anything_is_written(tmp_path):
 
 def test_resume_names_a_truncated_point_file_and_computes_the_point_again(
         reference, tmp_path):
-    # issue 22 item 15: a truncated point file blocked --resume for good ("not computed",
-    # exit 3, the file never named).
+    # A truncated point file must not block --resume for good ("not computed", exit 3, the
+    # file never named).
     spec, ref_out, ref = reference
     out = tmp_path / 'out'
     shutil.copytree(ref_out / 'points', out / 'points')
@@ -278,7 +278,7 @@ def test_resume_names_a_truncated_point_file_and_computes_the_point_again(
 
 
 def test_the_progress_bar_writes_whole_lines_into_a_log(reference, tmp_path):
-    # issue 22 item 20: tqdm's carriage-return frames went into non-terminal stderr
+    # tqdm's carriage-return frames do not belong in a non-terminal stderr
     spec, _, _ = reference
     log = tmp_path / 'sweep.log'
     with open(log, 'w') as stderr:

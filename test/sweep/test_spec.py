@@ -219,8 +219,8 @@ def test_the_sweep_verb_refuses_a_bad_spec_naming_the_key(tmp_path, capsys):
       'modes.quality_factors[0]': {'log': [5000.0, 180000.0, 1000]}}, 1_000_000),
 ])
 def test_a_spec_beyond_the_size_a_sweep_takes_is_refused_at_once(axes, count):
-    # issue 22 item 13: 1e9 points reached 3 GB in 8 s without a word (numpy made every
-    # value before anything was counted); now the count is read from the spec as written.
+    # 1e9 points would reach 3 GB in 8 s without a word if numpy made every value before
+    # anything was counted: the count is read from the spec as written.
     started = time.process_time()
     with pytest.raises(SweepSpecError) as info:
         parse_spec({'duration': 25.0, 'axes': axes})
@@ -238,7 +238,7 @@ def test_a_spec_beyond_the_size_a_sweep_takes_is_refused_at_once(axes, count):
     ('envelope_window', 2.0, 'envelope_window: must be at most 1'),
 ])
 def test_run_settings_beyond_the_parameter_ranges_are_refused(key, value, message):
-    # issue 22 item 13: duration 1.0e+308 passed the check and failed later (OverflowError)
+    # Refused at once: duration 1.0e+308 would otherwise fail later (OverflowError)
     data = {'duration': 1.0, 'axes': {'shock.peak_g': [1000.0]}, key: value}
     with pytest.raises(SweepSpecError, match=None) as info:
         parse_spec(data)

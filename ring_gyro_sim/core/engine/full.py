@@ -125,7 +125,7 @@ def default_max_step(config: SimConfig) -> float:
     Largest step, s: ``integrator.max_step`` or 1/8 of the fastest period up to 3theta.
 
     The linear part is exact, so the step is set by the accuracy of the nonlinear coupling
-    only, against the budget of issue 3 (the largest error in any q, 20 ms after a 10 000 g
+    only, against the step's error budget (the largest error in any q, 20 ms after a 10 000 g
     shock, below 1e-4 of the peak q1 of a DOP853 reference at rtol 1e-10). At 1/8 of the
     period of the 3theta mode (5 us for the paper's 22 kHz) the error is 2.2e-6 with ``bm6``
     (the default; 3.3e-6 with the drive on, ``benchmarks/``) and 7.7e-5 with ``bm4``
@@ -482,7 +482,7 @@ class Simulator:
 
     # ------------------------------------------------------------------ configuration
     def _check_stops_against_pull_in(self, config: SimConfig) -> None:
-        """Warn when the stops lie beyond the static pull-in displacement (issue 24)."""
+        """Warn when the stops lie beyond the static pull-in displacement."""
         self.pull_in_displacement = forces.static_pull_in_displacement(config, self.model)
         gap = config.electrodes.gap
         if config.stops.gap >= self.pull_in_displacement:

@@ -59,7 +59,7 @@ __all__ = ['describe', 'DriveStats', 'MEAN_WINDOW_S', 'RateStats', 'RECOVERY_BAN
            'RECOVERY_HOLD_S', 'RECOVERY_NOISE_SIGMAS']
 
 RECOVERY_BAND = 0.01
-"""Relative band of the recovery time: within 1 % of the applied rate (issue 12)."""
+"""Relative band of the recovery time: within 1 % of the applied rate."""
 RECOVERY_NOISE_SIGMAS = 4.0
 """The band is at least this many standard deviations of the error before the shock."""
 RECOVERY_HOLD_S = 0.1

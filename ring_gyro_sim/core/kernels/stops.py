@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The mechanical stops' contact force (issue 24): a hysteretic penalty on the modes.
+The mechanical stops' contact force: a hysteretic penalty on the modes.
 
 The stops are two continuous rings at the radial clearance g_s = ``stops.gap``, one outside
 the ring and one inside (the electrodes lie beyond them, at d_g > g_s). At an angle theta the

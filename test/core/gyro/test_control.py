@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The closed-loop drive (``core/gyro/control.py``, issue 14): PLL, AGC and force-to-rebalance.
+The closed-loop drive (``core/gyro/control.py``): PLL, AGC and force-to-rebalance.
 
 Physics: the PLL locks on the 2theta backbone (harmonic balance, an independent method) and
 follows the softening as the AGC raises the amplitude tenfold; the AGC brings the drive back

@@ -15,7 +15,7 @@
 """
 The sense electronics (core/gyro/electronics.py) on synthesized trajectories.
 
-The operating point is the gyroscope's (issue 12): a tenth of the paper's drive at 15 800 Hz,
+The operating point is ``config/gyro.yaml``'s: a tenth of the paper's drive at 15 800 Hz,
 linear response ``A = drive.amplitude Q_2 / omega^2 = 42.7 nm``. The trajectories are
 ``q2 = A cos(phi)``, ``q2s = a cos(phi) + b sin(phi)`` with ``phi`` the drive phase, and
 their capacitances come from ``Simulator.outputs_for`` (those the node publishes), so the
@@ -37,7 +37,7 @@ from scipy import signal
 
 GYRO = {'gyro.enabled': True, 'modes.companions': True, 'drive.amplitude': 0.0065,
         'drive.frequency': 15800.0}
-RATE = math.radians(10.0)  # 10 deg/s, issue 12
+RATE = math.radians(10.0)  # 10 deg/s, the gyroscope's test rate
 BLOCK = 2000  # samples per 10 ms block at the default 200 kHz
 
 
@@ -128,7 +128,7 @@ def test_scale_factor_closed_form_at_match():
     assert small.real == pytest.approx(linear, rel=1e-6, abs=0)
     assert abs(small.imag / small.real) < 2e-5
     assert el.scale_factor == el.electronic_gain * el.mechanical_scale_factor
-    # the issue's closed form: q2s / q2 = 0.182 at 10 deg/s
+    # the closed form: q2s / q2 = 0.182 at 10 deg/s
     assert abs(el.linear_mechanical_scale_factor * RATE / amplitude) == pytest.approx(
         0.182, abs=5e-4)
 
@@ -240,7 +240,7 @@ def test_electronic_noise_gives_the_predicted_angle_random_walk():
     f, h = signal.sosfreqz(el._sos, worN=200_000, fs=config.run.output_rate)
     enbw = np.trapezoid(np.abs(h) ** 2, f)
     assert np.var(rate) == pytest.approx(2.0 * n_el ** 2 * enbw, rel=0.055, abs=0)
-    # 2) Allan deviation (allantools) N / sqrt(tau), within 10 % (issue 12): at 0.05 s and
+    # 2) Allan deviation (allantools) N / sqrt(tau), within 10 %: at 0.05 s and
     # 0.1 s the low-pass removes 3 % and 1.5 % of the white-noise Allan variance (the part
     # of the Allan kernel above 100 Hz), and the overlapping estimator's standard error is
     # 2.3 % and 3.3 % (edf ~ 1.5 N / m): both inside the 10 %.

@@ -16,7 +16,7 @@
 The rate output says what it is worth (core/gyro/validity.py), from the sensor's own signals.
 
 Never from the true rate. A 10 000 g shock at 1 s on a gyroscope turning at 10 deg/s, 6 s
-(issue 22's measurement): open loop (config/gyro.yaml's operating point), the drive closed loop
+(doc/gyroscope.md): open loop (config/gyro.yaml's operating point), the drive closed loop
 with the open-loop sense readout, and the defaults (force-to-rebalance). The normalized error
 ``|rate - truth| / sqrt(cov_zz)`` of every ``~/rate`` sample must stay below 6 for at least
 99.9 % of them, and whenever the channel says valid its error is within its stated band.

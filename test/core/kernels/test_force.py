@@ -18,7 +18,7 @@ The force kernel's layout for speed: each value's operations against a plain loo
 ``core/kernels/force.py`` evaluates the series by Estrin's scheme in blocks of four coefficients
 (or Horner's rule beyond 16), sums the angle values several coordinates per pass, forms the
 parity combinations of the general path once per representative and sums the projections per
-coordinate in registers (issue 11). Each value must get the floating-point operations written
+coordinate in registers. Each value must get the floating-point operations written
 out here one angle and one coordinate at a time (:func:`plain_force`), for every series length
 (4, 8, 12 and 16 slots, with and without the ``u^2`` factor of the folded model, and Horner's
 rule) and on both paths (states with and without sine content). That the order is a good one

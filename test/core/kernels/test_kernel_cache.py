@@ -104,8 +104,8 @@ def cold_in_a_fresh_process(**env):
 
 
 def test_cold_kernels_tells_an_empty_cache_from_a_filled_one(tmp_path):
-    # issue 22 item 20: the first compile (~25 s of CPU) was silent; the command line asks
-    # this before it runs anything (it compiles nothing itself).
+    # The first compile takes tens of seconds: the command line asks this before it runs
+    # anything, to say so (it compiles nothing itself).
     from ring_gyro_sim.core.params import paper_config
     from ring_gyro_sim.core.engine.full import Simulator
     Simulator(paper_config({'drive.start_on': 'rest'})).advance(0.001)  # fills the cache
