@@ -28,7 +28,10 @@ The README and the ``doc/`` pages hold together.
   name (``physics.md``, ``interface.md``, ``style.md``, ``design.md``) exists in ``doc/``.
 * The code carries no history: no date (year-month-day) and no commit hash in the comments
   and docstrings of ``ring_gyro_sim/`` and ``test/`` (the copyright line's year is not a
-  date). History goes to ``doc/performance.md`` or ``CHANGELOG.md`` (CONTRIBUTING.md).
+  date), nor the machine a figure was measured on ("measured on ... host", "measured with
+  ... on this machine") or an issue number ("issue N", "issue #N": the tracker is not in the
+  repository). A comment's lines are read together, as one text. History goes to
+  ``doc/performance.md`` or ``CHANGELOG.md`` (CONTRIBUTING.md).
 
 Each check has a control that shows it reports what it is meant to catch.
 """
@@ -185,33 +188,57 @@ def test_the_self_containment_checks_report_what_they_must(tmp_path):
     assert SELF_CONTAINED and len(NAMING_PAGES) > len(SELF_CONTAINED)
 
 
-# -- no history in the code: dates and commit hashes in comments and docstrings ------------
+# -- no history in the code: dates, hashes, hosts and issues in comments and docstrings ----
 
 _DATE = re.compile(r'\b(?:19|20)\d\d-[01]\d-[0-3]\d\b')
 _COMMIT = re.compile(r'\b(?=[0-9a-f]*[0-9])(?=[0-9a-f]*[a-f])[0-9a-f]{7,40}\b')
 _COPYRIGHT = re.compile(r'#\s*Copyright\b')
+_MEASURED_ON_HOST = re.compile(
+    r'\bmeasured\s+(?:on|with)\b(?:[^.;]|\.\d){0,120}?\b(?:host|machine)\b', re.IGNORECASE)
+"""A measurement's host named: "measured on ..." or "with ...", the host or machine in the
+sentence."""
+_ISSUE = re.compile(r'\bissues?[\s-]*#?\d+', re.IGNORECASE)
+"""An issue number: "issue N", "Issue #N", "issue-N", "issues N, M and K" (N a number)."""
 
 
 def comments_and_docstrings(source):
     """
     Yield ``(line, text)`` of every comment and docstring of Python ``source``.
 
-    Docstrings are the string-literal statements: those of modules, classes and functions and
-    the attribute docstrings that follow an assignment.
+    Comments on consecutive lines are one text, their lines joined without the ``#``, so that
+    a phrase broken across them is found. Docstrings are the string-literal statements: those
+    of modules, classes and functions and the attribute docstrings that follow an assignment.
     """
+    block = []
     for token in tokenize.generate_tokens(io.StringIO(source).readline):
         if token.type == tokenize.COMMENT and not _COPYRIGHT.match(token.string):
-            yield token.start[0], token.string
+            if block and token.start[0] != block[-1][0] + 1:
+                yield block[0][0], '\n'.join(text for _, text in block)
+                block = []
+            block.append((token.start[0], token.string.lstrip('#')))
+    if block:
+        yield block[0][0], '\n'.join(text for _, text in block)
     for node in ast.walk(ast.parse(source)):
         if (isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant)
                 and isinstance(node.value.value, str)):
             yield node.lineno, node.value.value
 
 
+def pattern_marks(source, patterns):
+    """Return ``(line, mark)`` of every match of ``patterns`` in the comments and docstrings."""
+    return sorted((line + text.count('\n', 0, m.start()), ' '.join(m.group().split()))
+                  for line, text in comments_and_docstrings(source)
+                  for pattern in patterns for m in pattern.finditer(text))
+
+
 def history_marks(source):
     """Return ``(line, mark)`` of every date or commit hash in the comments and docstrings."""
-    return sorted((line, m.group()) for line, text in comments_and_docstrings(source)
-                  for pattern in (_DATE, _COMMIT) for m in pattern.finditer(text))
+    return pattern_marks(source, (_DATE, _COMMIT))
+
+
+def provenance_marks(source):
+    """Return ``(line, mark)`` of every host of a measurement or issue number in them."""
+    return pattern_marks(source, (_MEASURED_ON_HOST, _ISSUE))
 
 
 HISTORY_FREE = _files('ring_gyro_sim/**/*.py', 'test/**/*.py')
@@ -235,3 +262,27 @@ def test_the_history_check_reports_dates_and_hashes():
               f'    """Return 2000000 (deadbeef and cafe are words; 1e-12 is a number)."""\n'
               '    return 2000000\n')
     assert history_marks(source) == [(2, day), (3, commit), (4, commit)]
+
+
+def test_no_host_of_a_measurement_or_issue_number_in_comments_or_docstrings():
+    found = {str(p.relative_to(PACKAGE_ROOT)): provenance_marks(p.read_text(encoding='utf-8'))
+             for p in HISTORY_FREE}
+    assert {name: marks for name, marks in found.items() if marks} == {}
+
+
+def test_the_history_check_reports_hosts_and_issue_numbers():
+    """Control: a measurement's host or an issue number is found, across a comment's lines."""
+    source = ('"""Module: a take costs 6 us (measured with rclpy\'s take on this\n'
+              'project\'s host)."""\n'
+              '# Measured on this machine (2-core, numpy 2.4): 37 ns per normal.\n'
+              'X = 1  # the bound of Issue 22, item 8\n'
+              '# as issue #25 asks; the\n'
+              '# issue-11 budget\n'
+              'LABEL = "measured on the host, issue 9"  # a string in code is data\n'
+              'def f():\n'
+              '    """Return the measured rate (with the host\'s clock, ros2/rclpy#1371)."""\n'
+              '    # Measured on 0.4 s means. The host is shared; tissue 3 is no issue.\n'
+              '    return 1\n')
+    assert provenance_marks(source) == [
+        (1, "measured with rclpy's take on this project's host"),
+        (3, 'Measured on this machine'), (4, 'Issue 22'), (5, 'issue #25'), (6, 'issue-11')]
