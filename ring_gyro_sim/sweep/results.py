@@ -17,7 +17,7 @@ The results of a sweep as an ``xarray.Dataset``, netCDF4 and CSV.
 
 Dimensions are the sweep axes (named as in the spec, e.g. ``modes.quality_factors[0]``,
 ``shock.peak_g``; coordinate attributes ``units`` and ``spacing``), one variable per metric
-of the spec (:data:`ring_gyro_sim.sweep.point.METRICS`, ``GYRO_METRICS`` for a gyroscope
+of the spec (:data:`ring_gyro_sim.sweep.metrics.METRICS`, ``GYRO_METRICS`` for a gyroscope
 sweep; attributes ``units`` and ``long_name``), and always:
 
 * ``branch_code`` (with ``final_branch``): int8, 0 lower, 1 upper, 2 contact, -1 no drive or
@@ -51,7 +51,7 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence
 
 import numpy as np
 from ring_gyro_sim import __version__
-from ring_gyro_sim.sweep.point import metric_table
+from ring_gyro_sim.sweep.metrics import metric_table
 from ring_gyro_sim.sweep.spec import Point, SweepSpec
 
 __all__ = ['BRANCH_CODES', 'DATASHEET_FIGURES', 'ENVELOPE_PREFIX', 'REPRODUCIBLE_EXCLUDED',

@@ -111,6 +111,7 @@ from ring_gyro_sim.core.params import (coerce, defaults, LIST_KINDS, MAX_OUTPUT_
                                        MAX_TIME_S, paper_config, PAPER_RESONATOR, SimConfig,
                                        SPECS)
 from ring_gyro_sim.paramfile import check_params_file, DEFAULT_NODE_NAME, RosYamlLoader
+from ring_gyro_sim.sweep.metrics import metric_table
 import yaml
 
 __all__ = ['ALL_ENVELOPES', 'Axis', 'KINDS', 'Point', 'SCENARIO_NAMES', 'SweepSpec',
@@ -614,7 +615,6 @@ def parse_spec(data: Any, source: str = '<text>', directory: str = '.',
         The message names the spec, the key and the reason.
 
     """
-    from ring_gyro_sim.sweep.point import metric_table  # the metrics live beside evaluate
     if not isinstance(data, dict):
         raise SweepSpecError(f'sweep spec {source}: the top level must be a mapping '
                              f'({", ".join(SPEC_KEYS)})')
