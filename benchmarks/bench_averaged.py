@@ -19,7 +19,7 @@ One open-loop case for both: ``benchmarks/gyro.yaml``'s operating point (N_R = 3
 companions, 0.0065 m/s^2 at 15 800 Hz, 10 deg/s from t = 0) without its shock and with the
 noise off (the open-loop averaged model has neither), started on the drive orbit. The full model
 runs through :class:`ring_gyro_sim.run.Run` in its 10 ms blocks (integration, outputs and
-the sense chain at 200 kHz); the averaged model (``core.averaged``) from the envelope of the
+the sense chain at 200 kHz); the averaged model (``core.engine.averaged``) from the envelope of the
 same start state, its samples at 1 kHz (the rate output's rate, 100 s) and at 200 kHz (the
 block topics' rate, q2 and q2s reconstructed, as long as the full model's record: the
 samples are made in one piece, and their arrays, not the model, set that cost). In
@@ -32,7 +32,7 @@ open-loop ratio is not the closed loop's (below).
 
 The closed loop (``--closed``, run by default after the open loop): the default gyroscope
 (``config/default.yaml``: PLL, AGC, force-to-rebalance, the factory calibration) with the
-noise off at a constant 10 deg/s, through ``Run`` and through ``core.averaged.AveragedGyro``
+noise off at a constant 10 deg/s, through ``Run`` and through ``core.engine.averaged.AveragedGyro``
 (its ``~/rate`` samples at ``gyro.output_rate``, 1 kHz, with the same held calibration),
 both from the Run's start state; printed likewise, with the largest difference of the two
 ``~/rate`` records over the full model's stretch after its first 50 ms, relative to the
@@ -46,7 +46,8 @@ import sys
 import time
 
 import numpy as np
-from ring_gyro_sim.core.averaged import AveragedGyro, AveragedModel, envelope_of
+from ring_gyro_sim.analysis.slow_flow import AveragedModel
+from ring_gyro_sim.core.engine.averaged import AveragedGyro, envelope_of
 from ring_gyro_sim.core.gyro import operating_point
 from ring_gyro_sim.core.params import build_config
 from ring_gyro_sim.run import Run

@@ -241,9 +241,10 @@ for _ in range(int(repeats)):
         run.advance(block)
     cpu = time.process_time() - c0
     wall = time.perf_counter() - w0
-    row = {'wall_s': wall, 'cpu_s': cpu, 'sim_s': run.sim.time_s, 'status': str(run.sim.status),
-           'message': run.sim.message, 'steps': run.sim.steps_taken,
-           'samples': run.sim.sample_index, 'module': ring_gyro_sim.__file__}
+    sim = run.full_model() if hasattr(run, 'full_model') else run.sim   # an older tree
+    row = {'wall_s': wall, 'cpu_s': cpu, 'sim_s': sim.time_s, 'status': str(sim.status),
+           'message': sim.message, 'steps': sim.steps_taken,
+           'samples': sim.sample_index, 'module': ring_gyro_sim.__file__}
     if best is None or cpu < best['cpu_s']:
         best = dict(row, wall_s=min(wall, best['wall_s']) if best else wall)
     else:
@@ -525,7 +526,7 @@ class ScipyProblem:
 def simulator_window(config: SimConfig, n_samples: int) -> Tuple[np.ndarray, float]:
     """Return the coordinates (K, n) of ``n_samples`` periods in 10 ms blocks, and the wall s."""
     run = Run(config)
-    per_chunk = int(round(CHUNK_S / run.sim.period_s))
+    per_chunk = int(round(CHUNK_S / run.full_model().period_s))
     parts = []
     w0 = time.perf_counter()
     done = 0
@@ -535,7 +536,7 @@ def simulator_window(config: SimConfig, n_samples: int) -> Tuple[np.ndarray, flo
         done += size
     wall = time.perf_counter() - w0
     if not run.running:
-        raise RuntimeError(f'simulator: {run.sim.message}')
+        raise RuntimeError(f'simulator: {run.full_model().message}')
     return np.concatenate(parts), wall
 
 
@@ -629,10 +630,10 @@ def once(record):
         last = k == n_blocks - 1
         if (k + 1) % per_second == 0 or last:
             run.diagnostics(Pacing(target=0.0, achieved=0.0, average=0.0), finished=last)
-    status = str(run.sim.status)
+    status = str(run.full_model().status)
     run.close()
     row = {'wall_s': time.perf_counter() - w0, 'cpu_s': time.process_time() - c0,
-           'sim_s': run.sim.time_s, 'status': status}
+           'sim_s': run.full_model().time_s, 'status': status}
     if out:
         row['bytes'] = os.path.getsize(out)
         os.remove(out)

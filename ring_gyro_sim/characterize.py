@@ -70,7 +70,8 @@ device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
      time to 63.2 % of the step is given beside it.
 
 1b. The long zero-rate record (:func:`_long_record`, :func:`_long_allan`): 3 h /
-   200 s at zero rate on the averaged model (``core.averaged.AveragedGyro``, hours in seconds:
+   200 s at zero rate on the averaged model
+   (``core.engine.averaged.AveragedGyro``, hours in seconds:
    doc/averaged.md, "Speed"), run first, when
    ``integrator.fidelity`` is ``auto`` or ``averaged`` and the averaged model runs the device
    (the closed loop with force-to-rebalance, the truncated force). Its Allan deviation goes to
@@ -721,7 +722,7 @@ def _simulate(values: Mapping[str, Any], duration_s: float, bar: _Bar, note: str
         run.close()
     bar.finish_run(duration_s)
     t, rate, applied, drive, quadrature = trace.arrays()
-    el = run.sim.sense.electronics
+    el = run.full_model().sense.electronics
     return _Record(t=t, rate=rate, applied=applied, drive=drive, quadrature=quadrature,
                    scale_factor=float(el.scale_factor),
                    drive_amplitude_m=float(el.drive_amplitude_m), electronics=el,
@@ -732,7 +733,7 @@ def averaged_refusal(flat: Mapping[str, Any]) -> Optional[str]:
     """
     Return why the quiet tests will not run on the averaged model, or None if they will.
 
-    ``integrator.fidelity: full``, or under ``auto`` a device ``core.averaged.AveragedGyro``
+    ``integrator.fidelity: full``, or under ``auto`` a device ``core.engine.averaged.AveragedGyro``
     cannot run (its own message, naming the parameter: the open loop, the untruncated
     force...). Quiet: the tests' scenarios have no shock, base acceleration, vibration or
     contact (:func:`_test_parameters` drops the file's).
@@ -758,7 +759,7 @@ def averaged_refusal(flat: Mapping[str, Any]) -> Optional[str]:
 
 
 def _averaged_gyro(config: SimConfig, start_state=None):
-    from ring_gyro_sim.core.averaged import AveragedGyro
+    from ring_gyro_sim.core.engine.averaged import AveragedGyro
     with warnings.catch_warnings():
         warnings.simplefilter('ignore', RuntimeWarning)  # as _simulate's Run
         return AveragedGyro(config, start_state)
@@ -796,7 +797,7 @@ def _simulate_averaged(values: Mapping[str, Any], duration_s: float, bar: _Bar,
         warnings.simplefilter('ignore', RuntimeWarning)
         run = Run(config, log=bar.note)
     try:
-        el, start = run.sim.sense.electronics, run.start_state
+        el, start = run.full_model().sense.electronics, run.start_state
     finally:
         run.close()
     gyro = _averaged_gyro(config, start)   # the Run's start state: one orbit shooting
@@ -1207,7 +1208,7 @@ def _long_record(flat, plan: Plan, bar: _Bar, refusal: Optional[str]) -> Dict[st
     Record ``plan.long_record_s`` at zero rate on the averaged model (module docstring, 1b).
 
     The model runs when ``integrator.fidelity`` is ``auto`` or ``averaged`` and
-    ``core.averaged.AveragedGyro`` runs the device (the test is quiet: no shock, no base
+    ``core.engine.averaged.AveragedGyro`` runs the device (the test is quiet: no shock, no base
     acceleration, no vibration, no rate). It reads the model's own readout, as the other tests
     (``gyro.calibration.source: ideal``: the loop's rebalance rate, C7), from the run's start
     state, with the device's noises (S9-S11, their own streams of ``gyro.noise_seed``).

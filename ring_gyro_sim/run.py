@@ -61,7 +61,7 @@ Reset
 
 Which model (``integrator.fidelity``)
     ``full``: the full model (``Simulator``) throughout. ``auto`` (the default) and
-    ``averaged``: the averaged model (``core.fidelity.AveragedStretch``: the closed-loop
+    ``averaged``: the averaged model (``core.engine.averaged.AveragedEngine``: the closed-loop
     gyroscope's slow flow, its blocks reconstructed from the envelopes) wherever it may run,
     the full model elsewhere. A run starts on the full model, which hands over at its first
     check if it may (its sense chain has then judged a sample). The averaged model hands
@@ -70,12 +70,13 @@ Which model (``integrator.fidelity``)
     (``Simulator.next_scheduled_s``: a shock pulse, a base-acceleration sample, a parameter,
     drive or temperature change), and at once when an input other than an angular rate
     acts at the current time (a reset included); angular rates it integrates itself. The
-    full model hands back at a hand-back check (every ``core.fidelity.CHECK_S`` of simulated
-    time) that :meth:`Run._may_hand_back` allows: the loops locked with force-to-rebalance
-    and the drive at its set-point, the last ``~/rate`` sample a measurement, nothing
-    scheduled acting, the last input other than a rate ``CHECK_S`` ago or more, and
-    the modes the averaged model leaves out rung down below ``HAND_BACK_THRESHOLD``. Never
-    averaged: a gyroscope the averaged model does not run (``core.fidelity.unsupported``:
+    full model hands back at a hand-back check (every ``core.engine.handoff.CHECK_S`` of
+    simulated time) that ``core.engine.handoff.may_hand_back`` allows (the one policy): the
+    loops locked with force-to-rebalance and the drive at its set-point, the last ``~/rate``
+    sample a measurement, nothing scheduled acting, the last input other than a rate
+    ``CHECK_S`` ago or more, and the modes the averaged model leaves out rung down below
+    ``HAND_BACK_THRESHOLD``. Never
+    averaged: a gyroscope the averaged model does not run (``core.engine.handoff.refusal``:
     open loop, no rebalance, an environment, ``gyro.output_rate`` below ``control.rate``,
     ...). The rules read the state and the acting times of the inputs, never when an input
     arrived, so that a re-simulation (``--from``) makes the same hand-offs. ``averaged``
@@ -104,13 +105,13 @@ from typing import Any, Callable, Deque, Dict, List, Mapping, Optional, Tuple, U
 import numpy as np
 
 from ring_gyro_sim.core import thermal
-from ring_gyro_sim.core.averaged import fast_mode_amplitude, HAND_BACK_THRESHOLD
 from ring_gyro_sim.core.bench import factory
+from ring_gyro_sim.core.engine import ENGINES, handoff
+from ring_gyro_sim.core.engine.averaged import AveragedEngine
 from ring_gyro_sim.core.engine.full import (channel_names, joined_samples, Samples, Simulator,
                                             Status)
 from ring_gyro_sim.core.errors import InputError, ParameterError
-from ring_gyro_sim.core.fidelity import AveragedStretch, CHECK_S, unsupported
-from ring_gyro_sim.core.gyro import calibration as gyro_calibration, operating_point, validity
+from ring_gyro_sim.core.gyro import calibration as gyro_calibration, operating_point
 from ring_gyro_sim.core.gyro.control import ControlSamples, update_rows
 from ring_gyro_sim.core.gyro.electronics import DemodSamples, RateSamples
 from ring_gyro_sim.core.gyro.stats import describe, DriveStats, RateStats
@@ -337,7 +338,7 @@ class Sink:
         True here (the block :meth:`Run.advance` returns has them). A sink that neither
         publishes nor records them says False: an averaged stretch then leaves them out
         (``Samples.gap`` None) and gives only their smallest gap, which the statistics take
-        (``core.fidelity.AveragedStretch``).
+        (``core.engine.averaged.AveragedEngine``).
         """
         return True
 
@@ -544,10 +545,10 @@ class Run:
         if isinstance(calibration, str) and calibration == 'auto':
             calibration = factory.for_config(config, log)
         self.calibration: Optional[gyro_calibration.Calibration] = calibration
-        self._stretch: Optional[AveragedStretch] = None
+        self._stretch: Optional[AveragedEngine] = None
         self._stale = False
         self._sim = Simulator(config, start_state, calibration=calibration)
-        random = self.sim.random_vibration
+        random = self.full_model().random_vibration
         if random is not None and log is not None:
             r = config.run
             log(f'random vibration: {random.rms_g:.4g} g rms, '
@@ -555,19 +556,19 @@ class Run:
                 f'Hz along {r.vibration_angle:g} deg, a multisine of {random.lines.size} '
                 f'lines that repeats every {random.n / r.output_rate:.4g} s '
                 f'(doc/environments.md)')
-        self.start_state: Tuple[np.ndarray, np.ndarray] = (self.sim.q.copy(),
-                                                           self.sim.v.copy())
+        self.start_state: Tuple[np.ndarray, np.ndarray] = (self.full_model().q.copy(),
+                                                           self.full_model().v.copy())
         self.rate_stats: Optional[RateStats] = None
         if config.gyro.enabled:
             self.rate_stats = RateStats(config.gyro.output_rate)
         self.drive_stats: Optional[DriveStats] = (
-            DriveStats(self.sim.loop) if self.sim.loop is not None else None)
+            DriveStats(self.full_model().loop) if self.full_model().loop is not None else None)
         self.sink: Sink = sink if sink is not None else NullSink()
-        if self.sim.sense is not None:
-            self.sink.set_rate_variance(self.sim.sense.electronics.rate_variance())
+        if self.full_model().sense is not None:
+            self.sink.set_rate_variance(self.full_model().sense.electronics.rate_variance())
             self.sink.set_calibration(None if calibration is None else calibration.to_dict())
         self.late_tolerance_ns = int(late_tolerance_ns)
-        self.stats = RunStats(self.sim.coordinates, self.sim.period_ns, self.sim.model.gap)
+        self.stats = RunStats(self._sim.coordinates, self._sim.period_ns, self._sim.model.gap)
         self.rejected: Dict[str, int] = {topic: 0 for topic in INPUT_TOPICS}
         self.accepted: Dict[str, int] = {topic: 0 for topic in INPUT_TOPICS}
         self.lost: Dict[str, int] = {}
@@ -596,10 +597,10 @@ class Run:
         self.fidelity = config.integrator.fidelity
         self.handoffs: List[Tuple[float, str]] = []
         self._last_input_ns = -(1 << 62)  # the latest acting time of an input not a rate
-        self._check_samples = max(1, int(round(CHECK_S / self._sim.period_s)))
+        self._check_samples = max(1, int(round(handoff.CHECK_S / self._sim.period_s)))
         self.fidelity_reason: Optional[str] = (
             'integrator.fidelity: full' if self.fidelity == 'full'
-            else unsupported(config, self._sim, blocks=True))
+            else handoff.refusal(config))
         if self.fidelity == 'averaged' and self.fidelity_reason is not None:
             raise ParameterError(f'integrator.fidelity: averaged, but {self.fidelity_reason}')
         if self._may_hand_back():
@@ -608,8 +609,7 @@ class Run:
             self._handoff('full')
 
     # ------------------------------------------------------------------ properties
-    @property
-    def sim(self) -> Simulator:
+    def full_model(self) -> Simulator:
         """
         Return the full model, holding the state now.
 
@@ -673,7 +673,7 @@ class Run:
     @property
     def pending_inputs(self) -> int:
         """Return the number of accepted inputs stamped after the current simulation time."""
-        now = self.sim.time_ns
+        now = self.full_model().time_ns
         return (sum(1 for t_ns, _, _ in self._to_sink if t_ns > now)
                 + sum(1 for t_ns, _, _ in self._rates_to_sink if t_ns > now))
 
@@ -700,7 +700,7 @@ class Run:
         return at_ns
 
     def _apply(self, event: Input) -> int:
-        sim = self.sim
+        sim = self.full_model()
         if isinstance(event, (Shock, BaseAcceleration)) and not all(
                 math.isfinite(v) for v in (event.x, event.y, event.z)):
             raise InputError(f'not finite: x = {event.x!r}, y = {event.y!r}, z = {event.z!r}')
@@ -752,7 +752,7 @@ class Run:
             at_ns = self._now_only(event.at_ns)
             sim.update_parameters(event.changes, at_ns=at_ns)
             if self.fidelity != 'full':   # the averaged model may (no longer) run it
-                self.fidelity_reason = unsupported(sim.config, sim, blocks=True)
+                self.fidelity_reason = handoff.refusal(sim.config)
         else:
             raise InputError(f'unknown input {event!r}')
         self._accepted(replace(event, at_ns=at_ns))
@@ -768,7 +768,7 @@ class Run:
             Too far in the past (beyond ``late_tolerance_ns``) or beyond ``inputs.horizon``.
 
         """
-        now = self.sim.time_ns
+        now = self.full_model().time_ns
         if at_ns is None:
             return now
         at_ns = int(at_ns)
@@ -789,7 +789,7 @@ class Run:
     def _now_only(self, at_ns: Optional[int]) -> int:
         """Drive, reset and parameter changes act at a sample time at or after ``at_ns``."""
         t = self.acting_time(at_ns)
-        period = self.sim.period_ns
+        period = self.full_model().period_ns
         return -(-t // period) * period
 
     def shock_refusal(self) -> Optional[str]:
@@ -818,7 +818,7 @@ class Run:
             refusal = self.shock_refusal()
             if refusal is not None:
                 raise InputError(refusal)
-            self.sim.shock(event.x, event.y, at_ns=at_ns)
+            self.full_model().shock(event.x, event.y, at_ns=at_ns)
             self._shocks_this_block += 1
         else:
             at_ns = int(event.at_ns)
@@ -847,7 +847,7 @@ class Run:
         Not the angular rates: the sensor frame keeps turning (``Simulator.reset``), so the
         rates still to come act after the reset and are recorded when they do.
         """
-        now = self.sim.time_ns
+        now = self.full_model().time_ns
         self._flush_inputs(now)
         self._to_sink = []
         self._shock_ends = []
@@ -950,7 +950,7 @@ class Run:
 
         Averaged up to the last loop update at or before the next scheduled input the full
         model must simulate, full from there; full up to the next hand-back check (every
-        :data:`~ring_gyro_sim.core.fidelity.CHECK_S` of simulated time), averaged from a
+        :data:`~ring_gyro_sim.core.engine.handoff.CHECK_S` of simulated time), averaged from a
         check that allows it.
         """
         sim = self._sim
@@ -966,7 +966,7 @@ class Run:
                     stop = int(math.floor(fast / sim.period_s + 1e-9)) // window * window
                     limit = min(limit, max(0, stop - now))
                 if limit > 0:
-                    parts.append(stretch.advance(limit, self.sink.needs_channels))
+                    parts.append(stretch.advance_samples(limit, channels=self.sink.needs_channels))
                     self._stale = True
                     count -= limit
                     if between is not None:
@@ -987,48 +987,32 @@ class Run:
 
     def _may_hand_back(self) -> bool:
         """
-        Whether the full model may hand over to the averaged one now.
+        Whether the full model may hand over to the averaged one now (``handoff``'s policy).
 
-        At a loop update after the start (the full model runs the first check's stretch, so
-        that its sense chain has judged a sample), at fidelity ``auto`` or ``averaged``, with
-        a gyroscope the
-        averaged model runs (``core.fidelity.unsupported``, of the configuration in force);
-        the ring free, the loops locked with force-to-rebalance on and the drive at its
-        set-point (within ``validity.DRIVE_TOLERANCE``), the last ``~/rate`` sample a
-        measurement (no reason against it, V1), nothing scheduled acting now, the last
-        input other than a rate :data:`CHECK_S` ago or more, and the modes the averaged
-        model leaves out rung down below
-        :data:`~ring_gyro_sim.core.averaged.HAND_BACK_THRESHOLD` of the gap. Each condition
-        depends on the state and on the acting times of the inputs that have acted, never
-        on when an input arrived: a re-simulation makes the same hand-offs.
+        At fidelity ``auto`` or ``averaged``, with the refusal of the configuration in force;
+        the inputs that have acted are handed to the sink first, once the state allows it.
         """
+        if self.fidelity == 'full':
+            return False
         sim = self._sim
-        if self.fidelity == 'full' or sim.status != Status.RUNNING or sim.in_stop_contact:
-            return False
         loop = sim.loop
-        if loop is None or sim.sample_index == 0 or sim.sample_index % loop.window:
-            return False   # the first check after the full model's first samples
-        self.fidelity_reason = unsupported(sim.config, sim, blocks=True)
-        if self.fidelity_reason is not None or not (loop.locked and loop.rebalance_on):
-            return False
-        # the loops at their operating point, ~/rate a measurement (V1)
-        if (not loop.setpoint_m > 0.0
-                or not abs(loop.amplitude / loop.setpoint_m - 1.0) <= validity.DRIVE_TOLERANCE
-                or sim.sense.validity.state.reason):
-            return False
-        self._flush_inputs(sim.time_ns)
-        if (sim.next_scheduled_s() <= sim.time_s
-                or sim.time_ns - self._last_input_ns < self._check_samples * sim.period_ns):
-            return False
-        return fast_mode_amplitude(sim) < HAND_BACK_THRESHOLD
+        if (sim.status == Status.RUNNING and not sim.in_stop_contact and loop is not None
+                and sim.sample_index and sim.sample_index % loop.window == 0):
+            self.fidelity_reason = handoff.refusal(sim.config)
+
+        def last_input_ns() -> int:
+            self._flush_inputs(sim.time_ns)
+            return self._last_input_ns
+        return handoff.may_hand_back(sim, self.fidelity_reason, last_input_ns,
+                                     self._check_samples)
 
     def _to_averaged(self) -> None:
-        self._stretch = AveragedStretch(self._sim)
+        self._stretch = ENGINES['averaged'](self._sim)
         self._stale = False
         self._handoff('averaged')
 
     def _to_full(self) -> None:
-        self.sim  # noqa: B018 - the averaged model's state handed to the full model
+        self.full_model()   # the averaged model's state handed to the full model
         self._stretch = None
         self._handoff('full')
 
@@ -1055,7 +1039,7 @@ class Run:
         on the mechanical stops, ``Simulator.impacts``: 0 without them), ``model`` (the model
         running now: ``averaged`` or ``full``) and ``model_changes`` (hand-offs so far).
         """
-        sim = self.sim
+        sim = self.full_model()
         stats = self.stats
         self._flush_inputs(sim.time_ns)
         gap = stats.take_interval_min_gap()
@@ -1104,8 +1088,8 @@ class Run:
             if not loop['pll_locked']:
                 gyro_warning = (f'PLL out of lock since t = {sim.loop.unlocked_since_s:.6f} s '
                                 f'(phase error {loop["pll_phase_error_rad"]:.3g} rad)')
-        if self.sim.sense is not None:
-            gyro = self.sim.sense.diagnostics_values()
+        if self.full_model().sense is not None:
+            gyro = self.full_model().sense.diagnostics_values()
             values.update(gyro)
             if not gyro['rate_valid'] and not gyro_warning:
                 # The rate channel's own verdict (core.gyro.validity), from what the sensor
@@ -1135,7 +1119,7 @@ class Run:
         None while running, or when the contact or failure came more than :data:`RELAPSE_S`
         after the last reset (or with no reset before it).
         """
-        sim = self.sim
+        sim = self.full_model()
         if self.running or self._reset_ns is None or not math.isfinite(sim.contact_time_s):
             return None
         after_s = sim.contact_time_s - self._reset_ns * 1e-9
@@ -1147,7 +1131,7 @@ class Run:
 
     def in_force(self) -> str:
         """Return the inputs in force now that can drive the ring, in words."""
-        sim = self.sim
+        sim = self.full_model()
         config = sim.config
         parts = []
         if sim.gyro:
@@ -1177,7 +1161,7 @@ class Run:
         """
         if self.running:
             return ''
-        sim = self.sim
+        sim = self.full_model()
         relapse = self.relapse()
         return (f'{sim.status}: {sim.message}; {relapse}' if relapse is not None
                 else f'{sim.status}: {sim.message} (~/reset recovers)')
@@ -1188,7 +1172,7 @@ class Run:
 
     def summary(self, output: Optional[str] = None) -> RunSummary:
         """Return the run's numbers (``ring_gyro run``); ``status`` as the run ended."""
-        sim = self.sim
+        sim = self.full_model()
         wall = self.wall_time_s()
         return RunSummary(
             sim_time_s=sim.time_s, wall_time_s=wall,
@@ -1207,8 +1191,8 @@ class Run:
         The rms only if a random vibration is on.
         """
         out = {**self.stop_figures(), **self.gyro_figures(), **self.fidelity_figures()}
-        if self.sim.random_vibration is not None:
-            out['random_vibration_rms_g'] = self.sim.random_vibration.rms_g
+        if self.full_model().random_vibration is not None:
+            out['random_vibration_rms_g'] = self.full_model().random_vibration.rms_g
         return out
 
     def fidelity_figures(self) -> Dict[str, Any]:
@@ -1226,9 +1210,9 @@ class Run:
 
     def stop_figures(self) -> Dict[str, Any]:
         """Return the mechanical stops' figures (``stop_impacts``), {} without stops."""
-        if not self.sim.config.stops.enabled:
+        if not self.full_model().config.stops.enabled:
             return {}
-        return {'stop_impacts': self.sim.impacts}
+        return {'stop_impacts': self.full_model().impacts}
 
     def gyro_figures(self) -> Dict[str, Any]:
         """
@@ -1240,10 +1224,10 @@ class Run:
         out: Dict[str, Any] = {}
         if self.drive_stats is not None:
             out.update(self.drive_stats.figures())
-        if self.sim.sense is None or self.rate_stats is None:
+        if self.full_model().sense is None or self.rate_stats is None:
             return out
         out.update(self.rate_stats.figures())
-        diag = self.sim.sense.diagnostics_values()
+        diag = self.full_model().sense.diagnostics_values()
         if self.calibration is not None:
             out.update({f'calibration_{k}': v for k, v in self.calibration.to_dict().items()})
         else:
@@ -1257,8 +1241,8 @@ class Run:
     def summary_text(self) -> str:
         """Return the run's numbers in one line (the node's log), the gyroscope's included."""
         text = self.stats.text()
-        if self.sim.config.stops.enabled:
-            text += f'; {self.sim.impacts} impacts on the stops'
+        if self.full_model().config.stops.enabled:
+            text += f'; {self.full_model().impacts} impacts on the stops'
         gyro = describe(self.gyro_figures())
         if gyro:
             text += f'; {gyro}'
@@ -1266,11 +1250,11 @@ class Run:
             text += '; models: ' + ', '.join(f'{model} from {t:.6g} s'
                                              for t, model in self.handoffs)
         if not self.running:
-            text += f'; {self.sim.status}: {self.sim.message}'
+            text += f'; {self.full_model().status}: {self.full_model().message}'
         return text
 
     def close(self) -> None:
         """Close the sink (finalise a recording). Idempotent through the sink."""
-        self._flush_inputs(self.sim.time_ns)
+        self._flush_inputs(self.full_model().time_ns)
         sink, self.sink = self.sink, NullSink()
         sink.close()

@@ -78,7 +78,7 @@ def electronics():
     values = ch.load_device(str(GYRO))
     values = {k: v for k, v in values.items() if not k.startswith('scenario.')}
     config = paper_config(values)
-    return Run(config).sim.sense.electronics
+    return Run(config).full_model().sense.electronics
 
 
 def test_the_run_succeeds_and_prints_its_summary_last(quick, sheet):
@@ -738,7 +738,7 @@ def long_default():
     flat = ch.load_device(str(DEFAULT))
     bar = ch._Bar(0.0, False, ch.QUICK.long_record_s)
     rec = ch._long_record(flat, ch.QUICK, bar, ch.averaged_refusal(flat))
-    el = Run(rec['config']).sim.sense.electronics
+    el = Run(rec['config']).full_model().sense.electronics
     # the step's time constant as the model predicts it (the fit's shortest tau, 10 Tc)
     drift = {'step': {'time_constant_s': 1.0 / (2.0 * math.pi * el.bandwidth_hz)}}
     return rec, ch._long_allan(rec, drift), el, bar

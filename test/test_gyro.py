@@ -117,7 +117,7 @@ def test_a_rate_step_shows_the_documented_bandwidth():
                                          'gyro.temperature': 0.0,
                                          'gyro.input_noise_density': 0.0}))
     t_step = 0.2
-    bandwidth_hz = Run(config).sim.sense.electronics.bandwidth_hz
+    bandwidth_hz = Run(config).full_model().sense.electronics.bandwidth_hz
     tau = 1.0 / (2.0 * math.pi * bandwidth_hz)
     assert bandwidth_hz == pytest.approx(15800.0 / (2 * 64700.0), rel=1e-4)
     t, rate, applied, run = run_blocks(
@@ -175,7 +175,7 @@ def test_angle_random_walk_matches_the_noise_sources():
     v = np.zeros(4)
     q[1], v[1] = c.real, (1j * w * c).real
     run = Run(config, start_state=(q, v))
-    el = run.sim.sense.electronics
+    el = run.full_model().sense.electronics
     n_total, n_thermo, n_el = el.predicted_arw()
     rate = []
     for _ in range(3000):
@@ -316,7 +316,7 @@ def test_the_rebalance_variance_is_the_loops_noise():
                                          'drive.frequency': 15798.6}))
     t, out, _, run = run_blocks(config, 6.0)
     measured = float(np.var(out[t > 0.5]))
-    predicted = run.sim.sense.electronics.rate_variance()
+    predicted = run.full_model().sense.electronics.rate_variance()
     print(f'rebalance at 50 Hz: measured {measured:.4e}, predicted {predicted:.4e} (rad/s)^2, '
           f'ratio {predicted / measured:.3f}')
     assert predicted == pytest.approx(measured, rel=0.15)
@@ -431,7 +431,8 @@ def test_the_resolution_rounds_the_output_to_whole_lsb(unlimited):
     assert np.max(np.abs(error)) <= 0.5 * lsb * (1.0 + 1e-9)
     assert np.std(error) == pytest.approx(lsb / math.sqrt(12.0), rel=0.1)
     assert abs(np.mean(error)) < 0.1 * lsb
-    added = run.sim.sense.validity.noise_variance - free_run.sim.sense.validity.noise_variance
+    added = (run.full_model().sense.validity.noise_variance
+             - free_run.full_model().sense.validity.noise_variance)
     assert added == pytest.approx(lsb ** 2 / 12.0, rel=1e-9)
     diag = run.diagnostics().values
     assert diag['rate_resolution_rad_s'] == lsb and diag['rate_valid'] is True

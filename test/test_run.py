@@ -171,7 +171,7 @@ def test_a_flood_of_future_samples_does_not_reach_the_kernel():
     run = rest_run()
     for k in range(100_000):
         run.apply(BaseAcceleration(x=1.0, at_ns=(k + 1) * 10_000))  # 1 s of 100 kHz samples
-    sim = run.sim
+    sim = run.full_model()
     t, x, _ = sim._profile_arrays(0.0, BLOCK * sim.period_s)
     assert 0 < t.size <= BLOCK * sim.period_s / 10e-6 + 4
     run.advance(BLOCK)
@@ -346,7 +346,7 @@ def test_accelerations_beyond_the_physical_bound_are_refused_with_the_reason():
     run.apply(Shock(x=bound))  # the bound itself: contact, with finite numbers
     blocks = [run.advance(BLOCK) for _ in range(3)]
     assert all(b is not None and np.all(np.isfinite(b.samples.q)) for b in blocks)
-    assert not run.running and np.max(np.abs(run.sim.q)) < 2.0 * 10e-6
+    assert not run.running and np.max(np.abs(run.full_model().q)) < 2.0 * 10e-6
     for name, value in (('scenario.shock_peaks', [1.7e308]), ('drive.amplitude', -1e8),
                         ('control.drive_limit', 1e8)):
         flat = {name: value, 'scenario.shock_times': [0.0] if 'shock' in name else []}
@@ -397,8 +397,9 @@ def test_a_non_finite_value_is_a_failure_and_every_block_goes_out(monkeypatch):
     run.apply(Shock(x=1.7e308, at_ns=12_345_678))
     blocks = [run.advance(BLOCK) for _ in range(4)]
     assert all(b is not None and all_finite(b) for b in blocks)
-    assert run.sim.status == 'failed' and run.sim.nonfinite_failures == 1
-    assert run.sim.message.startswith('non-finite') and 't = 0.01234' in run.sim.message
+    sim = run.full_model()
+    assert sim.status == 'failed' and sim.nonfinite_failures == 1
+    assert sim.message.startswith('non-finite') and 't = 0.01234' in sim.message
     diag = run.diagnostics()
     assert diag.level == 'ERROR' and diag.values['nonfinite_failures'] == 1
     assert np.all(blocks[0].samples.q[2 * BLOCK // 10:] == 0.0)  # held at rest from then on
@@ -418,8 +419,9 @@ def test_loops_that_overflow_fail_the_run_with_finite_outputs():
                             'electrodes.outer_voltage': 1e-320}))
     blocks = [run.advance(GYRO_BLOCK) for _ in range(3)]
     assert all(b is not None and all_finite(b) for b in blocks)
-    assert run.sim.status == 'failed' and 'non-finite loop state' in run.sim.message
-    assert run.sim.contact_time_s == pytest.approx(1.05e-3)
+    sim = run.full_model()
+    assert sim.status == 'failed' and 'non-finite loop state' in sim.message
+    assert run.full_model().contact_time_s == pytest.approx(1.05e-3)
     assert len(blocks[-1].rate.rate) == 10 and len(blocks[-1].control) == 10
 
 
@@ -431,9 +433,9 @@ def test_a_shock_into_the_stops_runs_on_and_counts_the_impacts():
     run.apply(Shock(x=30000.0 * STANDARD_GRAVITY))
     blocks = [run.advance(BLOCK) for _ in range(3)]
     assert all(b is not None and all_finite(b) for b in blocks)
-    assert run.running and run.sim.status == 'running'
+    assert run.running and run.full_model().status == 'running'
     impacts = run.diagnostics().values['stop_impacts']
-    assert impacts == run.sim.impacts > 0
+    assert impacts == run.full_model().impacts > 0
     summary = run.summary()
     assert summary.status == 'finished' and summary.extra['stop_impacts'] == impacts
     assert f'{impacts} impacts on the stops' in run.summary_text()

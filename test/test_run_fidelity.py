@@ -95,7 +95,7 @@ def test_the_averaged_blocks_channels_are_those_of_their_coordinates(quiet_pair)
     # them for any coordinates (Simulator.outputs_for): the same sums, to the bit.
     (auto, a), _ = quiet_pair
     s = a[-1].samples
-    ref = auto.sim.outputs_for(s.q)
+    ref = auto.full_model().outputs_for(s.q)
     assert np.array_equal(ref.capacitance, s.capacitance)
     assert np.array_equal(ref.gap, s.gap) and np.array_equal(ref.min_gap, s.min_gap)
 
@@ -145,11 +145,11 @@ def test_the_smallest_gap_from_the_samples_that_can_hold_it(quiet_pair, motion):
         pair = np.column_stack([radius * np.cos(phase), radius * np.sin(phase)])
     else:
         pair = a * rng.standard_normal((2000, 2))
-    q = np.zeros((pair.shape[0], auto.sim.model.n_coordinates))
+    q = np.zeros((pair.shape[0], auto.full_model().model.n_coordinates))
     q[:, [1, auto.config.modes.count + 1]] = pair
-    every = np.min(auto.sim.outputs_for(q).min_gap)
+    every = np.min(auto.full_model().outputs_for(q).min_gap)
     assert stretch._smallest_gap(np.ascontiguousarray(pair)) == every
-    assert every < auto.sim.model.gap - 0.99 * np.max(np.hypot(pair[:, 0], pair[:, 1]))
+    assert every < auto.full_model().model.gap - 0.99 * np.max(np.hypot(pair[:, 0], pair[:, 1]))
 
 
 def test_inputs_hand_to_the_full_model_and_back():

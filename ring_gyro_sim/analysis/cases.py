@@ -568,7 +568,7 @@ def run_case(spec: CaseSpec, base: Optional[Mapping[str, Any]] = None,
         operating_point.remember_orbit(config, setup.orbit)
     branches = setup.branches
     run = Run(config)
-    sim = run.sim
+    sim = run.full_model()
     if spec.shock_g:
         run.apply(shock)
     acc = env.StreamingEnvelope(1.0 / sim.period_s, envelope_channels(config), window_s,

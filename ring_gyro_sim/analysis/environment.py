@@ -263,7 +263,7 @@ def shock_record(config: SimConfig, duration_s: float,
     try:
         complete = run.advance_for(duration_s, progress)
         summary = run.summary()
-        impacts = run.sim.impacts
+        impacts = run.full_model().impacts
     finally:
         run.close()
     t, rate, var = (np.concatenate(x) if x else np.zeros(0)

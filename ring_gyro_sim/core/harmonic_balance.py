@@ -197,7 +197,7 @@ def time_samples(taylor_terms: int, harmonics: int) -> int:
     return int(2 ** math.ceil(math.log2(max(need, 8))))
 
 
-class _Balance:
+class Balance:
     """Harmonic-balance residual and Jacobian of one configuration (see the module)."""
 
     def __init__(self, config: SimConfig, harmonics: int, cosine_only: bool,
@@ -342,7 +342,7 @@ def monodromy_multipliers(config: SimConfig, orbit: HarmonicOrbit,
 class _Curve:
     """Scaled unknowns ``y = [c / length, (omega - omega_ref) / omega_scale]`` of a balance."""
 
-    def __init__(self, hb: _Balance, length_m: float, omega_ref: float, omega_scale: float):
+    def __init__(self, hb: Balance, length_m: float, omega_ref: float, omega_scale: float):
         self.hb = hb
         self.length = length_m
         self.omega_ref = omega_ref
@@ -443,14 +443,14 @@ def _continue(curve: _Curve, y0: np.ndarray, direction: np.ndarray, step: float,
     return points, f'continuation stopped after {max_points} points'
 
 
-def _amplitudes(hb: _Balance, c: np.ndarray) -> np.ndarray:
+def _amplitudes(hb: Balance, c: np.ndarray) -> np.ndarray:
     """``max_t |x_i|`` of coefficients in the balance's basis, m."""
     tau = 2.0 * math.pi * np.arange(DENSE_SAMPLES) / DENSE_SAMPLES
     e = _real_basis(tau, hb.n_h)[:, hb.cols]
     return np.max(np.abs(c @ e.T), axis=1)
 
 
-def _orbit(hb: _Balance, c: np.ndarray, omega: float, stability: Optional[str],
+def _orbit(hb: Balance, c: np.ndarray, omega: float, stability: Optional[str],
            config: SimConfig, jc: Optional[np.ndarray] = None) -> HarmonicOrbit:
     orbit = HarmonicOrbit(frequency_hz=omega / (2.0 * math.pi),
                           coefficients_m=hb.full_coefficients(c),
@@ -564,7 +564,7 @@ def backbone(config: SimConfig, mode: int = 1, taylor_terms: Optional[int] = Non
     """
     index = _check_mode(config, mode)
     config = _with_taylor_terms(config, taylor_terms)
-    hb = _Balance(config, harmonics, cosine_only=True, damped=False, drive_m_s2=0.0)
+    hb = Balance(config, harmonics, cosine_only=True, damped=False, drive_m_s2=0.0)
     omega0 = hb.omega_n[index]
     curve = _Curve(hb, 1e-6, omega0, 0.01 * omega0)
     fixed = index * hb.h + 1    # the cos(omega t) coefficient of q_mode
@@ -803,7 +803,7 @@ def frf(config: SimConfig, mode: int = 2, f_range_hz: Sequence[float] = (15.70e3
     a_e = config.drive.amplitude if drive_amplitude is None else float(drive_amplitude)
     if a_e == 0.0:
         raise ParameterError('drive_amplitude: the drive is off (0 m/s^2)')
-    hb = _Balance(config, harmonics, cosine_only=False, damped=True, drive_m_s2=a_e)
+    hb = Balance(config, harmonics, cosine_only=False, damped=True, drive_m_s2=a_e)
     w2 = hb.omega_n[1]
     q2 = config.modes.coordinate_quality_factors()[1]
     peak = abs(a_e) * q2 / w2 ** 2
@@ -881,7 +881,7 @@ def forced_orbit(config: SimConfig, frequency_hz: float, guess: HarmonicOrbit,
 
     """
     a_e = config.drive.amplitude if drive_amplitude is None else float(drive_amplitude)
-    hb = _Balance(config, guess.harmonics, cosine_only=False, damped=True, drive_m_s2=a_e)
+    hb = Balance(config, guess.harmonics, cosine_only=False, damped=True, drive_m_s2=a_e)
     omega = 2.0 * math.pi * frequency_hz
     scale = max(float(np.max(np.abs(guess.coefficients_m))), 1e-12)
 

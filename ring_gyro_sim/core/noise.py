@@ -86,10 +86,10 @@ STREAM_DEVICE = 4
 STREAM_VIBRATION = 5
 """The phases of the random vibration's lines (core/vibration.py): row k, width 2."""
 STREAM_ENVELOPE_FORCE = 6
-"""The averaged model's thermomechanical force (core/averaged.py, S9): row = loop period,
+"""The averaged model's thermomechanical force (core/engine/averaged.py, S9): row = loop period,
 width 4 (the real parts of the pair's first harmonics, then their imaginary parts)."""
 STREAM_ENVELOPE_PICKOFF = 7
-"""The averaged model's pick-off noise after the fit (core/averaged.py, S10): row = loop
+"""The averaged model's pick-off noise after the fit (core/engine/averaged.py, S10): row = loop
 period, width 4 (drive cos, drive sin, sense cos, sense sin)."""
 
 MAX_KEY_WORD = 2 ** 64 - 1

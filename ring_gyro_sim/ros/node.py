@@ -302,7 +302,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         rc = config.run
         log.info(
-            f'simulating {", ".join(self.run.sim.coordinates)}, '
+            f'simulating {", ".join(self.run.full_model().coordinates)}, '
             f'output at {rc.output_rate:g} Hz in blocks of {self.block_samples} samples, '
             f'real_time_factor {rc.real_time_factor:g}, '
             f'duration {"unlimited" if not rc.duration else f"{rc.duration:g} s"}'

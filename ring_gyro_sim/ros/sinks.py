@@ -305,7 +305,7 @@ class RosSink(run_mod.Sink):
 
         Only when a subscriber is matched on a block topic or the recording keeps
         ``radial_gap`` or ``sense_electrodes``: otherwise nothing reads them, and an averaged
-        stretch leaves them out (``core.fidelity.AveragedStretch``, R5).
+        stretch leaves them out (``core.engine.averaged.AveragedEngine``, R5).
         """
         return (self.publishers.publishes_blocks
                 or not CHANNEL_TOPICS.isdisjoint(self.recorder.block_topics))

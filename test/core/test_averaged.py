@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The averaged (slow-flow) model of the driven 2theta pair (``core.averaged``, S1-S2).
+The averaged (slow-flow) model of the driven 2theta pair (``core.engine.averaged``, S1-S2).
 
 Against the periodic orbits (harmonic balance, shooting), a closed form of the linear pair,
 the full model (``Simulator``) and the conservation laws of (S2).
@@ -23,8 +23,9 @@ import math
 
 import numpy as np
 import pytest
+from ring_gyro_sim.analysis.slow_flow import AveragedModel
 from ring_gyro_sim.core import harmonic_balance
-from ring_gyro_sim.core.averaged import AveragedModel, envelope_of, state_of
+from ring_gyro_sim.core.engine.averaged import envelope_of, state_of
 from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.gyro import operating_point
@@ -257,7 +258,7 @@ def test_the_closed_loop_averaged_gyroscope_reads_the_full_models_rate():
     # every 1 kHz sample after the loops' first 50 ms within 0.1 % of the reading (the
     # must-show). Measured 3.1e-6 of the reading.
     from ring_gyro_sim.core import thermal
-    from ring_gyro_sim.core.averaged import AveragedGyro
+    from ring_gyro_sim.core.engine.averaged import AveragedGyro
     cfg = build_config({'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0,
                         'scenario.rate_times': [0.0], 'scenario.rate_values': [TEN_DEG_S]})
     start = operating_point.start_state(thermal.start_state_device(cfg))
@@ -276,7 +277,7 @@ def test_the_closed_loop_averaged_gyroscope_reads_the_full_models_rate():
 
 
 def test_the_closed_loop_averaged_gyroscope_refuses_an_open_loop():
-    from ring_gyro_sim.core.averaged import AveragedGyro
+    from ring_gyro_sim.core.engine.averaged import AveragedGyro
     with pytest.raises(ParameterError, match='control.rebalance'):
         AveragedGyro(config())
 
@@ -287,7 +288,7 @@ def test_the_pickoffs_first_harmonic_is_that_of_the_full_models_volts():
     # projected on e^{-i phi} at 64 phases: the same quadrature nodes, so equal to the
     # aliasing of the harmonics 63 and 65 (below round-off) and round-off.
     from ring_gyro_sim.core import kernels
-    from ring_gyro_sim.core.averaged import AveragedGyro
+    from ring_gyro_sim.core.engine.averaged import AveragedGyro
     cfg = build_config({'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0})
     model = AveragedGyro(cfg)
     sim = Simulator(cfg, calibration=None)
@@ -316,7 +317,7 @@ def test_the_merged_angles_give_the_per_angle_force_and_pickoff(extra):
     # below); NaN, as the per-angle sum, at and beyond contact. The default gyroscope and a
     # drawn device with its sense electrodes turned by 0.3 deg.
     from ring_gyro_sim.core import kernels
-    from ring_gyro_sim.core.averaged import AveragedGyro
+    from ring_gyro_sim.core.engine.averaged import AveragedGyro
     env = kernels.envelope
     cfg = build_config({'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0, **extra})
     m = AveragedGyro(cfg).model
@@ -358,7 +359,7 @@ def test_the_closed_loop_averaged_gyroscope_follows_a_rate_ramp_as_the_full_mode
     # readout at every 1 kHz sample within 0.1 % of the final reading (the must-show's
     # tolerance), the ramp included. Measured 1.5e-5.
     from ring_gyro_sim.core import thermal
-    from ring_gyro_sim.core.averaged import AveragedGyro
+    from ring_gyro_sim.core.engine.averaged import AveragedGyro
     final = math.radians(20.0)
     cfg = build_config({'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0,
                         'scenario.rate_times': [0.0, 0.02, 0.12],
@@ -382,7 +383,7 @@ def test_the_closed_loop_averaged_gyroscope_takes_a_rate_step_as_the_full_model(
     # over the period the Coriolis force steps in, against the mean envelope), 3.1e-6 from
     # 0.1 s after the step on.
     from ring_gyro_sim.core import thermal
-    from ring_gyro_sim.core.averaged import AveragedGyro
+    from ring_gyro_sim.core.engine.averaged import AveragedGyro
     final, at = math.radians(100.0), 1.00037
     cfg = build_config({'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0,
                         'scenario.rate_times': [0.0, at, at],
@@ -412,7 +413,7 @@ def test_the_imperfect_averaged_gyroscope_follows_a_temperature_ramp_as_the_full
     # the full model's, and within the averaging's O(1 / (2 Q)) of the bias (with the frame
     # held: 1.6e-5 rad/s, 40 times that). Measured 2.2e-6 of the change.
     from ring_gyro_sim.core import thermal
-    from ring_gyro_sim.core.averaged import AveragedGyro
+    from ring_gyro_sim.core.engine.averaged import AveragedGyro
     t_ref = 298.15
     cfg = build_config({
         'modes.companion_frequencies': [11200.0, 15800.02, 22000.0],
@@ -450,7 +451,7 @@ def test_the_averaged_gyroscope_continues_a_running_full_model():
     # on (the must-show's tolerance). Measured 2.6e-13, then at most 1.2e-5 (the exact
     # envelope's 2 omega ripple, which averaging drops, relaxing).
     from ring_gyro_sim.core import thermal
-    from ring_gyro_sim.core.averaged import AveragedGyro
+    from ring_gyro_sim.core.engine.averaged import AveragedGyro
     cfg = build_config({'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0,
                         'scenario.rate_times': [0.0], 'scenario.rate_values': [TEN_DEG_S]})
     start = operating_point.start_state(thermal.start_state_device(cfg))
@@ -477,7 +478,7 @@ def test_the_averaged_noises_follow_the_die():
     # feedback capacitance (T6), as the full model rebuilds them: after a 20 K step of the
     # ambient (the die at once) the scales are those of the device at 318.15 K.
     from ring_gyro_sim.core import thermal
-    from ring_gyro_sim.core.averaged import AveragedGyro
+    from ring_gyro_sim.core.engine.averaged import AveragedGyro
     from ring_gyro_sim.core.params import BOLTZMANN
     cfg = build_config({'thermal.time_constant': 0.0,
                         'scenario.temperature_times': [0.0, 0.005, 0.005],
@@ -510,7 +511,7 @@ def test_a_full_model_goes_on_from_the_averaged_one():
     # constant alone it rang 1.2e-3 of the drive channel 5 ms on) within 1e-4 of the drive
     # channel. Measured 6.2e-6 and 7.2e-6 (the loops' own difference after 0.6 s).
     from ring_gyro_sim.core import thermal
-    from ring_gyro_sim.core.averaged import AveragedGyro
+    from ring_gyro_sim.core.engine.averaged import AveragedGyro
     from ring_gyro_sim.core.errors import InputError
     from ring_gyro_sim.core.params import STANDARD_GRAVITY
     cfg = build_config({'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0,
@@ -524,12 +525,12 @@ def test_a_full_model_goes_on_from_the_averaged_one():
     averaged.advance(0.3)
     for _ in range(30):
         reference.advance_samples(2000)
-    state = averaged.resume_state()
+    state = averaged.export_state()
     refused = Simulator(cfg, start, calibration=None)
     refused.shock(1000.0 * STANDARD_GRAVITY, at_ns=100_000_000)   # in the skipped stretch
-    with pytest.raises(InputError, match='resume: an input, a shock'):
-        refused.resume(state)
-    handed.resume(state)
+    with pytest.raises(InputError, match='import_state: an input, a shock'):
+        refused.import_state(state)
+    handed.import_state(state)
     assert handed.time_s == pytest.approx(0.6, abs=1e-12)
     full = [reference.advance_samples(2000) for _ in range(30)]
     back = [handed.advance_samples(2000) for _ in range(30)]
@@ -549,7 +550,7 @@ def test_the_averaged_rate_goes_through_the_output_word():
     # full scale and are flagged (and counted); the full model reads the same words (the
     # readings 3e-6 apart round alike but where one falls within 3e-6 of a half step).
     from ring_gyro_sim.core import thermal
-    from ring_gyro_sim.core.averaged import AveragedGyro
+    from ring_gyro_sim.core.engine.averaged import AveragedGyro
     cfg = build_config({'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0,
                         'gyro.range': 0.1, 'gyro.resolution': 1e-4,
                         'scenario.rate_times': [0.0, 0.05],

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The noises of the closed-loop averaged gyroscope (``core.averaged``, S9-S11).
+The noises of the closed-loop averaged gyroscope (``core.engine.averaged``, S9-S11).
 
 Against closed forms (equipartition of the undriven pair, the variance of the loops' fit,
 the Allan deviation of the rate through the rebalance loop) and against the full model's
@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 from ring_gyro_sim import characterize
 from ring_gyro_sim.core import kernels, noise, thermal
-from ring_gyro_sim.core.averaged import AveragedGyro
+from ring_gyro_sim.core.engine.averaged import AveragedGyro
 from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.gyro import control, electronics, operating_point
 from ring_gyro_sim.core.params import BOLTZMANN, build_config

@@ -235,7 +235,7 @@ def test_a_live_frequency_change_acts_at_its_sample_with_the_phase_continuous():
     run.advance(777)
     at_ns = run.apply(ParameterChange({'scenario.vibration_frequency': f2}))
     assert at_ns == 777 * 5000
-    sim = run.sim
+    sim = run.full_model()
     n = np.arange(777, 2000)
     a, _ = sim.environment_at(n)
     t, t_c = n / 2e5, 777 / 2e5
@@ -345,7 +345,7 @@ def test_a_run_starts_on_the_environment_s_answer_and_holds_it():
     assert q0 == with_environment_response(config, None)[0][0]
     w1 = 2.0 * math.pi * config.modes.frequencies[0]
     assert q0 == pytest.approx(-a / w1 ** 2, rel=1e-2)
-    q1 = run.sim.advance_samples(2000).q[:, 0]  # 10 ms: 112 periods of omega_1
+    q1 = run.full_model().advance_samples(2000).q[:, 0]  # 10 ms: 112 periods of omega_1
     assert np.max(np.abs(q1 / q0 - 1.0)) < 1e-3
     quiet = Run(paper_config(QUIET))  # without an environment the start is unchanged: rest
     assert not np.any(quiet.start_state[0])

@@ -12,4 +12,20 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The engines that advance the gyroscope: the full model and the averaged model."""
+"""
+The engines that advance the gyroscope: the full model and the averaged model.
+
+``base`` states the contract (``Engine``) and what engines exchange (``GyroState``,
+``Design``, ``Samples``); ``full`` is the full model (``Simulator``), ``averaged`` the
+averaged model (``AveragedEngine``, over the slow flow of ``AveragedGyro``); ``handoff`` is
+the one policy that says when a run hands the gyroscope from one to the other. ``ENGINES``
+is the table ``run.Run`` picks from by name (``integrator.fidelity``, the hand-offs).
+"""
+
+from ring_gyro_sim.core.engine.averaged import AveragedEngine
+from ring_gyro_sim.core.engine.full import Simulator
+
+__all__ = ['ENGINES']
+
+ENGINES = {Simulator.name: Simulator, AveragedEngine.name: AveragedEngine}
+"""The engines by name: ``full`` and ``averaged``."""

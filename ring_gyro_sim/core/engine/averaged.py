@@ -39,14 +39,14 @@ equivalents (S9-S11); the averaged force of both is the closed form (S3) of
 
 What it is not
 --------------
-In :class:`AveragedModel`: the loops and the sense electronics (:class:`AveragedGyro` has
-them), the noises (:class:`AveragedGyro` has them, S9-S11). :class:`AveragedModel` takes
-the device at the die temperature of t = 0; :class:`AveragedGyro` follows the die (S12). In
-both: the open-loop sense readout of ``~/rate``, ``~/demodulator``, the other modes (q1, q3,
-...: see "Validity"), shocks, base
-acceleration, vibration and contact are not represented: a run hands the stretches they act
-in to the full model, and builds ``~/demodulator`` of an averaged stretch from the envelopes
-(``core.fidelity``; doc/averaged.md, "The hand-offs in a run").
+In ``analysis.slow_flow.AveragedModel``: the loops and the sense electronics
+(:class:`AveragedGyro` has them), the noises (:class:`AveragedGyro` has them, S9-S11).
+``analysis.slow_flow.AveragedModel`` takes the device at the die temperature of t = 0;
+:class:`AveragedGyro` follows the die (S12). In both: the open-loop sense readout of
+``~/rate``, ``~/demodulator``, the other modes (q1, q3, ...: see "Validity"), shocks, base
+acceleration, vibration and contact are not represented: a run hands the stretches they act in
+to the full model, and builds ``~/demodulator`` of an averaged stretch from the envelopes
+(``core.engine.averaged.AveragedEngine``; doc/averaged.md, "The hand-offs in a run").
 
 Derivation
 ----------
@@ -77,7 +77,7 @@ half the complex first-harmonic coefficient ``f_1`` of f (``f = Re(f_1 e^{i phi}
 
 with N(A) the first-harmonic coefficient of ``a_nl(Re(A e^{i phi}))`` over one period of
 phi: the describing function of the electrostatic force, computed by
-``harmonic_balance``'s alternating-frequency-time machinery (``_Balance.nonlinear`` with
+``harmonic_balance``'s alternating-frequency-time machinery (``Balance.nonlinear`` with
 one harmonic: the orbit sampled at N equally spaced phases, the exact quadrature force at
 each, projected on cos and sin; exact for the Taylor force since ``N > N_T``). Term by term:
 
@@ -128,32 +128,23 @@ omega. On the default device each is below 1e-4 (7.7e-6, 0 to 9e-5, 1.4e-6 at 10
   harmonic is of the second order in the nonlinearity (``test_averaged`` measures it
   against the shooting orbit);
 - none of what is listed above as not represented: shocks, base acceleration, vibration,
-  contact, noise (in :class:`AveragedModel`), loops, temperature changes.
+  contact, noise (in ``analysis.slow_flow.AveragedModel``), loops, temperature changes.
 """
 
-import cmath
 import copy
 from dataclasses import dataclass
 import math
-from typing import Optional, Sequence, Tuple
+from typing import Optional, Tuple
 
 import numpy as np
-from ring_gyro_sim.core import harmonic_balance, kernels, noise, structure, thermal
+from ring_gyro_sim.core import kernels, noise, structure, thermal
+from ring_gyro_sim.core.engine.base import Engine, GyroState, Samples
 from ring_gyro_sim.core.errors import ParameterError, SimulationError
 from ring_gyro_sim.core.gyro import electronics
 from ring_gyro_sim.core.params import BOLTZMANN, SimConfig
-from scipy.integrate import solve_ivp
-from scipy.optimize import fsolve
 
-__all__ = ['AveragedGyro', 'AveragedModel', 'AveragedSamples', 'GyroSamples',
-           'HAND_BACK_THRESHOLD', 'envelope_of', 'fast_mode_amplitude', 'pair_force_arrays',
-           'state_of']
-
-J = np.array([[0.0, -1.0], [1.0, 0.0]])
-"""The Coriolis coupling's matrix in (q_c, q_s) (G5, G6)."""
-
-RTOL = 1e-10
-"""Relative tolerance of ``solve_ivp`` (DOP853) on the scaled envelopes."""
+__all__ = ['AveragedEngine', 'AveragedGyro', 'GyroSamples',
+           'envelope_of', 'pair_force_arrays', 'state_of']
 
 
 def pair_force_arrays(model, index_c: int, index_s: int) -> Tuple[np.ndarray, ...]:
@@ -208,297 +199,6 @@ def state_of(envelope: np.ndarray, omega: float,
     """Return ``(q, v)`` (m, m/s) of envelopes ``A`` (m) at the drive phases (rad) (S1)."""
     z = np.asarray(envelope) * np.exp(1j * np.asarray(phase, dtype=float))[..., None]
     return z.real, (1j * omega * z).real
-
-
-HAND_BACK_THRESHOLD = 1e-3
-"""
-Largest amplitude of the modes other than the driven pair, over d_g, at a hand-off to the
-averaged model (S13). After a 10 000 g shock on the default gyroscope (they reach 0.53 d_g and
-ring down over ~20 s), the readout after the hand-off against the full model's: at 3e-2 of
-d_g 11 % of the reading, 1e-2 2.7 %, 3e-3 6.1e-4, 1e-3 1.4e-5, 3e-4 1.2e-5 (doc/averaged.md).
-"""
-
-
-def fast_mode_amplitude(sim) -> float:
-    """
-    Return the largest amplitude of the modes the averaged model leaves out, over d_g (S13).
-
-    ``sqrt(q^2 + (q' / omega_n)^2)`` of every coordinate of a full model (``Simulator``)
-    but the driven pair's (q2, q2s): what a shock or vibration left ringing, which the
-    averaged model takes at rest.
-    """
-    config = sim.config
-    m = config.modes.count
-    pair = (1, m + 1) if config.modes.companions else (1,)
-    omega = 2.0 * math.pi * np.asarray(config.modes.coordinate_frequencies(), dtype=float)
-    others = np.ones(omega.size, dtype=bool)
-    others[list(pair)] = False
-    if not np.any(others):
-        return 0.0
-    amplitude = np.hypot(sim.q[others], sim.v[others] / omega[others])
-    return float(np.max(amplitude) / config.electrodes.gap)
-
-
-@dataclass(frozen=True)
-class AveragedSamples:
-    """
-    Output of :meth:`AveragedModel.run`.
-
-    Attributes
-    ----------
-    t : ndarray, shape (K,)
-        Sample times, s.
-    envelope : ndarray of complex, shape (K, 2)
-        ``(A_c, A_s)`` at each sample, m (S1).
-    q, v : ndarray, shape (K, 2)
-        The reconstructed ``(q2, q2s)`` (m) and their velocities (m/s) (R).
-    rate : ndarray, shape (K,)
-        The sensor frame's rate at each sample, rad/s.
-    steps : int
-        Right-hand-side evaluations the integration took.
-
-    """
-
-    t: np.ndarray
-    envelope: np.ndarray
-    q: np.ndarray
-    v: np.ndarray
-    rate: np.ndarray
-    steps: int
-
-
-class AveragedModel:
-    """
-    The slow flow (S2) of the driven 2theta pair of one configuration (module docstring).
-
-    Parameters
-    ----------
-    config : SimConfig
-        Needs ``modes.companions`` (the pair), ``modes.frequencies`` with at least the 2theta
-        mode, ``drive.frequency > 0``. Open loop: ``control.drive_loop: closed`` and
-        ``control.rebalance`` are refused (not modelled here). The rate profile is used when
-        ``gyro.enabled``.
-
-    """
-
-    def __init__(self, config: SimConfig) -> None:
-        if not config.modes.companions:
-            raise ParameterError('modes.companions: the averaged model is that of the 2theta '
-                                 'pair and needs the companions')
-        if config.modes.count < 2:
-            raise ParameterError('modes.frequencies: the averaged model needs the 2theta mode '
-                                 f'(N_R >= 2), got N_R = {config.modes.count}')
-        if config.drive.frequency <= 0.0:
-            raise ParameterError('drive.frequency: the averaged model turns at the drive '
-                                 f'frequency and needs it > 0, got {config.drive.frequency}')
-        if config.control.closed or config.control.rebalance:
-            raise ParameterError('control.drive_loop: this averaged model is open loop (the '
-                                 'PLL, AGC and force-to-rebalance are in AveragedGyro)')
-        # The device at the die temperature of t = 0 (core.thermal, T3-T6), as the full
-        # model starts; later temperature changes are not followed.
-        self.config = thermal.device_at(config, thermal.DieTemperature(config).kelvin)
-        m = self.config.modes.count
-        self.index = (1, m + 1)   # q2, q2s in the coordinate vector
-        self.stiffness, self.damping = self.config.modes.pair_matrices(2)
-        self.omega = 2.0 * math.pi * self.config.drive.frequency
-        self.drive = float(self.config.drive.amplitude)
-        self.kappa = float(structure.gyroscopic_coefficient(2))
-        g = self.config
-        self.rate_times = tuple(g.run.rate_times) if g.gyro.enabled else ()
-        self.rate_values = tuple(g.run.rate_values) if g.gyro.enabled else ()
-        # One harmonic of harmonic_balance's AFT: N(A) of (S2), the reference; the
-        # closed form (S3) of the compiled kernel when the force is a truncated series.
-        self._balance = harmonic_balance._Balance(self.config, 1, cosine_only=False,
-                                                  damped=False, drive_m_s2=0.0)
-        self._coeff = np.zeros((self._balance.n, self._balance.h))
-        self._fast = (pair_force_arrays(self._balance.model, *self.index)
-                      if self.config.electrodes.taylor_terms > 0 else None)
-        self.evaluations = 0
-
-    # ------------------------------------------------------------------ the slow flow
-    def nonlinear(self, envelope: np.ndarray) -> np.ndarray:
-        """
-        Return N(A), the first harmonic of the electrostatic force on the pair (m/s^2).
-
-        ``a_nl(Re(A e^{i phi}))`` over one period of phi, as ``harmonic_balance``'s AFT
-        computes it: ``a_nl = Re(N e^{i phi}) + other harmonics``.
-
-        Raises
-        ------
-        SimulationError
-            The orbit leaves the force's range (contact, ``|w| >= d_g``).
-
-        """
-        ic, is_ = self.index
-        c = self._coeff
-        c[ic, 1], c[ic, 2] = envelope[0].real, -envelope[0].imag
-        c[is_, 1], c[is_, 2] = envelope[1].real, -envelope[1].imag
-        f, _ = self._balance.nonlinear(c, jac=False)
-        return np.array([complex(f[ic, 1], -f[ic, 2]), complex(f[is_, 1], -f[is_, 2])])
-
-    def nonlinear_fast(self, envelope: np.ndarray) -> np.ndarray:
-        """
-        Return N(A) (m/s^2) by the closed form (S3) of the compiled kernel.
-
-        The same as :meth:`nonlinear` to round-off (``test_averaged``); with an untruncated
-        force (``electrodes.taylor_terms: 0``) it is :meth:`nonlinear`.
-
-        Raises
-        ------
-        SimulationError
-            The orbit leaves the series' range.
-
-        """
-        if self._fast is None:
-            return self.nonlinear(envelope)
-        n_c, n_s = kernels.force_harmonic(complex(envelope[0]), complex(envelope[1]),
-                                          *self._fast)
-        if not (cmath.isfinite(n_c) and cmath.isfinite(n_s)):
-            raise SimulationError("averaged model: the orbit left the force's range")
-        return np.array([n_c, n_s])
-
-    def derivative(self, envelope: np.ndarray, rate: float = 0.0,
-                   rate_dot: float = 0.0) -> np.ndarray:
-        """Return ``A'`` of (S2), m/s, at envelopes A (m), a rate (rad/s) and its slope."""
-        a = np.asarray(envelope, dtype=complex)
-        w = self.omega
-        lin = ((w * w + rate * rate) * a - self.stiffness @ a
-               - 1j * w * ((self.damping + 2.0 * self.kappa * rate * J) @ a)
-               - self.kappa * rate_dot * (J @ a))
-        total = lin + self.nonlinear_fast(a)
-        total[0] += self.drive
-        self.evaluations += 1
-        return (-0.5j / w) * total
-
-    def steady_state(self, guess: Sequence[complex], rate: float = 0.0) -> np.ndarray:
-        """
-        Return the fixed point A (m) of (S2) at a constant rate (rad/s), Newton from ``guess``.
-
-        It is the one-harmonic balance of the pair; which branch (of a bistable drive) is the
-        guess's.
-
-        Raises
-        ------
-        SimulationError
-            No convergence.
-
-        """
-        g = np.asarray(guess, dtype=complex)
-        scale = max(float(np.max(np.abs(g))), 1e-15)
-
-        def residual(y):
-            a = np.array([complex(y[0], y[1]), complex(y[2], y[3])]) * scale
-            d = self.derivative(a, rate) * (2.0 * self.omega / (scale * self.omega ** 2))
-            return [d[0].real, d[0].imag, d[1].real, d[1].imag]
-
-        y0 = np.array([g[0].real, g[0].imag, g[1].real, g[1].imag]) / scale
-        y, _, ier, msg = fsolve(residual, y0, full_output=True, xtol=1e-14)
-        if ier != 1 and np.max(np.abs(residual(y))) > 1e-11:
-            raise SimulationError(f'averaged steady state did not converge: {msg}')
-        return np.array([complex(y[0], y[1]), complex(y[2], y[3])]) * scale
-
-    # ------------------------------------------------------------------ integration
-    def _segments(self, t0: float, t1: float):
-        """Yield ``(start, end, rate at start, slope)`` of the rate profile over [t0, t1]."""
-        times, values = self.rate_times, self.rate_values
-        if not times:
-            yield t0, t1, 0.0, 0.0
-            return
-        knots = sorted(set(t for t in times if t0 < t < t1))
-        edges = [t0] + knots + [t1]
-
-        def value(t, after):
-            # the profile of core.rate_profile: linear between knots, 0 before the first,
-            # held after the last, the value after a repeated time (a step) on its right
-            k = -1
-            for j, tk in enumerate(times):
-                if tk < t or (after and tk == t):
-                    k = j
-            if k < 0:
-                return 0.0
-            if k >= len(times) - 1:
-                return values[-1]
-            dt = times[k + 1] - times[k]
-            return values[k] + (values[k + 1] - values[k]) * ((t - times[k]) / dt if dt else 0)
-
-        for a, b in zip(edges[:-1], edges[1:]):
-            left = value(a, after=True)
-            yield a, b, left, (value(b, after=False) - left) / (b - a)
-
-    def run(self, duration_s: float, sample_rate_hz: float,
-            start: Optional[Sequence[complex]] = None) -> AveragedSamples:
-        """
-        Integrate (S2) from t = 0 and return the samples at ``k / sample_rate_hz``.
-
-        Parameters
-        ----------
-        duration_s : float
-            Simulated time, s (> 0).
-        sample_rate_hz : float
-            Output samples per second (> 0); the samples are at ``0, 1/rate, ...`` up to
-            ``duration_s`` inclusive.
-        start : (complex, complex) or None
-            ``(A_c, A_s)`` at t = 0, m (e.g. :func:`envelope_of` of a full model's state);
-            None: at rest.
-
-        Returns
-        -------
-        AveragedSamples
-
-        Raises
-        ------
-        ParameterError
-            A non-positive duration or sample rate.
-        SimulationError
-            The integration failed or the orbit reached the force's range.
-
-        """
-        if not duration_s > 0.0:
-            raise ParameterError(f'duration_s: must be > 0, got {duration_s}')
-        if not sample_rate_hz > 0.0:
-            raise ParameterError(f'sample_rate_hz: must be > 0, got {sample_rate_hz}')
-        if duration_s * sample_rate_hz < 1.0:
-            raise ParameterError(f'duration_s: {duration_s} s is shorter than one sample '
-                                 f'period at sample_rate_hz = {sample_rate_hz}')
-        n_out = int(math.floor(duration_s * sample_rate_hz + 1e-9)) + 1
-        t_out = np.arange(n_out) / sample_rate_hz
-        a = np.zeros(2, dtype=complex) if start is None else np.asarray(start, dtype=complex)
-        # The envelopes scaled to about 1 (the drive's linear peak response, or the start).
-        w2 = math.sqrt(self.stiffness[0, 0])
-        scale = max(abs(self.drive) / (w2 * self.damping[0, 0]), float(np.max(np.abs(a))),
-                    1e-15)
-        out = np.empty((n_out, 2), dtype=complex)
-        rates = np.empty(n_out)
-        first = 0
-        evaluations = self.evaluations
-        for t_a, t_b, rate0, slope in self._segments(0.0, t_out[-1]):
-            last = int(np.searchsorted(t_out, t_b, side='left')) if t_b < t_out[-1] else n_out
-            t_eval = t_out[first:last]
-
-            def rhs(t, y, t_a=t_a, rate0=rate0, slope=slope):
-                env = np.array([complex(y[0], y[1]), complex(y[2], y[3])]) * scale
-                d = self.derivative(env, rate0 + slope * (t - t_a), slope) / scale
-                return [d[0].real, d[0].imag, d[1].real, d[1].imag]
-
-            y0 = np.array([a[0].real, a[0].imag, a[1].real, a[1].imag]) / scale
-            extra = t_eval.size == 0 or t_eval[-1] != t_b   # the segment's end, for the next
-            sol = solve_ivp(rhs, (t_a, t_b), y0, method='DOP853',
-                            t_eval=np.append(t_eval, t_b) if extra else t_eval,
-                            rtol=RTOL, atol=RTOL * 1e-2)
-            if sol.status != 0:
-                raise SimulationError(f'averaged model: integration failed at {t_a} s: '
-                                      f'{sol.message}')
-            y = sol.y.T * scale
-            a = np.array([complex(y[-1, 0], y[-1, 1]), complex(y[-1, 2], y[-1, 3])])
-            y = y[:t_eval.size]
-            out[first:last, 0] = y[:, 0] + 1j * y[:, 1]
-            out[first:last, 1] = y[:, 2] + 1j * y[:, 3]
-            rates[first:last] = rate0 + slope * (t_eval - t_a)
-            first = last
-        phase = self.omega * t_out
-        q, v = state_of(out, self.omega, phase)
-        return AveragedSamples(t=t_out, envelope=out, q=q, v=v, rate=rates,
-                               steps=self.evaluations - evaluations)
 
 
 @dataclass(frozen=True)
@@ -633,7 +333,7 @@ class AveragedGyro:
     period, independent across components, amplifiers and periods. It reaches ``~/rate`` as
     in the full model: through the loops (the rebalance force and the measured amplitude
     that scales it, C7); not into the sense chain's own reading (``~/demodulator``, which
-    ``core.fidelity`` builds from the envelopes without it).
+    ``AveragedEngine`` builds from the envelopes without it).
 
     (S11) The flicker: the full model's bank (E13, ``electronics.FlickerNoise``, the same
     seed and rate-sample indices), added to ``~/rate`` after the calibration as E13 adds it:
@@ -661,13 +361,14 @@ class AveragedGyro:
     other modes, which the caller hands off only once they have rung down
     (:func:`fast_mode_amplitude`).
 
-    (S14) The hand-back to the full model (:meth:`resume_state`, ``Simulator.resume``): at
-    a loop update the pair's coordinates and velocities are those of the envelopes at the
-    NCO's phase (S1, exact for the averaged state) and the other modes at rest; the loops,
-    the output filter, the die and the flicker bank carry over; the demodulator's low-pass
-    (E3, not in the averaged model) restarts in its periodic steady state under the mixers'
-    products of the amplifiers' first harmonics (S4), the constant and the ``2 omega`` terms.
-    The full model's clock jumps; its noises are addressed by sample index and go on.
+    (S14) The hand-back to the full model (:meth:`AveragedGyro.export_state`,
+    ``Simulator.import_state``): at a loop update the pair's coordinates and velocities are
+    those of the envelopes at the NCO's phase (S1, exact for the averaged state) and the other
+    modes at rest; the loops, the output filter, the die and the flicker bank carry over; the
+    demodulator's low-pass (E3, not in the averaged model) restarts in its periodic steady
+    state under the mixers' products of the amplifiers' first harmonics (S4), the constant and
+    the ``2 omega`` terms. The full model's clock jumps; its noises are addressed by sample
+    index and go on.
 
     What it is not: the block topics and the open-loop sense readout; shocks, base
     acceleration, vibration and contact (doc/averaged.md).
@@ -693,7 +394,7 @@ class AveragedGyro:
     def __init__(self, config: SimConfig, start_state=None, calibration=None,
                  simulator=None) -> None:
         from ring_gyro_sim.core.gyro import control, operating_point
-        from ring_gyro_sim.core.engine.full import Simulator
+        from ring_gyro_sim.core.engine.full import Simulator, THERMAL_UPDATE_S
         from scipy import signal
         if not (config.control.closed and config.control.rebalance):
             raise ParameterError('control.rebalance: the closed-loop averaged model needs '
@@ -710,12 +411,16 @@ class AveragedGyro:
                 raise ParameterError(f'simulator: the hand-off is at a loop update; sample '
                                      f'{sim.sample_index} is not a whole number of loop '
                                      f'periods')
-            start_state = (sim.q.copy(), sim.v.copy())
         else:
             if start_state is None:
                 start_state = operating_point.start_state(thermal.start_state_device(config))
             sim = Simulator(config, start_state, calibration=None)
-        loop = sim.loop
+        # what the averaged model is derived from: the full model's design and its state
+        # now (the engine contract, core.engine.base)
+        design, state = sim.design(), sim.export_state()
+        if simulator is not None:
+            start_state = (state.q, state.v)
+        loop = design.loop
         window = loop.window
         decimation = int(round(config.run.output_rate / config.gyro.output_rate))
         if decimation % window:
@@ -725,16 +430,16 @@ class AveragedGyro:
         self.config = config
         self.calibration = calibration
         self.decimate = decimation // window
-        self._period_ns = int(sim.period_ns)
-        device = thermal.device_at(config, sim.device_temperature)
+        self._period_ns = int(design.period_ns)
+        device = thermal.device_at(config, design.device_temperature)
         m = device.modes.count
         ic, is_ = 1, m + 1
-        fb_c, fb_s, fw_c, fw_s, dcoef = pair_force_arrays(sim.model, ic, is_)
-        geometry = sim._output_geometry
-        n_k = sim.pickoff.n_electrodes
+        fb_c, fb_s, fw_c, fw_s, dcoef = pair_force_arrays(design.model, ic, is_)
+        geometry = design.output_geometry
+        n_k = design.pickoff.n_electrodes
         n_e = geometry.electrode_weights.size
         node_electrode = np.arange(n_e) // (n_e // n_k)
-        vpf = sim.pickoff.volts_per_farad
+        vpf = design.pickoff.volts_per_farad
         node = geometry.cap_scale * geometry.electrode_weights
         # the output low-pass over one period of a held input, as a linear map (S8)
         sos = signal.butter(config.gyro.filter_order, config.gyro.filter_bandwidth,
@@ -752,9 +457,9 @@ class AveragedGyro:
         stiffness, damping = device.modes.pair_matrices(2)
         # (S12) the frame turns at the drive mode's frequency on this die: the NCO's centre
         # moved with the frequencies (T3), as the full model starts the NCO
-        frame = float(loop.omega_c * thermal.frequency_scale(config, sim.device_temperature))
+        frame = float(loop.omega_c * thermal.frequency_scale(config, design.device_temperature))
         if simulator is not None:   # the profile in force: streamed rates included
-            times, values = sim.rate_profile.knots_from(sim.time_s)
+            times, values = state.rate_knots
         else:
             times = np.asarray(config.run.rate_times, dtype=float)
             values = np.asarray(config.run.rate_values, dtype=float)
@@ -790,49 +495,49 @@ class AveragedGyro:
             lock_periods=control.LOCK_PERIODS, max_rotation=MAX_ROTATION)
         # the loops' state (DriveLoop.start at the start state, or the running loops'
         # after their last update, S13) and B of the state now at the NCO's phase now
-        d = sim._drive
-        phase = math.fmod(d.omega * (sim.time_s - d.t_ref) + d.phase, 2.0 * math.pi)
+        phase = state.nco_phase
+        ls = state.loop
         st = np.zeros(kernels.envelope.LOOP_STATE_SIZE)
-        st[:17] = (loop.pll_integral, loop.agc_integral, loop.rb_integral[0],
-                   loop.rb_integral[1], loop.omega, loop.force, loop.rebalance_force[0],
-                   loop.rebalance_force[1], loop.phase_error, loop.amplitude,
-                   loop.rebalance_rate, loop.rebalance_quadrature, float(loop.locked),
-                   float(loop.rebalance_on), float(loop._locking), float(loop._qualifying),
+        st[:17] = (ls['pll_integral'], ls['agc_integral'], ls['rb_integral'][0],
+                   ls['rb_integral'][1], ls['omega'], ls['force'], ls['rebalance_force'][0],
+                   ls['rebalance_force'][1], ls['phase_error'], ls['amplitude'],
+                   ls['rebalance_rate'], ls['rebalance_quadrature'], float(ls['locked']),
+                   float(ls['rebalance_on']), float(ls['locking']), float(ls['qualifying']),
                    phase)
         self._loop = st
         q, v = (np.asarray(x, dtype=float) for x in start_state)
         self._envelope = envelope_of(q[[ic, is_]], v[[ic, is_]], frame, phase).astype(complex)
         # the filter's state now, (sections, 2, 4); a copy: the kernel writes its own (a
         # view would be the running full model's, which sosfilt may leave in this layout)
-        zi = sim.sense.electronics._zi_rb
+        zi = state.rebalance_state
         self._filter = np.array(np.moveaxis(zi, 2, 0).reshape(4, size), order='C', copy=True)
-        self._die_temperature = sim.sense.electronics.die_temperature
+        self._die_temperature = state.die_reading
         # (S12) the die temperature, followed as the full model follows it (T2): every
         # THERMAL_UPDATE_S, the device rebuilt once the die has moved THERMAL_STEP_K
-        self.die = copy.deepcopy(sim.die)
-        self.device_temperature = sim.device_temperature
-        self._thermal_live = bool(config.run.temperature_times) or bool(sim._thermal_live)
-        self._thermal_periods = max(1, int(round(sim._thermal_window / window)))
+        self.die = copy.deepcopy(state.die)
+        self.device_temperature = state.device_temperature
+        self._thermal_live = bool(config.run.temperature_times) or state.thermal_live
+        thermal_window = max(1, int(round(THERMAL_UPDATE_S / (design.period_ns * 1e-9))))
+        self._thermal_periods = max(1, int(round(thermal_window / window)))
         # the amplifiers' volts per farad scale as 1 / feedback capacitance (T6)
         self._feedback = float(device.gyro.feedback_capacitance)
-        self.period_index = sim.sample_index // window
+        self.period_index = state.sample_index // window
         # (S9, S10) the noises' scales, of the device at the die's temperature (T5, T6)
         self.noise_seed = int(config.gyro.noise_seed)
         self._chunks = {}   # stream -> (first period, its NOISE_CHUNK rows of normals)
         self._modal_mass = float(device.modal_masses()[ic])
-        self._input_capacitance = np.asarray(sim.pickoff.input_capacitance, dtype=float)
-        self._pickoff_noisy = bool(sim.pickoff.noisy)
+        self._input_capacitance = np.asarray(design.pickoff.input_capacitance, dtype=float)
+        self._pickoff_noisy = bool(design.pickoff.noisy)
         self._set_noise(device)
         # (S11) the flicker of ~/rate: the full model's bank (E13), so the same samples
         # (from a running full model, its bank's state now)
-        self.flicker = copy.deepcopy(sim.sense.electronics.flicker)
+        self.flicker = copy.deepcopy(state.flicker)
         self.saturated_samples = 0
         """``~/rate`` samples that read the full scale (E15), as the sense chain counts them."""
         # for the hand-back (S14): the coordinates' layout, the demodulator's references
-        el = sim.sense.electronics
         self._pair = (ic, is_)
-        self._n_coordinates = int(sim.model.n_coordinates)
-        self._latest = (float(el._latest_rate), float(el._latest_quadrature))
+        self._n_coordinates = int(design.model.n_coordinates)
+        self._latest = (float(state.latest_rate), float(state.latest_quadrature))
 
     def _set_noise(self, device: SimConfig) -> None:
         """
@@ -944,7 +649,7 @@ class AveragedGyro:
         """Return the simulated time, s (as the full model's clock reads it)."""
         return self.period_index * self.model.window * self._period_ns * 1e-9
 
-    def resume_state(self):
+    def export_state(self) -> GyroState:
         """
         Return the state now for a full model to go on from (S14, the hand-back).
 
@@ -953,7 +658,6 @@ class AveragedGyro:
         channels (the pick-off's first harmonics, S4, mixed with the sense chain's
         references, E3), the die and the flicker bank: ``Simulator.resume`` takes it.
         """
-        from ring_gyro_sim.core.engine.full import ResumeState
         e = kernels.envelope
         st = self._loop
         m = self.model
@@ -969,7 +673,7 @@ class AveragedGyro:
                 'phase_error': st[e.PHASE_ERR], 'amplitude': st[e.AMP],
                 'rebalance_rate': st[e.RB_RATE], 'rebalance_quadrature': st[e.RB_QUAD],
                 'locked': st[e.LOCKED] > 0.5, 'rebalance_on': st[e.RB_ON] > 0.5,
-                '_locking': int(st[e.LOCKING]), '_qualifying': int(st[e.QUALIFYING])}
+                'locking': int(st[e.LOCKING]), 'qualifying': int(st[e.QUALIFYING])}
         # the amplifiers' first harmonics (S4), from which the demodulator restarts (E3)
         v_d, v_s = kernels.pickoff_harmonic(self._envelope[0], self._envelope[1], m.pb_c,
                                             m.pb_s, m.pg_drive, m.pg_sense, m.gap)
@@ -977,12 +681,12 @@ class AveragedGyro:
         rebalance = np.moveaxis(self._filter.reshape(4, size // 2, 2), 0, 2).copy()
         die = copy.deepcopy(self.die)
         die.advance_to(self.time_s)
-        return ResumeState(sample_index=self.period_index * m.window, q=q, v=v, loop=loop,
-                           nco_phase=phase, harmonics=np.array([v_s, v_d]),
-                           rebalance_state=rebalance,
-                           latest_rate=self._latest[0], latest_quadrature=self._latest[1],
-                           die=die, flicker=copy.deepcopy(self.flicker),
-                           device_temperature=self.device_temperature)
+        return GyroState(sample_index=self.period_index * m.window, q=q, v=v, loop=loop,
+                         nco_phase=phase, harmonics=np.array([v_s, v_d]),
+                         rebalance_state=rebalance,
+                         latest_rate=self._latest[0], latest_quadrature=self._latest[1],
+                         die=die, flicker=copy.deepcopy(self.flicker),
+                         device_temperature=self.device_temperature)
 
     def set_rate_profile(self, times: np.ndarray, values: np.ndarray) -> None:
         """Take the angular rate's profile in force from now on: knots (s, rad/s) (S6)."""
@@ -1084,3 +788,203 @@ class AveragedGyro:
         return GyroSamples(t=t, rate=rate, quadrature=quadrature, readout=filtered[:, 2:],
                            envelope=env, control=control_rows,
                            nco_phase=rows[:, e.NCO_PHASE].copy(), saturated=saturated)
+
+
+class AveragedEngine(Engine):
+    """
+    The averaged model inside a run (``run.Run``): its stretches as the full model's samples.
+
+    Taken over from the run's full model ``sim`` at a loop update (S13); :meth:`advance`
+    returns what ``Simulator.advance_samples`` returns for the same samples, built from the
+    envelopes (R1-R4 below); :meth:`sync` hands the state back to ``sim`` (S14), which the
+    run does before anything reads or changes the full model.
+
+    (R1) The coordinates. Over each loop period the NCO turns at the frequency its update
+    at the period's start set, so its phase at sample ``j`` (1..N) of the period is the
+    phase at the start plus ``omega j P``; the envelopes, known at the loop updates, are
+    taken linear between them (the slow flow moves them by ``|B'| T``, ~1e-5 of ``|B|`` a
+    period in a quiet stretch). The pair is ``q = Re(B e^{i phi})``,
+    ``q' = Re(i omega_frame B e^{i phi})`` (S1); the other modes are at rest (what the
+    hand-off demands of them, ``HAND_BACK_THRESHOLD``). So the block topics (q_n, gaps,
+    capacitances: ``Simulator`` computes them from q exactly as for its own samples) show
+    the driven pair's oscillation without the 2 omega ripple of the envelope and without
+    the fast modes' residue below the threshold.
+
+    (R2) ``~/control``: the loops' rows of the averaged model (S7), held over each period
+    as the full model holds them.
+
+    (R3) ``~/demodulator``: the mixers' constant outputs of the amplifiers' first
+    harmonics (S4), at the loop updates and linear between them. Left out: the ``2 omega``
+    terms the low-pass passes (:attr:`ripple_gain` of them: 7e-11 at the defaults), its lag
+    behind the slowly moving constants, the pick-off's higher harmonics, and the pick-off
+    noise (S10 drives the loops only).
+
+    (R4) ``~/rate``: the averaged model's (S8-S11), with the variance the full model's
+    validity monitor gives the same rows (``SenseChain.judge``).
+
+    (R5) The run's statistics (the smallest gap of the run and of each diagnostics interval)
+    need only the smallest of the samples' smallest gaps: when the run's sink keeps no
+    channel (a node nobody subscribes to that records none) the block's gaps and
+    capacitances are not computed, and that one value comes from the samples that can hold
+    it (:meth:`_smallest_gap`), the same value bit for bit.
+    """
+
+    name = 'averaged'
+
+    @classmethod
+    def refusal(cls, config: SimConfig) -> Optional[str]:
+        """Return why the averaged model cannot run this gyroscope (``handoff.refusal``)."""
+        from ring_gyro_sim.core.engine import handoff
+        return handoff.refusal(config)
+
+    def __init__(self, sim) -> None:
+        self.sim = sim
+        self.gyro = AveragedGyro(sim.config, calibration=sim.calibration, simulator=sim)
+        from scipy import signal
+        design = sim.design()
+        el = sim.sense.electronics
+        self._psi = (el.drive_phase_rad + el.phase_error, el.drive_phase_rad)
+        self.period_ns = int(design.period_ns)
+        _, omega = self.gyro.nco
+        _, h2 = signal.sosfreqz(design.low_pass, worN=[2.0 * omega * sim.period_s])
+        self.ripple_gain = float(abs(h2[0]))
+        """The low-pass's gain at twice the NCO's frequency: the ``2 phi`` terms left out
+        of ``~/demodulator`` (R3), relative to the constants (7e-11 at the defaults)."""
+        self._pair = (1, sim.config.modes.count + 1)
+        self._saturated = 0
+        self.rate_version = sim.rate_profile.version
+        self._geometry_of = self._geometry = None
+
+    @property
+    def sample_index(self) -> int:
+        """Return the global sample index now (a loop update)."""
+        return self.gyro.period_index * self.gyro.model.window
+
+    def follow_rate(self) -> None:
+        """Take the full model's angular-rate profile if it changed (a streamed rate)."""
+        profile = self.sim.rate_profile
+        if profile.version != self.rate_version:
+            self.gyro.set_rate_profile(*profile.knots_from(self.gyro.time_s))
+            self.rate_version = profile.version
+
+    def next_scheduled_s(self) -> float:
+        """Return when the full model's next scheduled input acts, s (the run hands over)."""
+        return self.sim.next_scheduled_s()
+
+    def advance_samples(self, count: int, between=None, channels: bool = True) -> Samples:
+        """
+        Advance by ``count`` samples (whole loop periods); return them (R1-R5).
+
+        ``channels`` False (the run's sink keeps none: ``run.Sink.needs_channels``): the
+        samples carry no gaps or capacitances, only their smallest gap (R5).
+        """
+        from ring_gyro_sim.core.gyro.electronics import DemodSamples, RateSamples
+        sim, gyro = self.sim, self.gyro
+        window = gyro.model.window
+        if count % window:
+            raise ParameterError(f'count: {count} samples is not a whole number of loop '
+                                 f'periods ({window} samples)')
+        self.follow_rate()
+        periods = count // window
+        first = self.sample_index
+        env0, (phase0, omega0), row0 = gyro.envelope, gyro.nco, gyro.control_row()
+        out = gyro.advance(periods * gyro.model.period)
+        index = np.arange(count)
+        k = index // window
+        t = (first + index + 1) * sim.period_s
+        dc = self._demodulator(np.vstack([env0[None, :], out.envelope]))
+        # (R1) the pair at every sample
+        n = sim.model.n_coordinates
+        pair_q = np.empty((count, 2))
+        pair_v = np.empty((count, 2))
+        phase = np.empty(count)
+        demod = np.empty((count, 4))
+        kernels.envelope.stretch_samples(
+            np.vstack([env0[None, :], out.envelope]),
+            np.concatenate([[phase0], out.nco_phase[:-1]]),
+            np.concatenate([[omega0], out.control[:-1, 0] * (2.0 * math.pi)]),
+            window, sim.period_s, gyro.model.omega_frame, dc, pair_q, pair_v, phase, demod)
+        q = np.zeros((count, n))
+        v = np.zeros((count, n))
+        q[:, self._pair] = pair_q
+        v[:, self._pair] = pair_v
+        # the channels of the pair's coordinates: the full model's kernel on the pair's
+        # rows of its geometry (the other coordinates are 0: the same sums)
+        geometry = sim.output_geometry
+        if geometry is not self._geometry_of:
+            self._geometry_of = geometry
+            self._geometry = geometry._replace(**{
+                name: np.ascontiguousarray(getattr(geometry, name)[list(self._pair)])
+                for name in ('centre_shapes', 'ring_shapes', 'electrode_shapes',
+                             'fine_shapes', 'curvature')})
+        if channels:
+            out_channels = sim.channel_arrays(count)
+            kernels.output_channels(pair_q, self._geometry, out_channels)
+            gap, min_gap, capacitance = out_channels
+            smallest = None
+        else:
+            gap = min_gap = capacitance = None
+            smallest = self._smallest_gap(pair_q)
+        t_ns = (first + index + 1).astype(np.int64) * sim.period_ns
+        # (R2) the loops' rows, held over each period
+        control = np.vstack([row0[None, :], out.control])[k]
+        rate = RateSamples(t=out.t, rate=out.rate, quadrature=out.quadrature,
+                           saturated=out.saturated)
+        rate = sim.sense.judge(rate, control[index[window - 1::window]])
+        return Samples(t=t, q=q, v=v, gap=gap, min_gap=min_gap, capacitance=capacitance,
+                       drive_phase=phase, applied_rate=sim.rates_at(t_ns), control=control,
+                       demod=DemodSamples(t=t, values=demod), rate_output=rate,
+                       die_temperature=gyro.die.advance_to(gyro.time_s), smallest_gap=smallest)
+
+    def _smallest_gap(self, pair_q: np.ndarray) -> float:
+        """
+        Return the smallest of the samples' smallest gaps, m, from the samples that can hold it.
+
+        (R5) With the other modes at rest, w = q_c cos(2 theta) + q_s sin(2 theta), whose
+        largest value is r = hypot(q_c, q_s); the kernel's estimate ``w_max`` (grid and
+        parabola) is within ``m = RING_MAX_MARGIN * 4 (|q_c| + |q_s|)`` of r
+        (``kernels.channels``), so a sample with ``r + m`` below the largest ``r - m`` of the
+        block has a smaller estimate than that sample's and cannot hold the smallest gap. The
+        kernel runs on the others (those within about 0.8 % of the amplitude: 8 % of a driven
+        pair's samples): the same value as on every sample, bit for bit.
+        """
+        geometry = self._geometry
+        r = np.hypot(pair_q[:, 0], pair_q[:, 1])
+        margin = kernels.RING_MAX_MARGIN * (np.abs(pair_q) @ geometry.curvature)
+        rows = np.flatnonzero(r + margin >= np.max(r - margin))
+        out = self.sim.channel_arrays(rows.size)
+        kernels.output_channels(np.ascontiguousarray(pair_q[rows]), geometry, out)
+        return float(np.min(out.min_gap))
+
+    def _demodulator(self, envelope: np.ndarray) -> np.ndarray:
+        """
+        Return the demodulator's outputs of envelopes ``(K, 2)``: ``(K, 4)``, V (R3).
+
+        The mixers make of an amplifier's first harmonic V, with the reference's phase psi,
+        ``Re(V e^{-i psi})`` (I) and ``-Im(V e^{-i psi})`` (Q) and terms at ``2 phi``
+        (``SenseElectronics.resume``), which the low-pass passes by its response there
+        (:attr:`ripple_gain`), left out.
+        """
+        volts = self.gyro.harmonics(envelope)
+        dc = np.empty((len(envelope), 4))
+        for ch, psi in enumerate(self._psi):
+            down = volts[:, ch] * complex(math.cos(psi), -math.sin(psi))
+            dc[:, 2 * ch] = down.real
+            dc[:, 2 * ch + 1] = -down.imag
+        return dc
+
+    def import_state(self, state: GyroState) -> None:
+        """Refuse: the averaged model takes over from the full model only (S13)."""
+        raise SimulationError('import_state: the averaged model takes over from a running '
+                              'full model (AveragedEngine(full)), not from a state')
+
+    def export_state(self) -> GyroState:
+        """Return the state now (S14), for the full model to go on from."""
+        return self.gyro.export_state()
+
+    def sync(self) -> None:
+        """Hand the state now to the full model (S14): it may go on, or be read."""
+        gyro, el = self.gyro, self.sim.sense.electronics
+        self.sim.import_state(gyro.export_state())
+        el.saturated_samples += gyro.saturated_samples - self._saturated
+        self._saturated = gyro.saturated_samples

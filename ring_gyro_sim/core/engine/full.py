@@ -66,15 +66,17 @@ The outcome depends only on the state, so a re-simulation reproduces it bit for 
 """
 
 import bisect
-from dataclasses import dataclass, replace
-import enum
+import copy
+from dataclasses import replace
 import math
-from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
+from typing import Any, Callable, List, Mapping, Optional, Tuple
 import warnings
 
 import numpy as np
 
 from ring_gyro_sim.core import forces, kernels, noise, structure, thermal, vibration
+from ring_gyro_sim.core.engine.base import (Design, Engine, GyroState, joined_outputs,
+                                            joined_samples, Samples, Status)
 from ring_gyro_sim.core.errors import InputError, SimulationError
 from ring_gyro_sim.core.gyro import calibration as gyro_calibration, control, electronics
 from ring_gyro_sim.core.gyro.channel import SenseChain
@@ -94,7 +96,8 @@ _NO_NOISE = np.empty((0, 1))
 
 __all__ = ['STEPS_PER_PERIOD', 'STEP_HARMONICS', 'PULSE_SUBSTEPS_PER_DURATION',
            'GAP_GRID_POINTS_PER_MODE', 'ELECTRODE_GAUSS_POINTS', 'GAP_FLOOR_RATIO', 'Status',
-           'default_max_step', 'joined_samples', 'ResumeState', 'Samples', 'Simulator']
+           'default_max_step', 'joined_samples', 'GyroState', 'Samples', 'Simulator']
+
 
 STEPS_PER_PERIOD = 8
 """Default steps per period of the fastest step-setting mode (see :func:`default_max_step`)."""
@@ -170,65 +173,6 @@ _DURATION_AT_START = -1.0
 _CUTS_PULSES = 4
 
 
-class Status(str, enum.Enum):
-    """
-    State of a :class:`Simulator` (its :attr:`Simulator.status`).
-
-    A ``str`` enum: each member equals its value (``Status.RUNNING == 'running'``) and
-    ``str()`` / f-strings give the value, so diagnostics and summaries carry the plain word.
-    """
-
-    RUNNING = 'running'
-    """Integrating."""
-    CONTACT = 'contact'
-    """A gap closed or the Taylor series left its range: the ring is held where it touched."""
-    FAILED = 'failed'
-    """A value became non-finite (a numerical failure): the ring is held at rest."""
-
-    def __str__(self) -> str:
-        """Return the value (``'running'``), not ``'Status.RUNNING'``."""
-        return self.value
-
-
-def _joined(t: np.ndarray, parts) -> Tuple[electronics.DemodSamples, electronics.RateSamples]:
-    """Join the sense chain's outputs of consecutive stretches into those of the call."""
-    if len(parts) == 1:
-        return parts[0]
-    demod = [d.values for d, _ in parts] or [np.empty((0, len(electronics.DEMOD_CHANNELS)))]
-    rates = [r for _, r in parts]
-
-    def column(name):
-        return np.concatenate([getattr(r, name) for r in rates]) if rates else np.empty(0)
-    judged = [r.variance for r in rates if len(r)]
-    variance = np.concatenate(judged) if judged else None
-    saturated = None
-    if any(r.saturated is not None for r in rates):  # a stretch without a range: none did
-        saturated = np.concatenate([np.zeros(len(r), bool) if r.saturated is None
-                                    else r.saturated for r in rates])
-    return (electronics.DemodSamples(t=t, values=np.concatenate(demod)),
-            electronics.RateSamples(t=column('t'), rate=column('rate'),
-                                    quadrature=column('quadrature'), variance=variance,
-                                    saturated=saturated))
-
-
-def joined_samples(parts: Sequence['Samples']) -> 'Samples':
-    """Join the samples of consecutive stretches (of one run) into those of the whole."""
-    def cat(name):
-        arrays = [getattr(p, name) for p in parts]
-        return None if any(a is None for a in arrays) else np.concatenate(arrays)
-    t = cat('t')
-    demod = rate_output = None
-    if all(p.demod is not None and p.rate_output is not None for p in parts):
-        demod, rate_output = _joined(t, [(p.demod, p.rate_output) for p in parts])
-    min_gap = cat('min_gap')
-    return Samples(t=t, q=cat('q'), v=cat('v'), gap=cat('gap'), min_gap=min_gap,
-                   capacitance=cat('capacitance'), drive_phase=cat('drive_phase'),
-                   applied_rate=cat('applied_rate'), control=cat('control'), demod=demod,
-                   rate_output=rate_output, die_temperature=parts[-1].die_temperature,
-                   smallest_gap=(None if min_gap is not None
-                                 else min(p.least_gap() for p in parts)))
-
-
 def _check_acceleration(name: str, x: float, y: float = 0.0) -> None:
     """Refuse an in-plane acceleration (m/s^2) beyond ``core.params.MAX_ACCELERATION``."""
     magnitude = math.hypot(x, y)
@@ -267,120 +211,7 @@ def _kernel_status(status: int) -> Status:
     return Status.FAILED if status == kernels.STATUS_NONFINITE else Status.CONTACT
 
 
-@dataclass(frozen=True)
-class ResumeState:
-    """
-    The gyroscope's state at a loop update, taken outside the full model (a hand-back).
-
-    What :meth:`Simulator.resume` takes (``core.averaged.AveragedGyro.resume_state``, S14).
-
-    Attributes
-    ----------
-    sample_index : int
-        The global sample index now: a whole number of loop periods.
-    q, v : ndarray, shape (n,)
-        Coordinates (m) and velocities (m/s), columns as :attr:`Simulator.coordinates`.
-    loop : dict
-        The loops' state after their last update: ``DriveLoop`` attribute -> value.
-    nco_phase : float
-        The NCO's phase now, rad.
-    harmonics : ndarray of complex, shape (2,)
-        The sense and drive amplifiers' first harmonics now, V (``volts = Re(V e^{i phi})``,
-        phi the NCO's phase).
-    rebalance_state : ndarray
-        The rebalance output's low-pass state (E14), as ``SenseElectronics`` holds it.
-    latest_rate, latest_quadrature : float
-        The last ``~/rate`` sample's rate and quadrature before the flicker, rad/s.
-    die : thermal.DieTemperature
-        The die, at the time of ``sample_index``.
-    flicker : electronics.FlickerNoise or None
-        The flicker bank's state (None: the simulator's own goes on).
-    device_temperature : float or None
-        The die temperature (K) the device's coefficients were last built at (T2-T6), so
-        that the full model goes on with the same device; None: rebuilt by the die's rule.
-
-    """
-
-    sample_index: int
-    q: np.ndarray
-    v: np.ndarray
-    loop: Dict[str, Any]
-    nco_phase: float
-    harmonics: np.ndarray
-    rebalance_state: np.ndarray
-    latest_rate: float
-    latest_quadrature: float
-    die: Any
-    flicker: Any = None
-    device_temperature: Optional[float] = None
-
-
-@dataclass(frozen=True)
-class Samples:
-    """
-    Output samples of one stretch of simulation.
-
-    Attributes
-    ----------
-    t : ndarray, shape (K,)
-        Sample times, s.
-    q, v : ndarray, shape (K, n)
-        Coordinates (m) and their velocities (m/s), columns as :attr:`Simulator.coordinates`.
-    gap : ndarray, shape (K, E), or None
-        Outer gap at each electrode centre, m. None: not computed (an averaged stretch whose
-        run's sink keeps no channel: ``run.Sink.needs_channels``), nor are ``min_gap`` and
-        ``capacitance``; :attr:`smallest_gap` is then the smallest of the samples' ``min_gap``.
-    min_gap : ndarray, shape (K,), or None
-        Smallest outer gap around the ring, m.
-    capacitance : ndarray, shape (K, E), or None
-        Capacitance of each outer electrode, F (untruncated parallel plate).
-    drive_phase : ndarray, shape (K,) or None
-        Phase of the drive force ``A cos(phase)`` at each sample time, rad (the reference of
-        the sense electronics); None when the gyroscope is off.
-    applied_rate : ndarray, shape (K,) or None
-        Angular rate of the sensor frame at each sample time, rad/s (None: gyroscope off).
-    control : ndarray, shape (K, len(control.CONTROL_CHANNELS)) or None
-        The closed loop's state in force at each sample (``core.gyro.control``, C9); None open
-        loop.
-    demod : electronics.DemodSamples or None
-        The sense chain's demodulator at every sample (``~/demodulator``); None: gyroscope
-        off.
-    rate_output : electronics.RateSamples or None
-        The gyroscope's rate output (``~/rate``, at ``gyro.output_rate``); None: gyroscope
-        off.
-    die_temperature : float or None
-        The die temperature at the last sample, K (core.thermal, T2).
-    smallest_gap : float or None
-        With the channels not computed (``gap`` None): the smallest of the samples' smallest
-        gaps, m, the value ``min(min_gap)`` would have. :meth:`least_gap` gives it either way.
-
-    """
-
-    t: np.ndarray
-    q: np.ndarray
-    v: np.ndarray
-    gap: Optional[np.ndarray]
-    min_gap: Optional[np.ndarray]
-    capacitance: Optional[np.ndarray]
-    drive_phase: Optional[np.ndarray] = None
-    applied_rate: Optional[np.ndarray] = None
-    control: Optional[np.ndarray] = None
-    demod: Optional[electronics.DemodSamples] = None
-    rate_output: Optional[electronics.RateSamples] = None
-    die_temperature: Optional[float] = None
-    smallest_gap: Optional[float] = None
-
-    def __len__(self) -> int:
-        return int(self.t.size)
-
-    def least_gap(self) -> float:
-        """Return the smallest of the samples' smallest gaps, m (inf without a sample)."""
-        if self.min_gap is None:
-            return math.inf if self.smallest_gap is None else self.smallest_gap
-        return float(np.min(self.min_gap)) if self.min_gap.size else math.inf
-
-
-class Simulator:
+class Simulator(Engine):
     """
     Coupled modal equations of the ring (eq. 28), advanced in chunks.
 
@@ -402,6 +233,13 @@ class Simulator:
         :attr:`message`, :attr:`contact_time_s` and :attr:`contact_theta_rad` say where.
 
     """
+
+    name = 'full'
+
+    @classmethod
+    def refusal(cls, config: SimConfig) -> Optional[str]:
+        """Return None: the full model runs every configuration (the engine contract)."""
+        return None
 
     def __init__(self, config: SimConfig,
                  start_state: Optional[Tuple[np.ndarray, np.ndarray]] = None,
@@ -797,7 +635,7 @@ class Simulator:
         The start of a shock pulse that has not ended (one acting now: now), a scheduled
         input (a parameter, drive or temperature change) or a streamed base-acceleration
         sample: what a model that does not integrate them must hand over before
-        (``core.fidelity``). The angular rate's profile is not among them.
+        (``core.engine.averaged.AveragedEngine``). The angular rate's profile is not among them.
         """
         now = self.time_s
         times = [max(t0, now) for t0, dur, _, _ in self._pulses if dur < 0.0 or t0 + dur > now]
@@ -1012,7 +850,65 @@ class Simulator:
             self._drive_t_ref = 0.0
             self._drive = self._drive_args()
 
-    def resume(self, state: ResumeState) -> None:
+    @property
+    def output_geometry(self) -> kernels.OutputGeometry:
+        """Return the output channels' geometry in force (gaps, electrode panels)."""
+        return self._output_geometry
+
+    @property
+    def thermal_live(self) -> bool:
+        """Whether the die is followed (a temperature profile or a set ambient, T2)."""
+        return self._thermal_live
+
+    def drive_phase_now(self) -> float:
+        """Return the drive's (the NCO's) phase now, rad in [0, 2 pi)."""
+        d = self._drive
+        return math.fmod(d.omega * (self.time_s - d.t_ref) + d.phase, 2.0 * math.pi)
+
+    def design(self) -> Design:
+        """Return what the gyroscope is now (the engine contract: what another derives from)."""
+        return Design(config=self._config, model=self.model,
+                      output_geometry=self._output_geometry, pickoff=self.pickoff,
+                      loop=self.loop,
+                      low_pass=(self.sense.electronics.low_pass if self.sense is not None
+                                else None),
+                      period_ns=int(self.period_ns),
+                      device_temperature=float(self.device_temperature))
+
+    def export_state(self) -> GyroState:
+        """
+        Return the gyroscope's state now, at a loop update (the engine contract).
+
+        The coordinates, the loops' state, the NCO's phase, the rebalance output's filter,
+        the last ``~/rate`` sample, copies of the die and the flicker bank, the device's
+        temperature and the rate profile in force from now on.
+
+        Raises
+        ------
+        InputError
+            Not the closed-loop gyroscope, or not at a loop update.
+
+        """
+        loop, sense = self.loop, self.sense
+        if loop is None or sense is None:
+            raise InputError('export_state: the state at a loop update is the closed-loop '
+                             "gyroscope's")
+        if self.sample_index % loop.window:
+            raise InputError(f'export_state: sample {self.sample_index} is not a loop update '
+                             f'(a whole number of {loop.window} samples)')
+        el = sense.electronics
+        rate, quadrature = el.latest_outputs()
+        return GyroState(sample_index=int(self.sample_index), q=self.q.copy(), v=self.v.copy(),
+                         loop=loop.state(), nco_phase=self.drive_phase_now(), harmonics=None,
+                         rebalance_state=el.rebalance_state(), latest_rate=rate,
+                         latest_quadrature=quadrature, die=copy.deepcopy(self.die),
+                         flicker=copy.deepcopy(el.flicker),
+                         device_temperature=float(self.device_temperature),
+                         rate_knots=self.rate_profile.knots_from(self.time_s),
+                         thermal_live=bool(self._thermal_live),
+                         die_reading=el.die_temperature)
+
+    def import_state(self, state: GyroState) -> None:
         """
         Go on from a state taken outside the full model at a later loop update (a hand-back).
 
@@ -1032,13 +928,13 @@ class Simulator:
         """
         loop, sense = self.loop, self.sense
         if loop is None or sense is None or not loop.rebalance:
-            raise InputError('resume: a hand-back needs the closed-loop gyroscope with '
+            raise InputError('import_state: a hand-back needs the closed-loop gyroscope with '
                              'force-to-rebalance')
         if self.status != Status.RUNNING or self.in_stop_contact:
-            raise InputError(f'resume: the run is {self.status.value}, not free and running')
+            raise InputError(f'import_state: the run is {self.status.value}, not free and running')
         index = int(state.sample_index)
         if index < self.sample_index or index % loop.window or self.sample_index % loop.window:
-            raise InputError(f'resume: sample {index} must be a loop update at or after now '
+            raise InputError(f'import_state: sample {index} must be a loop update at or after now '
                              f'(sample {self.sample_index})')
         end_s = index * self.period_s
         skipped = ([at for at, _, _ in self._events if at < index]
@@ -1047,7 +943,7 @@ class Simulator:
                    + [at for at in self._profile_t[self._profile_head:]
                       if at < index * self.period_ns])
         if skipped or self._environment is not None:
-            raise InputError('resume: an input, a shock, a base acceleration or an '
+            raise InputError('import_state: an input, a shock, a base acceleration or an '
                              'environment acts in the skipped stretch; the full model must '
                              'simulate it')
         self.sample_index = index
@@ -1057,14 +953,7 @@ class Simulator:
             self._build_device_at(float(state.device_temperature))
         self._follow_die()
         self._set_state(state.q, state.v)
-        for name, value in state.loop.items():
-            if not hasattr(loop, name):
-                raise InputError(f'resume: the loops have no state {name!r}')
-            current = getattr(loop, name)
-            if isinstance(current, np.ndarray):
-                current[:] = value
-            else:
-                setattr(loop, name, type(current)(value))
+        loop.set_state(state.loop)
         self._drive_phase = math.fmod(float(state.nco_phase), 2.0 * math.pi)
         self._drive_t_ref = self.time_s
         self._drive = self._drive_args()
@@ -1103,8 +992,8 @@ class Simulator:
             raise InputError(f'seconds: must be finite and >= 0, got {seconds!r}')
         return self.advance_samples(int(round(seconds / self.period_s)))
 
-    def advance_samples(self, n_samples: int,
-                        between: Optional[Callable[[], None]] = None) -> Samples:
+    def advance_samples(self, n_samples: int, between: Optional[Callable[[], None]] = None,
+                        channels: bool = True) -> Samples:
         """
         Advance by ``n_samples`` output periods; returns samples at the new times.
 
@@ -1118,12 +1007,15 @@ class Simulator:
             long call runs (the node sends the ``~/rate`` messages that are due). It must not
             touch the simulator. No cut is added for it: cutting the open loop's stretches
             every 1 ms cost the gyroscope a third of its speed in Python overhead.
+        channels : bool
+            The engine contract's (``core.engine.base``): the full model computes the gaps
+            and capacitances whatever it is told, since its pick-off reads them.
 
         """
         n = self.model.n_coordinates
         out_q = np.empty((n_samples, n))
         out_v = np.empty((n_samples, n))
-        phase = rate = rows = channels = volts = None
+        phase = rate = rows = arrays = volts = None
         loop = self.loop
         if self.gyro or loop is not None:
             phase = np.empty(n_samples)
@@ -1135,7 +1027,7 @@ class Simulator:
             # in force over it: the channels, the amplifiers' volts (computed once for the
             # loops and the sense chain), their noise for the whole call (addressed by sample
             # index, so the same as per stretch).
-            channels = self._channel_arrays(n_samples)
+            arrays = self.channel_arrays(n_samples)
             volts = np.empty((n_samples, 2))
             pickoff_noise = self.pickoff.noise(self.sample_index, n_samples)
         if loop is not None:
@@ -1178,10 +1070,10 @@ class Simulator:
                     force_noise[done * self.n_sub:(done + stop) * self.n_sub])
             self._integrate(stop, out_q[done:done + stop], out_v[done:done + stop],
                             noise_part)
-            if channels is not None and stop > 0:
+            if arrays is not None and stop > 0:
                 part = slice(done, done + stop)
-                self._channels(out_q[part], kernels.Channels(*(c[part] for c in channels)))
-                self.pickoff.clean_volts(channels.capacitance[part], out=volts[part])
+                self._channels(out_q[part], kernels.Channels(*(c[part] for c in arrays)))
+                self.pickoff.clean_volts(arrays.capacitance[part], out=volts[part])
                 if pickoff_noise is not None:
                     volts[part] += pickoff_noise[part]
                 row = None
@@ -1202,8 +1094,8 @@ class Simulator:
                     self._fail(float(t[done + bad]), ' and '.join(
                         name for name, arr in read.items()
                         if arr is not None and _first_nonfinite(arr) is not None))
-                    self._hold_at_rest(t, held, out_q, out_v, channels, phase, rows)
-                    self.pickoff.clean_volts(channels.capacitance[held], out=volts[held])
+                    self._hold_at_rest(t, held, out_q, out_v, arrays, phase, rows)
+                    self.pickoff.clean_volts(arrays.capacitance[held], out=volts[held])
                     if pickoff_noise is not None:
                         volts[held] += pickoff_noise[held]
                 if loop is not None:
@@ -1215,13 +1107,13 @@ class Simulator:
             if between is not None:
                 between()
         self._run_due_events()
-        if channels is None:
+        if arrays is None:
             return self._finite(self._samples(t, out_q, out_v, phase if self.gyro else None,
                                               rate))
-        gap, min_gap, cap = channels
+        gap, min_gap, cap = arrays
         demod = rate_output = None
         if self.sense is not None:
-            demod, rate_output = _joined(t, sensed)
+            demod, rate_output = joined_outputs(t, sensed)
         return self._finite(Samples(t=t, q=out_q, v=out_v, gap=gap, min_gap=min_gap,
                                     capacitance=cap, drive_phase=phase,
                                     applied_rate=rate if self.gyro else None, control=rows,
@@ -1517,7 +1409,7 @@ class Simulator:
                 np.array(self._profile_y[keep:end], dtype=np.float64))
 
     # ------------------------------------------------------------------ outputs
-    def _channel_arrays(self, n_s: int) -> kernels.Channels:
+    def channel_arrays(self, n_s: int) -> kernels.Channels:
         k = self._n_electrodes
         return kernels.Channels(gap=np.empty((n_s, k)), min_gap=np.empty(n_s),
                                 capacitance=np.empty((n_s, k)))
@@ -1528,7 +1420,7 @@ class Simulator:
     def _samples(self, t: np.ndarray, q: np.ndarray, v: np.ndarray,
                  drive_phase: Optional[np.ndarray] = None,
                  rate: Optional[np.ndarray] = None) -> Samples:
-        out = self._channel_arrays(len(t))
+        out = self.channel_arrays(len(t))
         self._channels(q, out)
         return Samples(t=t, q=q, v=v, gap=out.gap, min_gap=out.min_gap,
                        capacitance=out.capacitance, drive_phase=drive_phase,

@@ -191,7 +191,8 @@ class SenseChain:
         """
         Return ``rate`` with each sample's variance judged from the loops' rows alone.
 
-        The rate samples of a stretch the averaged model produced (``core.fidelity``), with
+        The rate samples of a stretch the averaged model produced
+        (``core.engine.averaged.AveragedEngine``), with
         ``control`` the loops' rows in force at each of them: the closed loop's reasons
         (V1: lock, qualification, force limit, amplitude) and the variance (V2-V5) as
         :meth:`process` judges them. The shock detector is not run (no pick-off volts: the

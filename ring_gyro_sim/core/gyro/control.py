@@ -113,7 +113,7 @@ Outputs (C9)
 
 from dataclasses import dataclass
 import math
-from typing import Dict, Optional, Tuple
+from typing import Any, Dict, Optional, Tuple
 
 import numpy as np
 from ring_gyro_sim.core import kernels, structure
@@ -272,6 +272,49 @@ class DriveLoop:
         self.rebalance_quadrature = 0.0
         self.locked = True
         self.rebalance_on = self.rebalance
+
+    STATE = ('pll_integral', 'agc_integral', 'rb_integral', 'omega', 'force',
+             'rebalance_force', 'phase_error', 'amplitude', 'rebalance_rate',
+             'rebalance_quadrature', 'locked', 'rebalance_on', 'locking', 'qualifying')
+    """The names of the loops' state after an update (:meth:`state`, :meth:`set_state`)."""
+
+    def state(self) -> Dict[str, Any]:
+        """
+        Return the loops' state after their last update: name -> value (:data:`STATE`).
+
+        ``locking`` and ``qualifying`` are the periods in a row the lock (C4) and the
+        rebalance's qualification (C8b) have counted; the rest are the attributes of the
+        same names. What an engine hands to another at a loop update.
+        """
+        out = {name: getattr(self, name) for name in self.STATE[:-2]}
+        out['rb_integral'] = self.rb_integral.copy()
+        out['rebalance_force'] = self.rebalance_force.copy()
+        out['locking'] = self._locking
+        out['qualifying'] = self._qualifying
+        return out
+
+    def set_state(self, state: Dict[str, Any]) -> None:
+        """
+        Take the loops' state of :meth:`state` (another engine's at the same loop update).
+
+        Raises
+        ------
+        InputError
+            A name that is not one of :data:`STATE`.
+
+        """
+        unknown = sorted(set(state) - set(self.STATE))
+        if unknown:
+            raise InputError(f'loop state: the loops have no state {unknown[0]!r}')
+        for name, value in state.items():
+            if name == 'locking':
+                self._locking = int(value)
+            elif name == 'qualifying':
+                self._qualifying = int(value)
+            elif isinstance(getattr(self, name), np.ndarray):
+                getattr(self, name)[:] = value
+            else:
+                setattr(self, name, type(getattr(self, name))(value))
 
     def linear_amplitude(self) -> float:
         """Return the drive mode's linear response to ``drive.amplitude`` at resonance, m."""

@@ -789,6 +789,19 @@ class SenseElectronics:
         return self.scale_factor != 0.0 and math.isfinite(self.scale_factor)
 
     @property
+    def low_pass(self) -> np.ndarray:
+        """Return the output low-pass (E5) as second-order sections at the sample rate."""
+        return self._sos
+
+    def rebalance_state(self) -> np.ndarray:
+        """Return a copy of the rebalance output's low-pass state (E14)."""
+        return self._zi_rb.copy()
+
+    def latest_outputs(self) -> Tuple[float, float]:
+        """Return the last ``~/rate`` sample's rate and quadrature before the flicker, rad/s."""
+        return float(self._latest_rate), float(self._latest_quadrature)
+
+    @property
     def next_index(self):
         """Global index of the sample :meth:`process` expects next (None before the first)."""
         return self._next_index

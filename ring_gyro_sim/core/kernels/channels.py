@@ -112,7 +112,7 @@ units of ``sum n^2 |q_n|``: the third derivative of w is at most ``n_max sum n^2
 the error ``|w_3| delta^3 / (9 sqrt 3)`` is at most ``n_max delta^3 / (9 sqrt 3)`` of it, with
 ``n_max delta <= 2 pi / 32`` (``simulator.GAP_GRID_POINTS_PER_MODE``): below 5e-4. Twice
 that: the estimate ``w_max`` is within this times ``sum n^2 |q_n|`` of the largest w, round-off
-included (the kernel's refinement test and ``core.fidelity.AveragedStretch`` rely on it).
+included (the kernel's refinement test and ``core.engine.averaged.AveragedEngine`` rely on it).
 """
 
 

@@ -15,7 +15,7 @@
 """
 The averaged model's kernels: the pair's first harmonics and the closed-loop slow flow.
 
-Used by ``core.averaged`` (S3-S10): the first harmonics of the force and of the pick-off,
+Used by ``core.engine.averaged`` (S3-S10): the first harmonics of the force and of the pick-off,
 and the closed-loop slow flow stepped loop period by loop period.
 
 First harmonics in closed form (S3, S4)
@@ -53,7 +53,7 @@ __all__ = ['EnvelopeModel', 'force_grouped', 'force_harmonic', 'harmonic_groups'
 
 class EnvelopeModel(NamedTuple):
     """
-    The closed-loop slow flow as :func:`run_periods` takes it (built by ``core.averaged``).
+    The closed-loop slow flow as :func:`run_periods` takes it (built by ``core.engine.averaged``).
 
     Attributes
     ----------
@@ -641,7 +641,9 @@ def run_periods(m, env, st, filt, first_period, count, decimate, noise, out_t, o
 def stretch_samples(env, starts, omega, window, period, omega_frame, dc, q_out, v_out,
                     phase_out, demod_out):
     """
-    Write the samples of an averaged stretch from its loop updates (``core.fidelity``, R1, R3).
+    Write the samples of an averaged stretch from its loop updates (R1, R3).
+
+    ``core.engine.averaged.AveragedEngine`` derives them.
 
     Parameters
     ----------

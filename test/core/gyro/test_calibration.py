@@ -61,7 +61,7 @@ def test_the_factory_measures_what_the_readout_shows():
     config = build_config(QUIET)
     cal = factory.factory(config)
     ideal, run = mean_rate({**QUIET, 'gyro.calibration.source': 'ideal'}, TEN_DEG_S)
-    loop = run.sim.loop
+    loop = run.full_model().loop
     closed_form = 2.0 * KAPPA_2 * loop.omega * loop.amplitude
     print(f'factory: S = {cal.scale_factor:.8e} m/s^2 per rad/s (2 kappa w X = '
           f'{closed_form:.8e}), b = {cal.bias:.3e} rad/s; the ideal readout reads '
@@ -85,7 +85,7 @@ def test_a_factory_calibrated_imperfect_device_reads_its_zero_rate_within_noise(
     assert ideal == pytest.approx(zro, rel=0.02)
     seconds = 1.0
     factory, run = mean_rate(IMPERFECT, 0.0, seconds=seconds + 0.1, keep=seconds)
-    sigma = math.sqrt(run.sim.sense.electronics.rate_variance() / (
+    sigma = math.sqrt(run.full_model().sense.electronics.rate_variance() / (
         seconds * run.config.gyro.output_rate)) * 3.0  # generous: samples are correlated
     print(f'factory: zero-rate reading {factory:.3e} rad/s, bias held '
           f'{run.calibration.bias:.5e}, noise of the mean ~{sigma:.1e}')

@@ -47,7 +47,7 @@ def drive_pickoff_and_q2(run, seconds, window_s=0.01):
     block = run.config.run.block_samples
     blocks = [run.advance(block) for _ in range(int(round(seconds / 0.01)))]
     last = blocks[-1]
-    keep = int(round(window_s / run.sim.period_s))
+    keep = int(round(window_s / run.full_model().period_s))
     volts = np.hypot(last.demod.values[-keep:, DRIVE_I], last.demod.values[-keep:, DRIVE_Q])
     return float(np.mean(volts)), float(np.max(np.abs(last.samples.q[-keep:, 1])))
 
@@ -58,7 +58,7 @@ def test_the_pickoff_follows_a_bias_voltage_changed_at_run_time(loop):
     run = Run(config)
     volts_0, q2_0 = drive_pickoff_and_q2(run, 0.05)
     run.apply(ParameterChange({'electrodes.outer_voltage': 70.0}))
-    sim = run.sim
+    sim = run.full_model()
     # One set of amplifiers, read by the loops and the sense chain alike, built anew.
     assert sim.pickoff.bias_voltage == 70.0
     assert sim.sense.electronics.pickoff is sim.pickoff
@@ -83,12 +83,12 @@ def test_a_rebuilt_chain_continues_the_filters_and_the_sample_count():
     config = paper_config(GYROSCOPE)
     run = Run(config)
     first = [run.advance(2000) for _ in range(2)]
-    old = run.sim.sense
+    old = run.full_model().sense
     q = list(config.modes.quality_factors)
     q[2] = 150000.0  # the 3theta mode: the drive pair and the sense chain's gains unchanged
     run.apply(ParameterChange({'modes.quality_factors': q}))
     after = run.advance(2000)
-    assert run.sim.sense is not old
+    assert run.full_model().sense is not old
     demod = np.concatenate([b.demod.values for b in first] + [after.demod.values])
     steps = np.abs(np.diff(demod, axis=0))   # (sample to sample, per channel)
     # Across the rebuild (samples 3999 -> 4000) each channel moves as it did just before;

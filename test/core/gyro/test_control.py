@@ -81,7 +81,7 @@ def test_pll_follows_the_softening_onto_the_backbone():
         'scenario.rate_values': [0.0]})
     run, blocks = run_for(config, 1.0)
     rows = np.concatenate([b.samples.control for b in blocks])
-    loop = run.sim.loop
+    loop = run.full_model().loop
     assert loop.lost_lock_at_s is None
     assert np.max(np.abs(rows[:, COL['phase_error_rad']])) < config.control.lock_threshold
     backbone = hbm.backbone_frequency(cos_only(config), target, mode=2)
@@ -141,7 +141,7 @@ def test_agc_recovers_the_drive_after_the_paper_shock_that_the_open_loop_loses()
     assert fig['drive_amplitude_recovery_s'] is not None
     assert 0.2 < fig['drive_amplitude_recovery_s'] < 1.9
     assert fig['drive_amplitude_final_ratio'] == pytest.approx(1.0, abs=0.01)
-    assert run.sim.loop.locked
+    assert run.full_model().loop.locked
 
 
 def test_force_to_rebalance_reads_10_deg_s_at_the_paper_drive():

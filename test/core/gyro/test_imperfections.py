@@ -130,8 +130,9 @@ def test_misaligned_sense_electrodes_read_the_drive_as_a_bias():
 def test_a_pickoff_gain_mismatch_scales_the_sense_amplifier_only():
     # (E1c) the sense column of (E1) times 1 + g: its gain, and only its, moves by 1 + g
     g = 0.01
-    perfect = Run(paper_config(OPEN_LOOP)).sim.pickoff
-    mismatched = Run(paper_config({**OPEN_LOOP, 'gyro.pickoff_gain_mismatch': g})).sim.pickoff
+    perfect = Run(paper_config(OPEN_LOOP)).full_model().pickoff
+    mismatched = Run(paper_config({**OPEN_LOOP, 'gyro.pickoff_gain_mismatch': g}))
+    mismatched = mismatched.full_model().pickoff
     assert mismatched.sense_gain == pytest.approx((1.0 + g) * perfect.sense_gain, rel=1e-12)
     assert mismatched.drive_gain == perfect.drive_gain
 
