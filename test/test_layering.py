@@ -274,3 +274,142 @@ def test_the_map_check_sees_a_forbidden_import(tmp_path):
                                                   encoding='utf-8')
     bad = forbidden_edges(import_edges(package))
     assert set(bad) == {('run', 'analysis'), ('core', 'ros')}
+
+
+def module_graph(package_dir=PACKAGE_DIR):
+    """
+    Return ``{module: {module it imports, ...}}`` over the package's own modules.
+
+    Imports inside functions count. ``from a import b`` with ``a.b`` a module is an import
+    of ``a.b`` only: importing a sub-module runs its package's ``__init__`` first, which is
+    the order Python gives and no circle; ``from a import name`` is an import of ``a``.
+    """
+    modules = {}
+    for path in sorted(package_dir.rglob('*.py')):
+        parts = path.relative_to(package_dir.parent).with_suffix('').parts
+        name = '.'.join(parts[:-1] if parts[-1] == '__init__' else parts)
+        modules[name] = path
+    graph = {}
+    for name, path in modules.items():
+        package = name if path.name == '__init__.py' else name.rsplit('.', 1)[0]
+        edges = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
+            if isinstance(node, ast.Import):
+                edges.update(alias.name for alias in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                module = node.module or ''
+                if node.level:
+                    base = package.split('.')[:len(package.split('.')) - (node.level - 1)]
+                    module = '.'.join(base + ([module] if module else []))
+                subs = [f'{module}.{alias.name}' for alias in node.names]
+                modules_named = [s for s in subs if s in modules]
+                edges.update(modules_named)
+                if len(modules_named) < len(subs):
+                    edges.add(module)
+        graph[name] = {m for m in edges if m in modules and m != name}
+    return graph
+
+
+def import_circles(graph):
+    """Return the circles of ``graph``: its strongly connected parts of two or more modules."""
+    index, low, stack, on_stack, circles = {}, {}, [], set(), []
+
+    def visit(node):
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        for other in sorted(graph[node]):
+            if other not in index:
+                visit(other)
+                low[node] = min(low[node], low[other])
+            elif other in on_stack:
+                low[node] = min(low[node], index[other])
+        if low[node] == index[node]:
+            part = []
+            while True:
+                other = stack.pop()
+                on_stack.discard(other)
+                part.append(other)
+                if other == node:
+                    break
+            if len(part) > 1:
+                circles.append(sorted(part))
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return circles
+
+
+def test_no_module_imports_itself_through_others():
+    graph = module_graph()
+    assert 'ring_gyro_sim.core.engine.full' in graph['ring_gyro_sim.run']  # the scan works
+    assert import_circles(graph) == []
+
+
+def test_the_circle_check_sees_a_circle_inside_a_function(tmp_path):
+    """Control: a -> b at the top, b -> a inside a function, is a circle; a -> pkg.c is not."""
+    package = tmp_path / 'ring_gyro_sim'
+    (package / 'pkg').mkdir(parents=True)
+    (package / '__init__.py').write_text('', encoding='utf-8')
+    (package / 'a.py').write_text('from ring_gyro_sim import b\nfrom ring_gyro_sim.pkg import c\n',
+                                  encoding='utf-8')
+    (package / 'b.py').write_text('def f():\n    from ring_gyro_sim import a\n', encoding='utf-8')
+    (package / 'pkg' / '__init__.py').write_text('from ring_gyro_sim.pkg.c import X\n',
+                                                 encoding='utf-8')
+    (package / 'pkg' / 'c.py').write_text('X = 1\n', encoding='utf-8')
+    assert import_circles(module_graph(package)) == [['ring_gyro_sim.a', 'ring_gyro_sim.b']]
+
+
+PUBLIC_UNDERSCORES = {'_replace', '_asdict', '_fields', '_make'}
+"""Names with an underscore that are public by their type's own API (named tuples)."""
+FOREIGN_PRIVATE_READS = {('core/kernels/cache.py', '_cache'),
+                         ('core/kernels/cache.py', '_cache_file'),
+                         ('core/kernels/cache.py', '_load_index')}
+"""numba's own dispatcher cache, read where the kernels' cache is checked (not ours)."""
+
+
+def private_reads(package_dir=PACKAGE_DIR):
+    """
+    Return ``[(file, line, expression)]``: an underscore name read off another module's object.
+
+    ``obj._name`` is allowed on ``self`` and ``cls``, and where the module itself defines
+    ``_name`` (a class of the module reading another instance of itself); not elsewhere.
+    """
+    found = []
+    for path in sorted(package_dir.rglob('*.py')):
+        relative = str(path.relative_to(package_dir))
+        tree = ast.parse(path.read_text(encoding='utf-8'))
+        own = set()
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+                own.add(node.name)
+            elif (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                  and node.value.id in ('self', 'cls')):
+                own.add(node.attr)
+        for node in ast.walk(tree):
+            if not (isinstance(node, ast.Attribute) and node.attr.startswith('_')
+                    and not node.attr.startswith('__')):
+                continue
+            if isinstance(node.value, ast.Name) and node.value.id in ('self', 'cls'):
+                continue
+            if (node.attr in PUBLIC_UNDERSCORES or node.attr in own
+                    or (relative, node.attr) in FOREIGN_PRIVATE_READS):
+                continue
+            found.append((relative, node.lineno, ast.unparse(node)))
+    return found
+
+
+def test_no_module_reads_another_modules_private_names():
+    assert private_reads() == []
+
+
+def test_the_private_read_check_sees_one(tmp_path):
+    """Control: reading another module's object's ``_field`` is found, one's own is not."""
+    package = tmp_path / 'ring_gyro_sim'
+    package.mkdir()
+    (package / 'a.py').write_text(
+        'class A:\n    def __init__(self):\n        self._x = 1\n\n'
+        '    def copy(self, other):\n        self._x = other._x\n', encoding='utf-8')
+    (package / 'b.py').write_text('def f(a):\n    return a._x, a._replace()\n',
+                                  encoding='utf-8')
+    assert private_reads(package) == [('b.py', 2, 'a._x')]
