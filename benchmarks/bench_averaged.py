@@ -54,7 +54,7 @@ from ring_gyro_sim.run import Run
 
 CASE = {'modes.companions': True, 'gyro.enabled': True, 'drive.amplitude': 0.0065,
         'drive.frequency': 15800.0, 'drive.start_on': 'upper_branch',
-        'control.drive_loop': 'open', 'control.rebalance': False,
+        'control.mode': 'open_loop',
         'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0,
         'gyro.calibration.source': 'ideal', 'real_time_factor': 0.0,
         'scenario.rate_times': [0.0], 'scenario.rate_values': [math.radians(10.0)]}

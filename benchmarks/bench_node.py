@@ -18,7 +18,7 @@ Real-time factor of the node with the gyroscope on, as fast as it goes.
 Starts ``ring_gyro_node`` on ``benchmarks/gyro.yaml`` (N_R = 3 with the companions, the
 sense electronics at 200 kHz, ``~/rate`` at 1 kHz, every noise on, a 10 000 g shock at
 0.5 s, ``real_time_factor: 0``), on the same file with the closed loops on
-(``control.drive_loop: closed``, ``control.rebalance: true``: PLL, AGC and force-to-rebalance
+(``control.mode: rebalance``: PLL, AGC and force-to-rebalance
 at 1 kHz, ``~/control`` published) and with ``gyro.enabled`` off (the resonator with its
 companions: what the gyroscope adds), each for ``--duration`` simulated seconds, alternating
 ``--rounds`` times. It reads the node's own last line
@@ -88,7 +88,7 @@ def main(argv=None) -> int:
             doc = yaml.safe_load(f)
         p = doc['ring_gyro']['ros__parameters']
         # the closed loops: the same file with PLL, AGC and force-to-rebalance
-        p['control'] = {'drive_loop': 'closed', 'rebalance': True}
+        p['control'] = {'mode': 'rebalance'}
         closed = os.path.join(tmp, 'closed.yaml')
         with open(closed, 'w', encoding='utf-8') as f:
             yaml.safe_dump(doc, f)

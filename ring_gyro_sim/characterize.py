@@ -45,7 +45,7 @@ device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
      ``Tc`` (the measured one, from the step below), ``b`` white rate noise that bypasses
      the pole (the pick-off's) and ``c`` the flicker floor; each term only when the device
      has that source (``gyro.temperature``, ``gyro.input_noise_density``,
-     ``gyro.bias_instability`` > 0; with ``control.rebalance`` the fit starts at 10 Tc, the
+     ``gyro.bias_instability`` > 0; with ``control.mode: rebalance`` the fit starts at 10 Tc, the
      loop's response not being first-order). **ARW** = the -1/2 asymptote
      ``sqrt(a + b) / sqrt(tau)`` read at ``tau = 1 s``, in deg/sqrt(h). Beside it, where
      the record reaches ``tau >= 10 Tc`` over a factor 2 of tau (the full form: 15.6 to
@@ -145,11 +145,12 @@ device. Durations below are :data:`FULL` / :data:`QUICK` (``--quick``).
    within 1 and 0.1 deg/s of the unshocked run (``--quick`` is far too short to see it).
 
 Loop modes: the shock table has one entry per amplitude and per mode of ``loops``:
-``open`` (the paper's fixed drive), ``closed`` (``control.drive_loop: closed``: PLL and AGC,
-the sense mode read open loop) and ``rebalance`` (closed with ``control.rebalance: true``,
-the rate read from the force-to-rebalance loop), each set by those two parameters; the closed
-modes need them in the table (:func:`available_loops`). The other tests run the file's own
-setting (a file with ``control.rebalance: true`` gets the datasheet of that readout).
+``open`` (``control.mode: open_loop``, the paper's fixed drive), ``closed``
+(``control.mode: closed_loop``: PLL and AGC, the sense mode read open loop) and ``rebalance``
+(``control.mode: rebalance``: the rate read from the force-to-rebalance loop); a build has
+the modes its ``control.mode`` offers (:func:`available_loops`). The other tests run the
+file's own setting (a file with ``control.mode: rebalance`` gets the datasheet of that
+readout).
 
 Processes (``workers``, :class:`_Farm`): the long record, the zero-rate and step record,
 each shock run, the device as owned, the environment series and the rate table's runs
@@ -177,6 +178,7 @@ import numpy as np
 
 from ring_gyro_sim import extras
 from ring_gyro_sim.core.errors import ParameterError
+from ring_gyro_sim.core.gyro import modes
 from ring_gyro_sim.core.params import build_config, SimConfig, SPECS, STANDARD_GRAVITY
 from ring_gyro_sim.outdir import prepare_directory
 from ring_gyro_sim.run import Run, Sink
@@ -185,12 +187,11 @@ __all__ = ['FULL', 'LOOP_PARAMETER', 'Plan', 'QUICK', 'allan_fit', 'available_lo
            'characterize', 'load_device', 'lp1_allan_variance', 'parse_loops',
            'scale_factor_fit', 'step_fit']
 
-LOOP_PARAMETER = 'control.drive_loop'
-"""The parameter that selects the drive loop (``open`` / ``closed``)."""
-REBALANCE_PARAMETER = 'control.rebalance'
-LOOP_MODES = {'open': {LOOP_PARAMETER: 'open', REBALANCE_PARAMETER: False},
-              'closed': {LOOP_PARAMETER: 'closed', REBALANCE_PARAMETER: False},
-              'rebalance': {LOOP_PARAMETER: 'closed', REBALANCE_PARAMETER: True}}
+LOOP_PARAMETER = 'control.mode'
+"""The parameter that selects the gyroscope's mode (core.gyro.modes)."""
+LOOP_MODES = {'open': {LOOP_PARAMETER: 'open_loop'},
+              'closed': {LOOP_PARAMETER: 'closed_loop'},
+              'rebalance': {LOOP_PARAMETER: 'rebalance'}}
 """Loop modes of the shock table: the parameters each sets (those the build has)."""
 LOOP_TITLES = {'open': 'open loop', 'closed': 'closed loop (PLL + AGC)',
                'rebalance': 'closed loop + force-to-rebalance'}
@@ -420,9 +421,8 @@ def available_loops() -> Tuple[str, ...]:
     """Return the loop modes this build has: ``open``, and ``closed``, ``rebalance`` if so."""
     if LOOP_PARAMETER not in SPECS:
         return ('open',)
-    if REBALANCE_PARAMETER not in SPECS:
-        return ('open', 'closed')
-    return tuple(LOOP_MODES)
+    choices = SPECS[LOOP_PARAMETER].choices or ()
+    return tuple(m for m, p in LOOP_MODES.items() if p[LOOP_PARAMETER] in choices)
 
 
 def _loop_parameters(loop: str) -> Dict[str, Any]:
@@ -444,18 +444,18 @@ def parse_loops(text: Optional[str]) -> Tuple[str, ...]:
     have = available_loops()
     if text is None:
         return have
-    modes = tuple(m.strip() for m in text.split(',') if m.strip())
-    if not modes:
+    chosen = tuple(m.strip() for m in text.split(',') if m.strip())
+    if not chosen:
         raise ParameterError('--loops: give one or more of open, closed, rebalance')
-    for m in modes:
+    for m in chosen:
         if m not in LOOP_MODES:
             raise ParameterError(f'--loops: unknown loop mode {m!r} (open, closed, '
                                  f'rebalance)')
         if m not in have:
-            missing = ', '.join(k for k in LOOP_MODES[m] if k not in SPECS)
-            raise ParameterError(f'--loops: {m!r} needs the parameter {missing} (the '
-                                 f'closed-loop drive), which this build does not have')
-    return tuple(dict.fromkeys(modes))
+            raise ParameterError(f'--loops: {m!r} needs {LOOP_PARAMETER}: '
+                                 f'{LOOP_MODES[m][LOOP_PARAMETER]}, which this build does '
+                                 f'not have')
+    return tuple(dict.fromkeys(chosen))
 
 
 def load_device(path: str, node_name: str = 'ring_gyro') -> Dict[str, Any]:
@@ -1184,7 +1184,7 @@ def _drift_and_step(flat, plan: Plan, bar: _Bar, averaged: bool = False) -> Dict
     rate_hz = rec.config.gyro.output_rate
     terms = _noise_terms(rec.config)
     tau_min = max(0.01, 1.0 / rec.config.gyro.filter_bandwidth)
-    if rec.config.control.rebalance:
+    if modes.of(rec.config).rebalance:
         # The rebalance loop (a PI with a delay) is not a first-order pole: its response
         # peaks near its crossover, so the fit starts where the noise is white again.
         tau_min = max(tau_min, SLOPE_ONLY_TC * tc)
@@ -1272,7 +1272,7 @@ def _long_allan(long, drift) -> Dict[str, Any]:
     x, rate_hz, config = long['rate'], long['rate_hz'], long['config']
     tc = drift['step']['time_constant_s']
     tau_min = max(0.01, 1.0 / config.gyro.filter_bandwidth)
-    if config.control.rebalance:
+    if modes.of(config).rebalance:
         tau_min = max(tau_min, SLOPE_ONLY_TC * tc)  # as _drift_and_step
     allan = allan_fit(x, rate_hz, tc, _noise_terms(config), tau_min)
     tau, dev = allan['tau_s'], allan['adev_rad_s']
@@ -1352,7 +1352,7 @@ def _rate_points(flat, plan: Plan, bar: _Bar) -> List[Dict[str, Any]]:
         rec = _simulate(values, plan.rate_point_s, bar, f'rate table {dps:+g} deg/s')
         window = rec.t > plan.rate_point_s - plan.rate_average_s
         points.append({'rate_deg_per_s': dps, 'mean_rad_s': float(np.mean(rec.rate[window])),
-                       'rebalance': bool(rec.config.control.rebalance),
+                       'rebalance': bool(modes.of(rec.config).rebalance),
                        'calibration': rec.scale_factor / rec.drive_amplitude_m,
                        'drive_amplitude_m': rec.drive_amplitude_m})
     return points

@@ -21,7 +21,7 @@ loop, in the node's blocks (``output.block_duration``), as fast as possible, and
 would (the same topic names, scheduled shocks on ``<ns>/shock`` at their times, the same
 diagnostics keys about once per simulated second; with ``gyro.enabled`` also ``<ns>/rate``,
 ``<ns>/demodulator`` and the rates that acted on ``<ns>/angular_rate``; with
-``control.drive_loop: closed`` the loops' updates on ``<ns>/control``). :func:`resimulate`
+a closed ``control.mode`` the loops' updates on ``<ns>/control``). :func:`resimulate`
 re-runs a recording from its metadata and recorded inputs (angular rates included) and
 reproduces its outputs bit for bit, whatever the recording kept of them: with
 ``decimation=1`` a recording of every N-th sample (``record.decimation``) gives every sample
@@ -38,7 +38,7 @@ import numpy as np
 from ring_gyro_sim.core.engine.full import channel_names
 from ring_gyro_sim.core.errors import ParameterError
 from ring_gyro_sim.core.gyro.calibration import Calibration
-from ring_gyro_sim.core.params import build_config, SimConfig, to_flat
+from ring_gyro_sim.core.params import build_config, SimConfig, to_flat, upgraded
 from ring_gyro_sim.paramfile import load_text
 from ring_gyro_sim.progress import Progress
 from ring_gyro_sim.recording.reader import (block_sample_counts, decode, read_messages,
@@ -168,7 +168,7 @@ def load_recording(path: str):
 
     """
     meta = read_metadata(path, METADATA_NAME)
-    config = build_config(load_text(meta['parameters']))
+    config = build_config(upgraded(load_text(meta['parameters'])))
     state = json.loads(meta['initial_state'])
     namespace = meta.get('namespace', '/ring_gyro')
     start = (np.array(state['q'], dtype=np.float64), np.array(state['v'], dtype=np.float64))

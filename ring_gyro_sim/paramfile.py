@@ -57,7 +57,7 @@ import sys
 from typing import Any, Dict, List, NamedTuple, Optional, Sequence, Tuple
 
 from ring_gyro_sim.core.errors import ParameterError
-from ring_gyro_sim.core.params import build_config, SimConfig, SPECS
+from ring_gyro_sim.core.params import build_config, REPLACED, SimConfig, SPECS
 import yaml
 
 DEFAULT_NODE_NAME = 'ring_gyro'
@@ -328,6 +328,8 @@ def _read_text(path: str) -> str:
 def _unknown(names: Sequence[str]) -> Optional[str]:
     """Return the refusal of unknown names (with the closest known ones), None if none."""
     def hint(name: str) -> str:
+        if name in REPLACED:
+            return f' ({REPLACED[name]})'
         close = difflib.get_close_matches(name, list(SPECS), n=1, cutoff=0.6)
         return f' (did you mean {close[0]}?)' if close else ''
     if not names:

@@ -269,7 +269,7 @@ class Block:
         With ``gyro.enabled``: the rate output (``~/rate``, at ``gyro.output_rate``) and the
         demodulator's channels at every sample (``~/demodulator``); None otherwise.
     control : ControlSamples or None
-        With ``control.drive_loop: closed``: the loops' updates in the block (``~/control``,
+        With a closed ``control.mode``: the loops' updates in the block (``~/control``,
         at ``control.rate``; ``core.gyro.control.update_rows``); None otherwise.
 
     """

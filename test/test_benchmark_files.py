@@ -55,7 +55,7 @@ def test_the_closed_loop_benchmark_file_is_the_gyroscope_file_with_the_loops():
     # benchmarks/gyro_closed.yaml: the same run with PLL, AGC and rebalance.
     open_loop = load_yaml(str(BENCH / 'gyro.yaml'))
     closed = load_yaml(str(BENCH / 'gyro_closed.yaml'))
-    assert closed.control.closed and closed.control.rebalance
+    assert closed.control.mode == 'rebalance'
     assert closed.run == open_loop.run and closed.gyro == open_loop.gyro
     summary = offline.run_offline(closed, duration_s=0.02, progress=False)
     assert summary.extra['rate_mean_rad_s'] == pytest.approx(math.radians(10.0), rel=0.01)

@@ -392,8 +392,8 @@ def test_closed_is_refused_without_the_loop_parameter(monkeypatch):
     specs = {k: v for k, v in ch.SPECS.items() if k != ch.LOOP_PARAMETER}
     monkeypatch.setattr(ch, 'SPECS', specs)
     assert ch.available_loops() == ('open',)
-    with pytest.raises(ValueError, match="--loops: 'closed' needs the parameter "
-                                         'control.drive_loop'):
+    with pytest.raises(ValueError, match="--loops: 'closed' needs "
+                                         'control.mode: closed_loop'):
         ch.parse_loops('open,closed')
 
 
@@ -808,13 +808,13 @@ def test_auto_on_a_device_the_averaged_model_cannot_run_says_why(sheet, quick):
     # config/gyro.yaml is open loop: AveragedGyro needs force-to-rebalance
     g = sheet['long_record']
     assert g['run'] is False and g['fidelity'] == 'auto'
-    assert 'control.rebalance' in g['reason'] and 'falls back' in g['reason']
+    assert 'control.mode' in g['reason'] and 'falls back' in g['reason']
     text = (quick[2] / 'datasheet.md').read_text(encoding='utf-8')
     assert '## Long zero-rate record (averaged model)\n\nNot run: the averaged model' in text
 
 
 @pytest.mark.parametrize('device, fidelity, said', [
-    (GYRO, 'averaged', ('integrator.fidelity: averaged', 'control.rebalance')),  # open loop
+    (GYRO, 'averaged', ('integrator.fidelity: averaged', 'force-to-rebalance')),  # open loop
     (DEFAULT, 'fast', ('integrator.fidelity', 'auto, full, averaged'))])        # no such value
 def test_a_fidelity_that_cannot_be_kept_is_refused_before_any_run(tmp_path, capsys,
                                                                   device, fidelity, said):

@@ -45,7 +45,7 @@ SHOCK_10000G = 10_000 * STANDARD_GRAVITY
 
 
 RESONATOR = {'modes': '{companions: false}', 'gyro': '{enabled: false}',
-             'control': '{drive_loop: open, rebalance: false}'}
+             'control': '{mode: open_loop}'}
 """The paper's resonator (config/paper.yaml) in YAML flow text, group by group."""
 
 

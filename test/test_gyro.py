@@ -308,8 +308,7 @@ def test_the_rebalance_variance_is_the_loops_noise():
     # loop's delay shapes it most: one period (C1) predicts within 3.5 % of 10 s measured;
     # the 1.5 periods it used to count over-predicted by 28 %. 6 s here: about 720
     # independent samples over the band, 5 % standard error of the variance.
-    config = paper_config(gyro_values(**{'control.drive_loop': 'closed',
-                                         'control.rebalance': True,
+    config = paper_config(gyro_values(**{'control.mode': 'rebalance',
                                          'control.rebalance_bandwidth': 50.0,
                                          'scenario.rate_values': [0.0], 'gyro.noise_seed': 3,
                                          'drive.amplitude': 0.065,

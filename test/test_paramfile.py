@@ -62,6 +62,9 @@ REFUSED = {
     'no value': (section('duration:\n'), 'duration: no value'),
     'alias': (section('duration: &d 1.0\nshock:\n  duration: *d\n'), 'aliases'),
     'bad yaml': ('ring_gyro: [\n', 'not valid YAML'),
+    'a parameter control.mode replaced': (section('control: {drive_loop: closed}\n'),
+                                          'control.drive_loop: unknown parameter of '
+                                          'ring_gyro_sim (replaced by control.mode'),
 }
 
 

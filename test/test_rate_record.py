@@ -29,7 +29,7 @@ RESONATOR = """\
     duration: 0.01
     modes: {companions: false}
     gyro: {enabled: false}
-    control: {drive_loop: open, rebalance: false}
+    control: {mode: open_loop}
     drive: {start_on: rest}
 """
 

@@ -510,7 +510,7 @@ def gyro_recording(tmp_path_factory):
     path = tmp_path_factory.mktemp('replay_gyro') / 'gyro.mcap'
     config = paper_config({'drive.start_on': 'rest', 'modes.companions': True,
                            'gyro.enabled': True, 'output.rate': 20000.0,
-                           'output.block_duration': BLOCK_S, 'control.drive_loop': 'closed'})
+                           'output.block_duration': BLOCK_S, 'control.mode': 'closed_loop'})
     sim = Simulator(config)
     sink = RosSink(sim.channel_names, NS,
                    recorder=RunRecorder(str(path), config, sim.channel_names, NS),

@@ -358,7 +358,7 @@ def test_the_closed_loop_refuses_an_unbiased_pick_off_at_start_and_at_run_time()
     # electrodes.outer_voltage 0 with the closed loop would divide by zero in the loops
     # (drive_amplitude_m = inf, status still running).
     closed = {'drive.start_on': 'rest', 'output.rate': 20000.0}
-    reason = (r'electrodes\.outer_voltage: must not be 0 with control\.drive_loop: closed: the '
+    reason = (r'electrodes\.outer_voltage: must not be 0 with control\.mode: rebalance: the '
               r'loops read the drive through the pick-off')
     with pytest.raises(ParameterError, match=reason):
         build_config({**closed, 'electrodes.outer_voltage': 0.0})

@@ -184,9 +184,9 @@ def test_inputs_hand_to_the_full_model_and_back():
 
 def test_averaged_refuses_a_gyroscope_it_cannot_run():
     with pytest.raises(ParameterError, match='integrator.fidelity: averaged, but'):
-        Run(build_config({'control.rebalance': False, 'integrator.fidelity': 'averaged'}),
+        Run(build_config({'control.mode': 'closed_loop', 'integrator.fidelity': 'averaged'}),
             calibration=None)
-    run = Run(build_config({'control.rebalance': False}), calibration=None)
+    run = Run(build_config({'control.mode': 'closed_loop'}), calibration=None)
     assert run.handoffs == [(0.0, 'full')]
     assert 'rebalance' in run.summary().extra['fidelity_reason']
 

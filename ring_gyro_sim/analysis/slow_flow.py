@@ -30,6 +30,7 @@ import numpy as np
 from ring_gyro_sim.core import harmonic_balance, kernels, structure, thermal
 from ring_gyro_sim.core.engine.averaged import pair_force_arrays, state_of
 from ring_gyro_sim.core.errors import ParameterError, SimulationError
+from ring_gyro_sim.core.gyro import modes
 from ring_gyro_sim.core.params import SimConfig
 from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
@@ -81,8 +82,8 @@ class AveragedModel:
     ----------
     config : SimConfig
         Needs ``modes.companions`` (the pair), ``modes.frequencies`` with at least the 2theta
-        mode, ``drive.frequency > 0``. Open loop: ``control.drive_loop: closed`` and
-        ``control.rebalance`` are refused (not modelled here). The rate profile is used when
+        mode, ``drive.frequency > 0``. Open loop: another ``control.mode`` than
+        ``open_loop`` is refused (not modelled here). The rate profile is used when
         ``gyro.enabled``.
 
     """
@@ -97,9 +98,10 @@ class AveragedModel:
         if config.drive.frequency <= 0.0:
             raise ParameterError('drive.frequency: the averaged model turns at the drive '
                                  f'frequency and needs it > 0, got {config.drive.frequency}')
-        if config.control.closed or config.control.rebalance:
-            raise ParameterError('control.drive_loop: this averaged model is open loop (the '
-                                 'PLL, AGC and force-to-rebalance are in AveragedGyro)')
+        if modes.of(config).closed:
+            raise ParameterError('control.mode: this averaged model is open loop (the PLL, '
+                                 'AGC and force-to-rebalance are in AveragedGyro), got '
+                                 f'{config.control.mode}')
         # The device at the die temperature of t = 0 (core.thermal, T3-T6), as the full
         # model starts; later temperature changes are not followed.
         self.config = thermal.device_at(config, thermal.DieTemperature(config).kelvin)

@@ -81,6 +81,7 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 from ring_gyro_sim.core import structure, vibration
 from ring_gyro_sim.core.errors import ParameterError
+from ring_gyro_sim.core.gyro.modes import MODES
 import scipy.constants
 
 EPSILON_0 = 8.8541878128e-12
@@ -106,8 +107,7 @@ DEFAULT_DRIVE_FREQUENCY = 15798.6
 PAPER_RESONATOR: Dict[str, Any] = {
     'modes.companions': False,
     'gyro.enabled': False,
-    'control.drive_loop': 'open',
-    'control.rebalance': False,
+    'control.mode': 'open_loop',
 }
 """
 What the paper's resonator sets over the defaults (``config/paper.yaml``): the cos modes only,
@@ -560,7 +560,7 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               'readout/(rad/s)',
               'with source given: the readout per rad/s (V per rad/s of the sense '
               'demodulator open loop, m/s^2 per rad/s of the rebalance force with '
-              'control.rebalance; 0 = not set)', **_NON_NEGATIVE),
+              'control.mode: rebalance; 0 = not set)', **_NON_NEGATIVE),
     ParamSpec('gyro.calibration.temperature_points', 'gyro.calibration_temperature_points',
               'float_list', [], 'K', 'with source factory: die temperatures of a temperature '
               'series whose bias and scale factor the compensation fits (empty = no '
@@ -616,10 +616,13 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               'penetration is small, doc/environments.md)', 1e6, 1e14,
               range_note='below, a 30 000 g shock goes through the stop; above, the contact '
               'sub-step becomes impractically short'),
-    ParamSpec('control.drive_loop', 'control.drive_loop', 'str', 'closed', '-',
-              'the 2theta drive: open (the paper: drive.amplitude at drive.frequency) or '
-              'closed (a PLL on the drive pick-off sets the frequency, an AGC the amplitude; '
-              'doc/control.md)', choices=('open', 'closed')),
+    ParamSpec('control.mode', 'control.mode', 'str', 'rebalance', '-',
+              "the gyroscope's mode of operation (core/gyro/modes, doc/control.md): "
+              "open_loop (the paper's drive.amplitude at drive.frequency, the sense mode "
+              'read open loop), closed_loop (a PLL on the drive pick-off sets the frequency, '
+              'an AGC the amplitude; the sense mode read open loop) or rebalance (closed_loop '
+              'and a loop that nulls the sense mode q2s: ~/rate is read from its force; '
+              'needs gyro.enabled)', choices=tuple(MODES)),
     ParamSpec('control.rate', 'control.rate', 'float', 1000.0, 'Hz',
               'update rate of the loops (integrate-and-dump demodulation over one period; '
               'output.rate must be a whole multiple)', **_POSITIVE),
@@ -640,9 +643,6 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
               'largest drive force amplitude the AGC may command (the DAC range)',
               minimum=0.0, open_minimum=True, maximum=MAX_ACCELERATION,
               range_note=_ACCELERATION_NOTE),
-    ParamSpec('control.rebalance', 'control.rebalance', 'bool', True, '-',
-              'force-to-rebalance: a loop nulls the sense mode q2s and ~/rate is read from '
-              'its force; needs control.drive_loop: closed and gyro.enabled'),
     ParamSpec('control.rebalance_bandwidth', 'control.rebalance_bandwidth', 'float', 20.0,
               'Hz', 'force-to-rebalance loop bandwidth (the rate bandwidth with it on)',
               **_POSITIVE),
@@ -650,10 +650,35 @@ PARAMETERS: Tuple[ParamSpec, ...] = (
 
 SPECS: Dict[str, ParamSpec] = {p.name: p for p in PARAMETERS}
 
+REPLACED: Dict[str, str] = {
+    'control.drive_loop': 'replaced by control.mode (drive_loop: open is mode: open_loop; '
+                          'closed is mode: closed_loop, or rebalance with control.rebalance)',
+    'control.rebalance': 'replaced by control.mode (rebalance: true is mode: rebalance; '
+                         'false is mode: closed_loop or open_loop)',
+}
+"""Parameters that are gone, each with what replaces it (a file that sets one is refused)."""
+
+
+def upgraded(values: Mapping[str, Any]) -> Dict[str, Any]:
+    """
+    Return flat ``values`` with the replaced parameters turned into their new ones.
+
+    For what was written before the replacement (a recording's configuration): the drive loop
+    and the rebalance flag become ``control.mode``. Files and parameters given now are refused
+    instead (:data:`REPLACED`), so that a user learns the new name.
+    """
+    out = {k: v for k, v in values.items() if k not in REPLACED}
+    if any(k in values for k in REPLACED) and 'control.mode' not in values:
+        loop = values.get('control.drive_loop', SPECS['control.mode'].default)
+        closed = loop in ('closed', 'closed_loop', 'rebalance')
+        rebalance = bool(values.get('control.rebalance', closed))
+        out['control.mode'] = ('rebalance' if closed and rebalance else
+                               'closed_loop' if closed else 'open_loop')
+    return out
+
+
 CONTROL_BANDWIDTH_RATIO = 20.0
 """A loop's bandwidth is at most ``control.rate`` over this (doc/control.md, stability)."""
-CONTROL_MIN_SAMPLES = 8
-"""Fewest output samples per loop period (the demodulation's least-squares fit)."""
 
 
 def _fail(name: str, reason: str) -> ParameterError:
@@ -683,7 +708,7 @@ def coerce(name: str, value: Any) -> Any:
     """
     spec = SPECS.get(name)
     if spec is None:
-        raise _fail(name, 'unknown parameter')
+        raise _fail(name, REPLACED.get(name, 'unknown parameter'))
     if value is None:
         return [] if spec.kind in LIST_KINDS else spec.default
     if spec.kind == 'float':
@@ -1059,13 +1084,14 @@ class StopParams:
 @_parameter_group('control')
 class ControlParams:
     """
-    The closed-loop drive (PLL + AGC) and force-to-rebalance (``core.gyro.control``).
+    The gyroscope's mode of operation and its loops (``core.gyro.modes``, ``core.gyro.control``).
 
-    ``drive_loop: open`` (the default) is the paper's fixed-frequency drive; ``closed`` locks
-    an NCO to the drive mode and holds its amplitude (doc/control.md).
+    ``mode`` names one of :data:`~ring_gyro_sim.core.gyro.modes.MODES`: ``open_loop`` is the
+    paper's fixed-frequency drive; ``closed_loop`` locks an NCO to the drive mode and holds its
+    amplitude; ``rebalance`` adds the loop that nulls the sense mode (doc/control.md).
     """
 
-    drive_loop: str
+    mode: str
     rate: float
     pll_bandwidth: float
     pll_range: float
@@ -1073,26 +1099,17 @@ class ControlParams:
     agc_bandwidth: float
     agc_setpoint: float
     drive_limit: float
-    rebalance: bool
     rebalance_bandwidth: float
-
-    @property
-    def closed(self) -> bool:
-        """Whether the drive is the closed loop."""
-        return self.drive_loop == 'closed'
 
     def _check(self) -> None:
         top = max(self.pll_bandwidth, self.agc_bandwidth, self.rebalance_bandwidth)
-        if self.closed and top > self.rate / CONTROL_BANDWIDTH_RATIO:
+        if MODES[self.mode].closed and top > self.rate / CONTROL_BANDWIDTH_RATIO:
             name = ('control.pll_bandwidth' if top == self.pll_bandwidth else
                     'control.agc_bandwidth' if top == self.agc_bandwidth else
                     'control.rebalance_bandwidth')
             raise _fail(name, f'must be at most control.rate / {CONTROL_BANDWIDTH_RATIO:g} '
                         f'({self.rate / CONTROL_BANDWIDTH_RATIO:g} Hz): a sampled loop with '
                         f'a delay of 1.5 periods needs it, got {top:g} Hz')
-        if self.rebalance and not self.closed:
-            raise _fail('control.rebalance', 'needs control.drive_loop: closed (the '
-                        'rebalance force is referenced to the PLL)')
 
 
 @_parameter_group('integrator')
@@ -1316,34 +1333,14 @@ class SimConfig:
 
     def _check_control(self) -> None:
         c = self.control
-        if not c.closed:
+        refused = MODES[c.mode].refusal(self)
+        if refused is not None:
+            raise _fail(*refused)
+        if not MODES[c.mode].closed:
             return
-        if self.modes.count < 2:
-            raise _fail('control.drive_loop', 'closed drives the 2theta mode: needs at least '
-                        '2 modes')
-        if self.drive.frequency <= 0.0:
-            raise _fail('drive.frequency', 'is the centre of the NCO of the closed loop: must '
-                        'be > 0 with control.drive_loop: closed')
-        if c.pll_range >= self.drive.frequency:
-            raise _fail('control.pll_range', f'must be below drive.frequency '
-                        f'({self.drive.frequency:g} Hz), got {c.pll_range:g} Hz')
-        ratio = self.run.output_rate / c.rate
-        if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
-            raise _fail('control.rate', f'output.rate ({self.run.output_rate:g} Hz) must be a '
-                        f'whole multiple of it, got {c.rate:g} Hz')
-        if round(ratio) < CONTROL_MIN_SAMPLES:
-            raise _fail('control.rate', f'needs at least {CONTROL_MIN_SAMPLES} output samples '
-                        f'per loop period (output.rate / control.rate = {round(ratio)})')
-        if c.rate > self.drive.frequency / 2.0:
-            raise _fail('control.rate', f'the demodulation integrates over one loop period: '
-                        f'at most half of drive.frequency ({self.drive.frequency / 2.0:g} Hz), '
-                        f'got {c.rate:g} Hz')
-        if c.rebalance and not self.gyro.enabled:
-            raise _fail('control.rebalance', 'needs gyro.enabled: true (the rebalance force '
-                        'acts on the sense mode q2s)')
         if not (self.gyro.bias_voltage or self.electrodes.outer_voltage):
-            raise _fail('electrodes.outer_voltage', 'must not be 0 with control.drive_loop: '
-                        'closed: the loops read the drive through the pick-off, whose gain is '
+            raise _fail('electrodes.outer_voltage', f'must not be 0 with control.mode: '
+                        f'{c.mode}: the loops read the drive through the pick-off, whose gain is '
                         'the bias voltage (gyro.bias_voltage, 0 = electrodes.outer_voltage), and '
                         'at 0 V they would divide by zero (bias the pick-off with '
                         'gyro.bias_voltage to run without V_o)')

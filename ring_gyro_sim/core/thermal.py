@@ -62,6 +62,7 @@ from dataclasses import replace
 import math
 from typing import List, Sequence, Tuple
 
+from ring_gyro_sim.core.gyro import modes
 from ring_gyro_sim.core.params import SimConfig
 
 __all__ = ['AmbientProfile', 'DieTemperature', 'device_at', 'frequency_scale',
@@ -110,7 +111,7 @@ def start_state_device(config: SimConfig) -> SimConfig:
     (``frequency_scale``), so the start is the orbit the loops hold, up to the small
     difference of the device's frequencies.
     """
-    if config.control.closed:
+    if modes.of(config).closed:
         return config
     return device_at(config, AmbientProfile(config).at(0.0))
 

@@ -62,7 +62,7 @@ OUTPUT_TOPICS = ('modal_displacement', 'radial_gap', 'sense_electrodes')
 DEMODULATOR_TOPIC = 'demodulator'
 """The gyroscope's block topic (``gyro.enabled``): ``t`` and the demodulator channels."""
 CONTROL_TOPIC = 'control'
-"""The closed loop's block topic (``control.drive_loop: closed``): ``t`` and the
+"""The closed loop's block topic (a closed ``control.mode``): ``t`` and the
 ``core.gyro.control.CONTROL_CHANNELS``, one row per loop update (at ``control.rate``)."""
 RATE_TOPIC = 'rate'
 """The gyroscope's rate output (``gyro.enabled``): sensor_msgs/Imu, one per rate sample."""

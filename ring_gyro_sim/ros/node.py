@@ -115,7 +115,7 @@ QoS
     ``~/angular_rate`` reliable, keep last 1000; ``~/die_temperature`` (sensor_msgs/Temperature,
     one per block) reliable, keep last 10. ``~/temperature``: reliable, keep last 100. The
     closed loop
-    (``control.drive_loop: closed``; the publisher exists only then): ``~/control``, the
+    (a closed ``control.mode``; the publisher exists only then): ``~/control``, the
     loops' updates (one row per update, at ``control.rate``), as the block topics
     (:mod:`ring_gyro_sim.ros.qos`).
 
@@ -150,6 +150,7 @@ from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 from ring_gyro_sim import run as run_mod
 from ring_gyro_sim.core.errors import InputError, ParameterError, RingGyroError
+from ring_gyro_sim.core.gyro import modes
 from ring_gyro_sim.paramfile import check_node_arguments
 from ring_gyro_sim.recording.errors import RecordingError
 from ring_gyro_sim.ros import conversions, EARLY_SIGNALS, parameters, qos
@@ -239,7 +240,7 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
             die_pub = self.create_publisher(Temperature,
                                             f'~/{conversions.DIE_TEMPERATURE_TOPIC}',
                                             qos.DIE_TEMPERATURE_QOS)
-        if config.control.closed:
+        if modes.of(config).closed:
             name = conversions.CONTROL_TOPIC
             self.block_pubs[name] = self.create_publisher(Float64MultiArray, f'~/{name}',
                                                           qos.BLOCK_QOS)

@@ -43,8 +43,8 @@ topic (relative to the node)  QoS
 ``angular_rate``              :data:`ANGULAR_RATE_QOS`: reliable, volatile, keep last 1000
                               (a streamed rate profile comes in bursts, as
                               ``base_acceleration``)
-``control``                   :data:`BLOCK_QOS` (a block topic; with
-                              ``control.drive_loop: closed``)
+``control``                   :data:`BLOCK_QOS` (a block topic; with a closed
+                              ``control.mode``)
 ============================  ==========================================================
 
 The inputs are subscriptions in the node; their recorded profile is the subscription's (a

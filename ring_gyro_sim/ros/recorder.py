@@ -31,7 +31,7 @@ What a recording holds (doc/interface.md, "Recording (MCAP)"):
   ``<ns>/demodulator`` (as the other block topics), and the rotation input
   ``<ns>/angular_rate`` (Vector3Stamped, stamped and logged at the time it acted, in the
   sensor frame: ``header.frame_id`` = ``gyro.frame_id``, as ``~/rate``);
-* with ``control.drive_loop: closed`` (and only then): the block topic ``<ns>/control``, the
+* with a closed ``control.mode`` (and only then): the block topic ``<ns>/control``, the
   loops' updates of each block (one row per update, ``t`` and
   ``core.gyro.control.CONTROL_CHANNELS``), logged at the block's end as the other block topics;
 * a metadata record ``ring_gyro_sim`` with the full resolved parameters (YAML), the package
@@ -56,7 +56,7 @@ Controls (parameters ``record.*``, read from the configuration):
     re-simulation needs (:data:`ALWAYS_RECORDED`). An unknown name is refused
     (``ParameterError`` naming ``record.topics``). The gyroscope's topics (:data:`GYRO_TOPICS`)
     are left out of a run without ``gyro.enabled``, the closed loop's (:data:`CONTROL_TOPICS`)
-    out of a run without ``control.drive_loop: closed``, as ``/clock`` is without
+    out of a run without a closed ``control.mode``, as ``/clock`` is without
     ``publish_clock``, whatever the list says (one list serves every kind of run).
 ``record.decimation``
     N >= 1 (default 200: 1 kHz at the default 200 kHz output, the rate of ``rate`` and
@@ -110,6 +110,7 @@ from typing import Dict, FrozenSet, Iterable, Optional, Sequence
 import numpy as np
 from ring_gyro_sim import __version__
 from ring_gyro_sim.core.errors import ParameterError
+from ring_gyro_sim.core.gyro import modes
 from ring_gyro_sim.core.params import SimConfig, to_flat
 from ring_gyro_sim.recording import cdr
 from ring_gyro_sim.recording.errors import OutputExistsError, RecordingError
@@ -153,7 +154,7 @@ ALWAYS_RECORDED = tuple(INPUT_TOPICS)
 #: The topics of the gyroscope: recorded only with ``gyro.enabled``.
 GYRO_TOPICS = (conversions.DEMODULATOR_TOPIC, conversions.RATE_TOPIC,
                conversions.ANGULAR_RATE_TOPIC, conversions.DIE_TEMPERATURE_TOPIC)
-#: The topics of the closed loop: recorded only with ``control.drive_loop: closed``.
+#: The topics of the closed loop: recorded only with a closed ``control.mode``.
 CONTROL_TOPICS = (conversions.CONTROL_TOPIC,)
 
 
@@ -166,7 +167,7 @@ def recorded_topic_names(record_topics: Iterable[str], namespace: str = '/ring_g
     ``record_topics`` empty means every topic; the inputs and events are always added.
     ``/clock`` is recorded only when it is published, the :data:`GYRO_TOPICS` only with
     ``gyro`` (``gyro.enabled``), the :data:`CONTROL_TOPICS` only with ``control``
-    (``control.drive_loop: closed``).
+    (a closed ``control.mode``).
 
     Raises
     ------
@@ -340,7 +341,7 @@ class RunRecorder:
         self.publish_clock = publish_clock
         self.names = recorded_topic_names(run.record_topics, self.namespace or '/',
                                           publish_clock, config.gyro.enabled,
-                                          config.control.closed)
+                                          modes.of(config).closed)
         self.decimation = int(run.record_decimation)
         self.period_ns = run.output_period_ns
         self.block_samples = max(1, int(round(run.block_duration / (self.period_ns * 1e-9))))

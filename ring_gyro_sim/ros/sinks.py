@@ -28,7 +28,7 @@ the rate outlet before the block messages go out (the node publishes each at its
 time: ``ros/rate_pacer.py``) and recorded at their sample times; the demodulator channels
 become the block topic ``~/demodulator`` next to the other three.
 
-The closed loop (a block with ``control``, i.e. ``control.drive_loop: closed``): the loops'
+The closed loop (a block with ``control``, i.e. a closed ``control.mode``): the loops'
 updates in the block become the block topic ``~/control`` (:func:`conversions.control_block`:
 one row per update, ``t`` and ``core.gyro.control.CONTROL_CHANNELS``; no rows in a block shorter
 than a loop period), published and recorded with the other block messages, at the block's

@@ -35,8 +35,8 @@ TEN_DEG_S = math.radians(10.0)
 KAPPA = 0.8
 Q2 = 64700.0
 OPEN_LOOP = {'modes.companions': True, 'gyro.enabled': True, 'drive.amplitude': 0.0065,
-             'drive.frequency': 15800.0, 'control.drive_loop': 'open',
-             'control.rebalance': False, 'gyro.temperature': 0.0,
+             'drive.frequency': 15800.0, 'control.mode': 'open_loop',
+             'gyro.temperature': 0.0,
              'gyro.input_noise_density': 0.0, 'gyro.calibration.source': 'ideal'}
 PAIR = [1, 4]   # q2, q2s among the coordinates of N_R = 3 with companions
 
@@ -226,8 +226,8 @@ def test_the_sense_envelope_follows_the_full_model(case):
 def test_bad_configurations_are_refused_with_the_parameter():
     with pytest.raises(ParameterError, match='modes.companions'):
         AveragedModel(config(modes__companions=False, gyro__enabled=False))
-    with pytest.raises(ParameterError, match='control.drive_loop'):
-        AveragedModel(build_config({**OPEN_LOOP, 'control.drive_loop': 'closed'}))
+    with pytest.raises(ParameterError, match='control.mode'):
+        AveragedModel(build_config({**OPEN_LOOP, 'control.mode': 'closed_loop'}))
     model = AveragedModel(config())
     with pytest.raises(ParameterError, match='duration_s'):
         model.run(0.0, 1000.0)
@@ -278,7 +278,7 @@ def test_the_closed_loop_averaged_gyroscope_reads_the_full_models_rate():
 
 def test_the_closed_loop_averaged_gyroscope_refuses_an_open_loop():
     from ring_gyro_sim.core.engine.averaged import AveragedGyro
-    with pytest.raises(ParameterError, match='control.rebalance'):
+    with pytest.raises(ParameterError, match='control.mode: .* rebalance, got open_loop'):
         AveragedGyro(config())
 
 

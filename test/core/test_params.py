@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 from ring_gyro_sim.core.errors import ParameterError, RingGyroError
 from ring_gyro_sim.core.params import (build_config, defaults, paper_config, PAPER_RESONATOR,
-                                       PARAMETERS, SimConfig, SPECS, to_flat)
+                                       PARAMETERS, SimConfig, SPECS, to_flat, upgraded)
 from ring_gyro_sim.paramfile import load_yaml, parameters_from_yaml_text
 
 PACKAGE_ROOT = Path(__file__).resolve().parents[2]
@@ -396,10 +396,11 @@ def test_demo_yaml_loads():
 def test_the_defaults_are_the_gyroscope_and_paper_yaml_the_resonator():
     default = build_config({})
     assert default.gyro.enabled and default.modes.companions
-    assert default.control.closed and default.control.rebalance
+    assert default.control.mode == 'rebalance'
     paper = load_yaml(str(PACKAGE_ROOT / 'config' / 'paper.yaml'))
     assert paper == paper_config() == build_config(PAPER_RESONATOR)
-    assert not paper.gyro.enabled and not paper.modes.companions and not paper.control.closed
+    assert not paper.gyro.enabled and not paper.modes.companions
+    assert paper.control.mode == 'open_loop'
     # The resonator is the same device as the gyroscope: only PAPER_RESONATOR differs.
     differ = {k for k, v in to_flat(paper).items() if to_flat(default)[k] != v}
     assert differ == set(PAPER_RESONATOR)
@@ -501,3 +502,27 @@ def test_field_paths_name_real_attributes():
     config = build_config({})
     for spec in PARAMETERS:
         assert hasattr(getattr(config, spec.group), spec.attribute), spec.field
+
+
+@pytest.mark.parametrize('name, value', [('control.drive_loop', 'closed'),
+                                         ('control.rebalance', True)])
+def test_the_parameters_control_mode_replaced_are_refused_with_its_name(name, value):
+    with pytest.raises(ParameterError, match=f'^{name}: replaced by control.mode'):
+        build_config({name: value})
+
+
+@pytest.mark.parametrize('old, mode', [
+    ({'control.drive_loop': 'open', 'control.rebalance': False}, 'open_loop'),
+    ({'control.drive_loop': 'closed', 'control.rebalance': False}, 'closed_loop'),
+    ({'control.drive_loop': 'closed', 'control.rebalance': True}, 'rebalance'),
+    ({'control.drive_loop': 'closed'}, 'rebalance'),     # the old default: rebalance on
+    ({'control.rebalance': False}, 'closed_loop'),       # the old default: closed loop
+    ({'control.drive_loop': 'open'}, 'open_loop'),       # rebalance needed the closed loop
+])
+def test_a_recordings_old_mode_parameters_become_its_control_mode(old, mode):
+    # What a recording's metadata holds from before control.mode (offline.load_recording):
+    # the same gyroscope, the other values untouched.
+    new = upgraded({**old, 'duration': 2.0})
+    assert new == {'control.mode': mode, 'duration': 2.0}
+    assert build_config(new).control.mode == mode
+    assert upgraded({'duration': 2.0}) == {'duration': 2.0}

@@ -34,7 +34,7 @@ def _one_mode(restitution):
     """Return the rigid 1theta mode alone (N_R = 1), undamped in effect, no voltage."""
     return build_config({'modes.frequencies': [F1], 'modes.quality_factors': [1e12],
                          'modes.companions': False, 'gyro.enabled': False,
-                         'control.drive_loop': 'open', 'control.rebalance': False,
+                         'control.mode': 'open_loop',
                          'drive.amplitude': 0.0, 'drive.start_on': 'rest',
                          'electrodes.outer_voltage': 0.0, 'stops.gap': GAP_S,
                          'stops.restitution': restitution})
@@ -102,7 +102,7 @@ def test_a_stop_at_or_beyond_the_electrodes_is_refused():
 def test_without_stops_a_shock_beyond_the_gap_is_contact_as_before():
     config = build_config({'modes.frequencies': [F1], 'modes.quality_factors': [1e12],
                            'modes.companions': False, 'gyro.enabled': False,
-                           'control.drive_loop': 'open', 'control.rebalance': False,
+                           'control.mode': 'open_loop',
                            'drive.amplitude': 0.0, 'drive.start_on': 'rest',
                            'electrodes.outer_voltage': 0.0})
     sim = Simulator(config, calibration=None)
@@ -153,7 +153,7 @@ def test_stops_beyond_the_static_pull_in_are_said_at_start():
     # The 1theta mode's static pull-in displacement on the default device (78 V, N_T = 10) is
     # where omega_1^2 q - a_nl,1(q) peaks: 0.702 d_g. Stops at 0.6 d_g lie inside it; at
     # 0.75 d_g the electrodes would pull a ring pushed past 0.702 d_g onto the stop.
-    base = {'gyro.enabled': False, 'control.drive_loop': 'open', 'control.rebalance': False,
+    base = {'gyro.enabled': False, 'control.mode': 'open_loop',
             'drive.start_on': 'rest', 'modes.companions': False}
     with pytest.warns(RuntimeWarning, match=r'^stops\.gap: .* beyond the static pull-in'):
         sim = Simulator(build_config({**base, 'stops.gap': 7.5e-6}), calibration=None)

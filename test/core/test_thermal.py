@@ -84,7 +84,7 @@ def test_the_device_follows_its_laws_and_is_itself_at_the_reference():
 
 def test_an_ambient_out_of_range_is_refused_and_counted():
     run = Run(build_config({'gyro.enabled': False, 'modes.companions': False,
-                            'control.drive_loop': 'open', 'control.rebalance': False,
+                            'control.mode': 'open_loop',
                             'drive.start_on': 'rest'}))
     for bad in (float('nan'), 20.0, 1e4):
         with pytest.raises(InputError, match='temperature'):

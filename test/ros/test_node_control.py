@@ -16,7 +16,7 @@
 Node test of the closed loop's ROS side: ``~/control`` out, its keys on ``/diagnostics``.
 
 The node runs ``config/gyro.yaml`` with a second params file that closes the loop
-(``control.drive_loop: closed``), recording, until the probe has received 0.2 s of simulated
+(``control.mode: closed_loop``), recording, until the probe has received 0.2 s of simulated
 time on ``~/control`` (then SIGINT: a fixed duration would race the probe's discovery); real
 rclpy across processes (``node_harness``). The open-loop nodes of ``test_node_gyro.py`` check
 that the publisher exists only with the closed loop.
@@ -58,7 +58,7 @@ class ControlProbe(Probe):
 def test_closed_loop_node_publishes_and_records_control(ros, tmp_path):
     path = tmp_path / 'closed.mcap'
     override = tmp_path / 'closed.yaml'
-    override.write_text(params_yaml({'control.drive_loop': 'closed', 'duration': 0.0,
+    override.write_text(params_yaml({'control.mode': 'closed_loop', 'duration': 0.0,
                                      'record.path': str(path)}, device={}), encoding='utf-8')
     node = NodeProcess(REPO_ROOT / 'config' / 'gyro.yaml', tmp_path, '--params-file',
                        str(override))

@@ -93,7 +93,7 @@ def test_gyro_node_offers_the_gyro_topics_and_records_them(ros, tmp_path):
         assert types[f'{NS}/demodulator'] == ['std_msgs/msg/Float64MultiArray']
         (rate_info,) = probe.get_publishers_info_by_topic(f'{NS}/rate')
         assert rate_info.qos_profile.reliability == ReliabilityPolicy.RELIABLE
-        # Open loop (control.drive_loop: open, the default): no ~/control (test_node_control).
+        # Open loop (config/gyro.yaml): no ~/control (test_node_control).
         assert not probe.get_publishers_info_by_topic(f'{NS}/control')
         probe.angular_rate(TEN_DEG_S, x=0.5)
         # Accepted (x ignored, with a warning) or refused: either way once, and counted.

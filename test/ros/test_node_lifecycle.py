@@ -45,7 +45,7 @@ BAD = {
     'bad_choice': ({'drive.start_on': 'sideways'}, 'drive.start_on'),
     'unwritable_record': ({'record.path': '{workdir}/params.yaml/run.mcap'}, 'record.path'),
     # The closed loop reads the drive through a pick-off biased by V_o: 0 V divided by zero.
-    'unbiased_closed_loop': ({'control.drive_loop': 'closed', 'electrodes.outer_voltage': 0.0},
+    'unbiased_closed_loop': ({'control.mode': 'closed_loop', 'electrodes.outer_voltage': 0.0},
                              'electrodes.outer_voltage'),
     # A typo is refused as `ring_gyro run` refuses it (test/ros/test_node_parameters.py).
     'unknown': ({'electrodes.outer_voltag': 70.0}, 'electrodes.outer_voltag'),

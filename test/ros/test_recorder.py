@@ -191,8 +191,8 @@ def qos_of_channel(channel):
 
 
 # The gyroscope's topics exist only with gyro.enabled (which needs the companions), the closed
-# loop's (~/control) only with control.drive_loop: closed.
-GYRO = {'gyro.enabled': True, 'modes.companions': True, 'control.drive_loop': 'closed'}
+# loop's (~/control) only with a closed control.mode.
+GYRO = {'gyro.enabled': True, 'modes.companions': True, 'control.mode': 'rebalance'}
 
 
 def test_recorded_qos_is_the_qos_module(tmp_path):

@@ -15,7 +15,7 @@
 """
 Tests of the closed loop's block topic ``~/control`` in the sink, the recorder and the CLI.
 
-``config/gyro.yaml`` with ``control.drive_loop: closed`` is run by ``ring_gyro run -o`` for
+``config/gyro.yaml`` with ``control.mode: closed_loop`` is run by ``ring_gyro run -o`` for
 50 ms (5 blocks of 10 ms, the loops updated at 1 kHz) and read back with ``mcap`` +
 ``mcap_ros2`` and ``rosbags``, which share no code with ours, and with
 :func:`~ring_gyro_sim.recording.reader.read_block_topic`; every row must equal, bit for bit,
@@ -58,9 +58,9 @@ LABELS = ['t', *CONTROL_CHANNELS]
 
 
 def closed_loop_params(directory):
-    """Write config/gyro.yaml with ``control.drive_loop: closed`` into ``directory``."""
+    """Write config/gyro.yaml with ``control.mode: closed_loop`` into ``directory``."""
     tree = yaml.safe_load((REPO_ROOT / 'config' / 'gyro.yaml').read_text(encoding='utf-8'))
-    tree['/**']['ros__parameters']['control'] = {'drive_loop': 'closed'}
+    tree['/**']['ros__parameters']['control'] = {'mode': 'closed_loop'}
     path = pathlib.Path(directory) / 'gyro_closed.yaml'
     path.write_text(yaml.safe_dump(tree), encoding='utf-8')
     return path
@@ -75,7 +75,7 @@ def params(tmp_path_factory):
 def direct(params):
     """Return the configuration and the blocks of a direct Run, cut as ``ring_gyro run`` cuts."""
     config = load_yaml(str(params))
-    assert config.control.closed and config.gyro.enabled
+    assert config.control.mode == 'closed_loop' and config.gyro.enabled
     run = Run(config)
     per_block = int(round(config.run.block_duration * config.run.output_rate))
     blocks = [run.advance(per_block) for _ in BLOCK_ENDS_NS]

@@ -37,7 +37,7 @@ import numpy as np
 from ring_gyro_sim.core import thermal
 from ring_gyro_sim.core.engine.full import Simulator
 from ring_gyro_sim.core.errors import SimulationError
-from ring_gyro_sim.core.gyro import operating_point
+from ring_gyro_sim.core.gyro import modes, operating_point
 from ring_gyro_sim.core.gyro.calibration import (Calibration, fit_temperature_series, given,
                                                  readout_unit, TableReading)
 from ring_gyro_sim.core.params import build_config, SimConfig, to_flat
@@ -227,13 +227,7 @@ def _bandwidths_hz(config: SimConfig) -> list:
     Not the open-loop sense mode's (E9: 0.12 Hz at the default Q): a table rate starts in
     the sense mode's steady response to it (``operating_point.with_rate_response``).
     """
-    c = config.control
-    out = [config.gyro.filter_bandwidth]
-    if c.rebalance:
-        out.append(c.rebalance_bandwidth)
-    if c.closed:
-        out += [c.agc_bandwidth, c.pll_bandwidth]
-    return out
+    return modes.of(config).settle_bandwidths(config)
 
 
 def measure(bench: SimConfig,
@@ -292,7 +286,7 @@ def _table(bench: SimConfig, log: Optional[Callable[[str], None]],
         raw = Calibration('given', 0.0, 1.0, readout_unit(bench),
                           readout_reference_v=reference_v)
         sims[rate] = Simulator(cfg, state, calibration=raw)
-        if rate == 0.0 and not reference_v and not bench.control.rebalance:
+        if rate == 0.0 and not reference_v and not modes.of(bench).rebalance:
             reference_v = sims[rate].sense.electronics.readout_reference_v
     if log is not None:
         log(f'calibrating the device on a simulated rate table at '

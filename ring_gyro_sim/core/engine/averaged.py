@@ -140,7 +140,7 @@ import numpy as np
 from ring_gyro_sim.core import kernels, noise, structure, thermal
 from ring_gyro_sim.core.engine.base import Engine, GyroState, Samples
 from ring_gyro_sim.core.errors import ParameterError, SimulationError
-from ring_gyro_sim.core.gyro import electronics
+from ring_gyro_sim.core.gyro import electronics, modes
 from ring_gyro_sim.core.params import BOLTZMANN, SimConfig
 
 __all__ = ['AveragedEngine', 'AveragedGyro', 'GyroSamples',
@@ -376,7 +376,7 @@ class AveragedGyro:
     Parameters
     ----------
     config : SimConfig
-        ``control.drive_loop: closed`` with ``control.rebalance``, ``gyro.enabled``, the
+        ``control.mode: rebalance``, ``gyro.enabled``, the
         companions, ``electrodes.taylor_terms > 0``, ``gyro.output_rate`` a whole fraction
         of ``control.rate``.
     start_state : (q, v), optional
@@ -396,9 +396,9 @@ class AveragedGyro:
         from ring_gyro_sim.core.gyro import control, operating_point
         from ring_gyro_sim.core.engine.full import Simulator, THERMAL_UPDATE_S
         from scipy import signal
-        if not (config.control.closed and config.control.rebalance):
-            raise ParameterError('control.rebalance: the closed-loop averaged model needs '
-                                 'control.drive_loop: closed with force-to-rebalance')
+        if not modes.of(config).rebalance:
+            raise ParameterError('control.mode: the closed-loop averaged model needs '
+                                 f'control.mode: rebalance, got {config.control.mode}')
         if not config.gyro.enabled or not config.modes.companions or config.modes.count < 2:
             raise ParameterError('gyro.enabled: the closed-loop averaged model is the '
                                  'gyroscope (gyro.enabled, modes.companions, N_R >= 2)')

@@ -78,7 +78,7 @@ from ring_gyro_sim.core import forces, kernels, noise, structure, thermal, vibra
 from ring_gyro_sim.core.engine.base import (Design, Engine, GyroState, joined_outputs,
                                             joined_samples, Samples, Status)
 from ring_gyro_sim.core.errors import InputError, SimulationError
-from ring_gyro_sim.core.gyro import calibration as gyro_calibration, control, electronics
+from ring_gyro_sim.core.gyro import calibration as gyro_calibration, control, electronics, modes
 from ring_gyro_sim.core.gyro.channel import SenseChain
 from ring_gyro_sim.core.params import (BOLTZMANN, build_config, EPSILON_0, MAX_ACCELERATION,
                                        SimConfig, to_flat)
@@ -293,9 +293,9 @@ class Simulator(Engine):
         self.sense: Optional[SenseChain] = None
         self._loop_volts: Optional[np.ndarray] = None
         self._loop_phase: Optional[np.ndarray] = None
-        if config.control.closed or config.gyro.enabled:
+        if modes.of(config).closed or config.gyro.enabled:
             self._make_pickoffs(config)
-        if config.control.closed:
+        if modes.of(config).closed:
             self.loop = control.DriveLoop(config, self._held_pickoff)
             self._loop_volts = np.empty((self.loop.window, 2))
             self._loop_phase = np.empty(self.loop.window)
@@ -586,8 +586,9 @@ class Simulator(Engine):
         if self.loop is not None and (config.drive.amplitude != self._config.drive.amplitude
                                       or config.drive.frequency
                                       != self._config.drive.frequency):
-            raise InputError('drive: the closed loop (control.drive_loop: closed) sets the '
-                             'drive; drive.amplitude and drive.frequency are its start values')
+            raise InputError(f'drive: the closed loop (control.mode: {config.control.mode}) '
+                             'sets the drive; drive.amplitude and drive.frequency are its '
+                             'start values')
 
     def _apply_config(self, config: SimConfig) -> None:
         old = self._config.drive
@@ -738,8 +739,8 @@ class Simulator(Engine):
         if amplitude not in (None, 0.0) and self._drive_index < 0:
             raise InputError('drive.amplitude: drives the 2theta mode, needs 2 modes')
         if self.loop is not None:
-            raise InputError('drive: the closed loop (control.drive_loop: closed) sets the '
-                             'drive; its set-point is control.agc_setpoint')
+            raise InputError(f'drive: the closed loop (control.mode: {self._config.control.mode}) '
+                             'sets the drive; its set-point is control.agc_setpoint')
         self._at_index(at_ns, 'drive')
 
         def apply() -> None:

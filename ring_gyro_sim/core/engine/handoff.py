@@ -41,7 +41,7 @@ import math
 from typing import Callable, Optional
 
 import numpy as np
-from ring_gyro_sim.core.gyro import validity
+from ring_gyro_sim.core.gyro import modes, validity
 from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.core.ring.environment import environment_of
 
@@ -89,11 +89,9 @@ def refusal(config: SimConfig, blocks: bool = True) -> Optional[str]:
     rebuilt samples need one ``~/rate`` sample per loop period.
     """
     c = config
-    if not c.control.closed:
-        return 'the averaged model is the closed-loop gyroscope'
-    if not (c.control.rebalance and c.gyro.enabled and c.modes.companions
-            and c.modes.count >= 2):
-        return 'the averaged model is the closed-loop gyroscope with force-to-rebalance'
+    refused = modes.of(c).averaged_refusal(c)
+    if refused is not None:
+        return refused
     if c.electrodes.taylor_terms <= 0:
         return 'the averaged force is that of the truncated series (electrodes.taylor_terms)'
     window = int(round(c.run.output_rate / c.control.rate))

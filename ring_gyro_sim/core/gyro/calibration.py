@@ -23,7 +23,7 @@ at the factory, and the sensor then applies that number whatever happens to the 
 
 ``r, r_q`` the readout (the sense demodulator's in-phase and quadrature outputs over the
 drive pick-off's amplitude relative to its amplitude at zero rate, V, open loop; the in-phase and
-quadrature rebalance forces, m/s^2, with ``control.rebalance``; both through the output
+quadrature rebalance forces, m/s^2, with ``control.mode: rebalance``; both through the output
 low-pass), ``S`` the scale factor (readout per rad/s), ``b`` the bias (rad/s).
 
 ``gyro.calibration.source``
@@ -91,6 +91,7 @@ from dataclasses import dataclass
 from typing import Any, Dict, Optional, Sequence, Tuple
 
 import numpy as np
+from ring_gyro_sim.core.gyro import modes
 from ring_gyro_sim.core.params import SimConfig
 
 __all__ = ['Calibration', 'TableReading', 'fit_temperature_series', 'given', 'readout_unit']
@@ -98,7 +99,7 @@ __all__ = ['Calibration', 'TableReading', 'fit_temperature_series', 'given', 're
 
 def readout_unit(config: SimConfig) -> str:
     """Return the unit of the readout ``r`` of (K1) and of ``S`` per rad/s."""
-    return 'm/s^2' if config.control.rebalance else 'V'
+    return modes.of(config).readout_unit
 
 
 @dataclass(frozen=True)

@@ -17,9 +17,9 @@ The closed-loop drive: a PLL and an AGC on the 2theta mode, and force-to-rebalan
 
 Real CVG electronics do not drive open loop: a phase-locked loop keeps the drive force at
 the drive mode's resonance as it moves (the electrostatic softening, a shock), and an
-automatic gain control holds the vibration amplitude. ``control.drive_loop: closed``
-replaces the paper's fixed ``A cos(omega t)`` by these loops; ``control.rebalance`` adds a
-third loop that holds the sense mode at zero and reads the rate from its force.
+automatic gain control holds the vibration amplitude. ``control.mode: closed_loop``
+replaces the paper's fixed ``A cos(omega t)`` by these loops; ``control.mode: rebalance`` adds
+a third loop that holds the sense mode at zero and reads the rate from its force.
 
 Timing (C1)
     The loops are digital, updated every ``N = output.rate / control.rate`` output samples
@@ -118,6 +118,7 @@ from typing import Any, Dict, Optional, Tuple
 import numpy as np
 from ring_gyro_sim.core import kernels, structure
 from ring_gyro_sim.core.errors import InputError
+from ring_gyro_sim.core.gyro import modes
 from ring_gyro_sim.core.params import SimConfig
 
 
@@ -238,7 +239,7 @@ class DriveLoop:
         self.omega_range = 2.0 * math.pi * c.pll_range
         self.lock_threshold = float(c.lock_threshold)
         self.drive_limit = float(c.drive_limit)
-        self.rebalance = bool(c.rebalance)
+        self.rebalance = bool(modes.of(c).rebalance)
         self.sense_phase_error = float(config.gyro.phase_error)  # the sense reference's (E3b)
         kp = 2.0 * math.pi * c.pll_bandwidth
         self.pll_gains = (kp, kp * kp / 4.0)

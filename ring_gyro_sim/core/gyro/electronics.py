@@ -201,7 +201,7 @@ Flicker (bias instability, E13)
     ``tau = 0.01 / FLICKER_LOWEST_HZ``.
 
 Force-to-rebalance readout (E14)
-    With ``control.rebalance`` the sense mode is held at 0 by a loop (``core.gyro.control``,
+    With ``control.mode: rebalance`` the sense mode is held at 0 by a loop (``core.gyro.control``,
     C6-C8) and the rate is read from its force: the rebalance rate ``S_c / (2 kappa omega X)``
     and quadrature ``S_s / (2 kappa omega X)`` of each sample (``Samples.control``) pass the
     same Butterworth (own state, started at the rate at t = 0) and the same decimation;
@@ -242,7 +242,7 @@ from typing import Dict, Optional, Tuple, Union
 import numpy as np
 from ring_gyro_sim.core import forces, kernels, noise, structure
 from ring_gyro_sim.core.errors import InputError
-from ring_gyro_sim.core.gyro import control
+from ring_gyro_sim.core.gyro import control, modes
 from ring_gyro_sim.core.params import BOLTZMANN, SimConfig
 
 
@@ -753,7 +753,7 @@ class SenseElectronics:
         self._next_index = None
         self.flicker = FlickerNoise(deg_per_h_to_rad_per_s(g.bias_instability),
                                     g.output_rate, self.noise_seed)
-        self.rebalance = bool(config.control.rebalance)
+        self.rebalance = bool(modes.of(config).rebalance)
         self.start_rate = float(start_rate)
         self.phase_error = float(g.phase_error)
         # (E14) the rebalance loop's rate, quadrature and forces through the same low-pass
@@ -771,7 +771,7 @@ class SenseElectronics:
     def _bandwidth(self) -> float:
         """(E9): -3 dB frequency of the sense envelope's pole times the Butterworth, Hz."""
         f_m = self.sense_omega / (2.0 * self.sense_quality_factor) / (2.0 * math.pi)
-        if self.config.control.rebalance:  # (E14) the loop's bandwidth
+        if modes.of(self.config).rebalance:  # (E14) the loop's bandwidth
             f_m = self.config.control.rebalance_bandwidth
         fs = self.sample_rate_hz
 
@@ -963,7 +963,7 @@ class SenseElectronics:
         drive_phase : ndarray, shape (K,)
             Phase ``phi_drive`` of the drive force at each sample, rad.
         rebalance : ndarray, shape (K, 4), optional
-            With ``control.rebalance``: the rebalance rate and quadrature of each sample,
+            With ``control.mode: rebalance``: the rebalance rate and quadrature of each sample,
             rad/s, and its in-phase and quadrature forces, m/s^2 (E14, K1; required then).
 
         Returns
@@ -1099,7 +1099,7 @@ class SenseElectronics:
         (``g = 2 kappa Omega w``); 0 without a drive. With the closed-loop drive 1 (the AGC
         holds the amplitude).
         """
-        if self.config.control.closed:
+        if modes.of(self.config).closed:
             return 1.0
         amp = self.drive_amplitude_m
         force = self.config.drive.amplitude

@@ -37,7 +37,7 @@ import warnings
 import numpy as np
 from ring_gyro_sim.core import forces, harmonic_balance, structure
 from ring_gyro_sim.core.errors import SimulationError
-from ring_gyro_sim.core.gyro import electronics
+from ring_gyro_sim.core.gyro import electronics, modes
 from ring_gyro_sim.core.params import SimConfig
 from ring_gyro_sim.core.ring.environment import environment_of
 from scipy.integrate import solve_ivp
@@ -219,13 +219,13 @@ def cos_only(config: SimConfig) -> SimConfig:
     dropped with the companion.
     """
     m = config.modes.count
-    modes = replace(config.modes, companions=False,
-                    frequencies=tuple(config.modes.coordinate_frequencies()[:m]),
-                    quality_factors=tuple(config.modes.coordinate_quality_factors()[:m]),
-                    frequency_axes=(), damping_axes=())
-    return replace(config, modes=modes,
+    cos_modes = replace(config.modes, companions=False,
+                        frequencies=tuple(config.modes.coordinate_frequencies()[:m]),
+                        quality_factors=tuple(config.modes.coordinate_quality_factors()[:m]),
+                        frequency_axes=(), damping_axes=())
+    return replace(config, modes=cos_modes,
                    gyro=replace(config.gyro, enabled=False),
-                   control=replace(config.control, drive_loop='open', rebalance=False),
+                   control=replace(config.control, mode='open_loop'),
                    run=replace(config.run, shock_times=(), shock_peaks=(), shock_angles=(),
                                rate_times=(), rate_values=()))
 
@@ -261,7 +261,7 @@ def drive_orbit(config: SimConfig):
     1.0000376, growth 0.59 /s; the whirling of a driven ring). Open loop the state is returned
     with a warning then: the companions stay exactly 0 until a sine disturbance (a rate, a y
     shock or base acceleration) lets the instability grow. The closed loop
-    (``control.drive_loop: closed``) holds the drive's phase and amplitude, and the whirl does
+    (a closed ``control.mode``) holds the drive's phase and amplitude, and the whirl does
     not develop (doc/control.md): no warning.
 
     Raises
@@ -282,7 +282,7 @@ def drive_orbit(config: SimConfig):
         raise SimulationError(f'drive.start_on: no stable {d.start_on} orbit found at '
                               f'{d.frequency} Hz (found q2 = {orbit.amplitude_m[1]:.3e} m, '
                               f'unstable)')
-    if not orbit.stable and not config.control.closed:
+    if not orbit.stable and not modes.of(config).closed:
         mu = float(np.max(np.abs(orbit.companion_multipliers)))
         warnings.warn(f'drive.start_on: the {d.start_on} orbit at {d.frequency} Hz is '
                       f'unstable to the sine companions (largest Floquet multiplier '
@@ -303,7 +303,7 @@ def with_rate_response(config: SimConfig, state):
     """
     x = np.array(state[0], dtype=np.float64)
     v = np.array(state[1], dtype=np.float64)
-    if config.gyro.enabled and not config.control.rebalance:
+    if config.gyro.enabled and not modes.of(config).rebalance:
         # With force-to-rebalance the loop holds the sense mode at 0 from the start (its
         # force starts at the Coriolis force of the rate at t = 0: core.gyro.control, C6).
         _add_sense_response(config, x, v)
@@ -353,7 +353,7 @@ def _add_sense_response(config: SimConfig, x: np.ndarray, v: np.ndarray) -> None
     m = config.modes.count
     w = 2.0 * math.pi * config.drive.frequency
     c0 = complex(x[1], -v[1] / w)  # q2 = Re(c0 e^{i w t}), q2' = Re(i w c0 e^{i w t})
-    if config.control.closed:
+    if modes.of(config).closed:
         # The closed loop holds the drive's amplitude (no drop) at the PLL's lock
         # frequency, where the sense mode is driven.
         config = replace(config, drive=replace(config.drive, frequency=lock_frequency(
@@ -374,7 +374,7 @@ def _add_sense_response(config: SimConfig, x: np.ndarray, v: np.ndarray) -> None
         ws, qs = 2.0 * math.pi * f[m + 1], qf[m + 1]
         d_s = ws * ws - w * w + 1j * w * ws / qs
         a_sc = a_cs = 0.0
-    c = c0 if config.control.closed else config.drive.amplitude / (
+    c = c0 if modes.of(config).closed else config.drive.amplitude / (
         d - (a_cs - 1j * g) * (a_sc + 1j * g) / d_s)
     # The sense response about the drive orbit (electronics.orbit_sense_response: the sense
     # mode softened and pumped by the drive's amplitude), per unit rate and drive phase, and
@@ -449,7 +449,7 @@ def with_environment_response(config: SimConfig, state):
 def _orbit_key(config: SimConfig) -> tuple:
     """Return what the resting sensor's orbit depends on: the device and the drive."""
     return (config.modes, config.ring, config.legs, config.electrodes, config.drive,
-            config.control.closed)
+            modes.of(config).closed)
 
 
 def resting_orbit(config: SimConfig,

@@ -34,7 +34,7 @@ The gyroscope's figures over a run: the rate output and the closed-loop drive.
     the drive has jumped to its lower branch (the paper's Case 3) the ratio falls to ~0.1:
     the scale factor has collapsed and the rate output is not a measurement.
 
-With the closed-loop drive (``control.drive_loop: closed``) :class:`DriveStats` adds:
+With the closed-loop drive (a closed ``control.mode``) :class:`DriveStats` adds:
 
 ``pll_lost_lock`` / ``pll_lock_lost_at_s`` / ``pll_relocked_at_s``
     Whether the PLL was ever out of lock (``core.gyro.control``, C4), when first, and when it

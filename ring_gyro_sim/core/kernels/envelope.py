@@ -96,7 +96,7 @@ class EnvelopeModel(NamedTuple):
         ``2 pi control.pll_range``, rad; ``control.lock_threshold``; ``control.drive_limit``;
         the AGC's set-point, m.
     rebalance : bool
-        ``control.rebalance``.
+        ``control.mode: rebalance``.
     sense_phase_error : float
         ``gyro.phase_error``, rad.
     drive_gain, sense_gain : float

@@ -132,7 +132,7 @@ def test_a_held_calibration_stays_put_when_the_sense_mode_changes():
     # change of the sense mode's Q by +5 %: the model's own readout (ideal) follows it, the
     # factory calibration does not, and the reading moves by +5 % as on a real device. A low
     # Q (6 470) keeps the sense mode's time constant, and the factory's table, short.
-    low_q = {**QUIET, 'control.rebalance': False,
+    low_q = {**QUIET, 'control.mode': 'closed_loop',
              'modes.quality_factors': [120000.0, 6470.0, 170000.0],
              'modes.companion_quality_factors': [120000.0, 6470.0, 170000.0]}
     higher = {'modes.companion_quality_factors': [120000.0, 1.05 * 6470.0, 170000.0]}

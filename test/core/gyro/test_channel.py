@@ -36,8 +36,8 @@ DRIVE_Q = DEMOD_CHANNELS.index('drive_q')
 GYROSCOPE = {
     'modes.companions': True, 'gyro.enabled': True, 'gyro.temperature': 0.0,
     'gyro.input_noise_density': 0.0, 'drive.amplitude': 0.0065, 'drive.frequency': 15800.0,
-    'drive.start_on': 'upper_branch', 'control.drive_loop': 'open',
-    'control.rebalance': False, 'scenario.rate_times': [0.0],
+    'drive.start_on': 'upper_branch', 'control.mode': 'open_loop',
+    'scenario.rate_times': [0.0],
     'scenario.rate_values': [TEN_DEG_S]}
 """config/gyro.yaml's operating point (q2 = 0.04 um, linear), noise-free, 10 deg/s."""
 
@@ -52,9 +52,9 @@ def drive_pickoff_and_q2(run, seconds, window_s=0.01):
     return float(np.mean(volts)), float(np.max(np.abs(last.samples.q[-keep:, 1])))
 
 
-@pytest.mark.parametrize('loop', ['open', 'closed'])
+@pytest.mark.parametrize('loop', ['open_loop', 'closed_loop'])
 def test_the_pickoff_follows_a_bias_voltage_changed_at_run_time(loop):
-    config = paper_config(dict(GYROSCOPE, **{'control.drive_loop': loop}))
+    config = paper_config(dict(GYROSCOPE, **{'control.mode': loop}))
     run = Run(config)
     volts_0, q2_0 = drive_pickoff_and_q2(run, 0.05)
     run.apply(ParameterChange({'electrodes.outer_voltage': 70.0}))
@@ -104,7 +104,7 @@ def test_the_closed_loops_sense_readout_starts_settled():
     # Closed loop the demodulator's reference at t = 0 is the NCO's phase, not the drive's 0:
     # the filters must start in the steady state of that reference. Started in the open
     # loop's, the first 10 deg/s samples read 7.7 % low and rang for ~10 ms.
-    config = paper_config(dict(GYROSCOPE, **{'control.drive_loop': 'closed',
+    config = paper_config(dict(GYROSCOPE, **{'control.mode': 'closed_loop',
                                              'drive.amplitude': 0.065,
                                              'drive.frequency': 15798.6}))
     first = Run(config).advance(2000).rate

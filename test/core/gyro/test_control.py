@@ -77,7 +77,7 @@ def test_pll_follows_the_softening_onto_the_backbone():
     # the backbone computed by harmonic balance at the set-point.
     target = 3.9358e-7
     config = config_of('gyro.yaml', **QUIET, **{
-        'control.drive_loop': 'closed', 'control.agc_setpoint': target,
+        'control.mode': 'closed_loop', 'control.agc_setpoint': target,
         'scenario.rate_values': [0.0]})
     run, blocks = run_for(config, 1.0)
     rows = np.concatenate([b.samples.control for b in blocks])
@@ -96,7 +96,7 @@ def test_pll_follows_the_softening_onto_the_backbone():
 def test_closed_loop_is_chunk_invariant_and_runs_without_the_gyroscope():
     # The paper's resonator (no companions, no gyroscope) in closed loop: cut in odd
     # pieces it gives the samples and the loop's rows of one piece, bit for bit.
-    config = paper_config({'control.drive_loop': 'closed', 'duration': 0.05})
+    config = paper_config({'control.mode': 'closed_loop', 'duration': 0.05})
     state = start_of(config)
     pieces = []
     for cuts in ((2500,), (7, 993, 1, 199, 1300)):
@@ -113,7 +113,7 @@ def test_closed_loop_is_chunk_invariant_and_runs_without_the_gyroscope():
 def test_closed_loop_noise_follows_a_parameter_change_inside_a_call():
     # The gyroscope with its noise, closed loop, Q changed at 3.0005 ms (inside a call and
     # inside a loop period): the noise levels in force act from then on, whatever the cuts.
-    config = config_of('gyro.yaml', **{'control.drive_loop': 'closed'})
+    config = config_of('gyro.yaml', **{'control.mode': 'closed_loop'})
     state = start_of(config)
     q_new = list(config.modes.quality_factors)
     q_new[1] = 20000.0
@@ -132,7 +132,7 @@ def test_agc_recovers_the_drive_after_the_paper_shock_that_the_open_loop_loses()
     # (test_gyro.py: pick-off at 0.09 of its value). Closed loop the shock throws the PLL
     # out of lock (the gap closes by 60 %, the resonance moves by ~120 Hz), it locks again
     # and the AGC brings the amplitude back within 1 % of the set-point.
-    config = config_of('gyro_case3.yaml', **QUIET, **{'control.drive_loop': 'closed'})
+    config = config_of('gyro_case3.yaml', **QUIET, **{'control.mode': 'closed_loop'})
     run, _ = run_for(config, 2.5)
     fig = run.summary().extra
     assert fig['pll_lost_lock'] is True
@@ -148,7 +148,7 @@ def test_force_to_rebalance_reads_10_deg_s_at_the_paper_drive():
     # At the paper's drive level the open loop whirls under 10 deg/s (doc/gyroscope.md);
     # with the sense mode held at zero by the rebalance loop the rate is read from its force.
     config = config_of('gyro.yaml', **QUIET, **PAPER_DRIVE, **{
-        'control.drive_loop': 'closed', 'control.rebalance': True})
+        'control.mode': 'rebalance'})
     run, blocks = run_for(config, 0.6)
     rate = np.concatenate([b.rate.rate for b in blocks[2:]])
     assert np.mean(rate) == pytest.approx(TEN_DEG_S, rel=0.01)
@@ -165,7 +165,7 @@ def test_force_to_rebalance_bandwidth_is_the_loops():
     # A rate step of 10 deg/s at 0.1 s: the rebalance rate follows within the loop's time
     # constant (20 Hz: 8 ms) where the open-loop sense mode needs 1.3 s (0.12 Hz).
     config = config_of('gyro.yaml', **QUIET, **{
-        'control.drive_loop': 'closed', 'control.rebalance': True,
+        'control.mode': 'rebalance',
         'scenario.rate_times': [], 'scenario.rate_values': []})
     run = Run(config)
     run.apply(AngularRate(z=TEN_DEG_S, at_ns=100_000_000))
@@ -182,8 +182,7 @@ def test_force_to_rebalance_bandwidth_is_the_loops():
 
 
 def test_rebalance_response_is_unity_at_dc_and_rolls_off_at_its_bandwidth():
-    config = config_of('gyro.yaml', **{'control.drive_loop': 'closed',
-                                       'control.rebalance': True})
+    config = config_of('gyro.yaml', **{'control.mode': 'rebalance'})
     f = np.array([0.0, 1.0, 20.0, 200.0])
     t = np.abs(control.rebalance_response(config, f, 0.122))
     assert t[0] == pytest.approx(1.0, abs=1e-9)
@@ -193,14 +192,16 @@ def test_rebalance_response_is_unity_at_dc_and_rolls_off_at_its_bandwidth():
 
 
 @pytest.mark.parametrize('extra, name', [
-    ({'control.rebalance': True}, 'control.rebalance'),
-    ({'control.drive_loop': 'closed', 'control.rate': 3000.0}, 'control.rate'),
-    ({'control.drive_loop': 'closed', 'control.pll_bandwidth': 60.0},
+    ({'control.mode': 'closed_loop', 'control.rate': 3000.0}, 'control.rate'),
+    ({'control.mode': 'closed_loop', 'control.pll_bandwidth': 60.0},
      'control.pll_bandwidth'),
-    ({'control.drive_loop': 'closed', 'control.pll_range': 20000.0}, 'control.pll_range'),
-    ({'control.drive_loop': 'closed', 'control.rebalance': True, 'gyro.enabled': False,
-      'scenario.rate_values': [], 'scenario.rate_times': []}, 'control.rebalance'),
-    ({'control.drive_loop': 'sometimes'}, 'control.drive_loop'),
+    ({'control.mode': 'closed_loop', 'control.pll_range': 20000.0}, 'control.pll_range'),
+    ({'control.mode': 'rebalance', 'gyro.enabled': False,
+      'scenario.rate_values': [], 'scenario.rate_times': []}, 'control.mode'),
+    ({'control.mode': 'sometimes'}, 'control.mode'),
+    # the parameters control.mode replaced are refused with its name
+    ({'control.rebalance': True}, 'control.rebalance: replaced by control.mode'),
+    ({'control.drive_loop': 'closed'}, 'control.drive_loop: replaced by control.mode'),
 ])
 def test_bad_control_parameters_name_the_field(extra, name):
     with pytest.raises(ParameterError, match=f'^{name}'):
@@ -208,7 +209,7 @@ def test_bad_control_parameters_name_the_field(extra, name):
 
 
 def test_the_closed_loop_refuses_a_drive_command_and_a_loop_change():
-    config = paper_config({'control.drive_loop': 'closed'})
+    config = paper_config({'control.mode': 'closed_loop'})
     sim = Simulator(config)
     before = sim._drive
     with pytest.raises(InputError, match='^drive'):

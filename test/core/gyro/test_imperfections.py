@@ -35,8 +35,8 @@ KAPPA = 0.8  # 2 n / (n^2 + 1) of the 2theta pair
 W2 = 2.0 * math.pi * 15800.0
 Q2 = 64700.0
 OPEN_LOOP = {'modes.companions': True, 'gyro.enabled': True, 'drive.amplitude': 0.0065,
-             'drive.frequency': 15800.0, 'control.drive_loop': 'open',
-             'control.rebalance': False, 'gyro.temperature': 0.0,
+             'drive.frequency': 15800.0, 'control.mode': 'open_loop',
+             'gyro.temperature': 0.0,
              'gyro.input_noise_density': 0.0, 'gyro.calibration.source': 'ideal'}
 
 
@@ -143,7 +143,7 @@ def test_force_to_rebalance_reads_through_a_phase_error_as_a_rotation():
     # turned by eps: rate Omega cos(eps), quadrature Omega sin(eps) in magnitude; the PLL is
     # untouched
     eps = 0.02
-    ftr = {'gyro.enabled': True, 'control.drive_loop': 'closed', 'control.rebalance': True,
+    ftr = {'gyro.enabled': True, 'control.mode': 'rebalance',
            'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0,
            'gyro.calibration.source': 'ideal'}
     rate, quadrature = readout({**ftr, 'gyro.phase_error': eps}, TEN_DEG_S, seconds=0.2,
@@ -159,7 +159,7 @@ def test_force_to_rebalance_holds_a_misaligned_sense_mode_where_its_amplifier_re
     # tan(2 delta) C_ss w X in phase with the Coriolis force's: a bias of
     # tan(2 delta) w_s / (2 kappa Q_s), as open loop. The run starts there (no transient).
     delta = 0.1
-    ftr = {'gyro.enabled': True, 'control.drive_loop': 'closed', 'control.rebalance': True,
+    ftr = {'gyro.enabled': True, 'control.mode': 'rebalance',
            'gyro.temperature': 0.0, 'gyro.input_noise_density': 0.0,
            'gyro.calibration.source': 'ideal', 'gyro.sense_misalignment': delta,
            'scenario.rate_times': [0.0], 'scenario.rate_values': [0.0],

@@ -36,9 +36,9 @@ TEN_DEG_S = math.radians(10.0)
 SHOCK = {'scenario.rate_times': [0.0], 'scenario.rate_values': [TEN_DEG_S],
          'scenario.shock_times': [1.0], 'scenario.shock_peaks': [10_000 * STANDARD_GRAVITY]}
 MODES = {
-    'open': {'control.drive_loop': 'open', 'control.rebalance': False,
+    'open': {'control.mode': 'open_loop',
              'drive.amplitude': 0.0065, 'drive.frequency': 15800.0},
-    'closed': {'control.rebalance': False},
+    'closed': {'control.mode': 'closed_loop'},
     'rebalance': {},
 }
 
