@@ -6,7 +6,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: venv run test test-all bench bench-imperfect bench-averaged clean
+.PHONY: venv run test test-ci test-all bench bench-imperfect bench-averaged clean
 
 $(STAMP): requirements-ros.txt requirements-dev.txt setup.py package.xml
 	$(PYTHON) -m venv $(VENV)
@@ -24,12 +24,20 @@ run: $(STAMP)
 	mkdir -p out
 	$(VENV)/bin/ring_gyro_node --ros-args --params-file config/demo.yaml
 
-# The whole default test suite (long physics runs are marked `slow` and left out).
+# The default test suite, on every core: one worker per core, a module's tests on one worker
+# (its module fixtures built once). Left out: the long physics runs (`slow`) and the end-to-end
+# runs of the install, packaging and fault handling (`ci`), which CI adds (`make test-ci`).
+PYTEST_PARALLEL := -n auto --dist loadscope
+
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q $(PYTEST_PARALLEL) -m "not slow and not ci"
+
+# What CI runs (.ci/run): everything but `slow`.
+test-ci: $(STAMP)
+	$(PY) -m pytest -q $(PYTEST_PARALLEL) -m "not slow"
 
 test-all: $(STAMP)
-	$(PY) -m pytest -q -m "slow or not slow"
+	$(PY) -m pytest -q $(PYTEST_PARALLEL) -m "slow or not slow"
 
 bench: $(STAMP)
 	$(PY) benchmarks/bench_simulator.py

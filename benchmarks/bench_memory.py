@@ -26,7 +26,7 @@ and the verdict against the target: flat within 5 MB over 10 minutes, i.e. a
 slope below 5 * 1024 kB / 600 s = 8.5 kB/s and a measured growth below 5 MB scaled to the run
 length.
 
-The node gets a ROS domain of its own (random 200-214) and
+The node gets a ROS domain of its own (random 215-232, outside Linux's ephemeral ports) and
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, as the node tests do, so that it neither
 disturbs nor is disturbed by other sessions. The repository of this file is put first on the
 node's ``PYTHONPATH``.
@@ -203,7 +203,7 @@ def measure(minutes: float = 10.0, warmup_s: float = 60.0, interval_s: float = 5
     verbose : bool
         Print each sample on stderr.
     domain_id : int, optional
-        ROS domain of the node (default: random 200-214).
+        ROS domain of the node (default: random 215-232).
     decimation : int
         ``record.decimation`` of the recording (default 1: every sample).
 
@@ -214,7 +214,7 @@ def measure(minutes: float = 10.0, warmup_s: float = 60.0, interval_s: float = 5
 
     """
     if domain_id is None:
-        domain_id = random.SystemRandom().randrange(200, 215)
+        domain_id = random.SystemRandom().randrange(215, 233)
     with tempfile.TemporaryDirectory(prefix='bench_memory_') as tmp:
         params = pathlib.Path(tmp) / 'params.yaml'
         params.write_text(PARAMS.format(

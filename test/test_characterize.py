@@ -236,6 +236,7 @@ def test_the_pngs_are_written_and_embedded(quick):
     assert '| scale factor |' in text and '| angle random walk |' in text
 
 
+@pytest.mark.ci
 def test_the_datasheet_is_the_same_on_one_process_as_on_two(sheet, tmp_path):
     # Every piece the farm runs depends on no other and seeds from the file: in this process,
     # one after the other, the tests give the same datasheet, number for number.
@@ -814,7 +815,7 @@ def test_auto_on_a_device_the_averaged_model_cannot_run_says_why(sheet, quick):
 
 
 @pytest.mark.parametrize('device, fidelity, said', [
-    (GYRO, 'averaged', ('integrator.fidelity: averaged', 'force-to-rebalance')),  # open loop
+    (GYRO, 'averaged', ('integrator.fidelity: averaged', 'control.mode: rebalance')),  # open
     (DEFAULT, 'fast', ('integrator.fidelity', 'auto, full, averaged'))])        # no such value
 def test_a_fidelity_that_cannot_be_kept_is_refused_before_any_run(tmp_path, capsys,
                                                                   device, fidelity, said):

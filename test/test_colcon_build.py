@@ -35,7 +35,6 @@ Marked ``colcon``; part of the default suite (about 15 s on an idle 2-core machi
 import json
 import os
 from pathlib import Path
-import random
 import shutil
 import subprocess
 import sys
@@ -43,6 +42,7 @@ import textwrap
 
 from mcap.reader import make_reader
 import pytest
+import ros_domains
 
 PACKAGE_ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = 'ring_gyro_sim'
@@ -70,11 +70,9 @@ ROS2_RUN = textwrap.dedent("""\
     os.execv(path, [path, *args])
     """)
 
-# ROS 2 documents domain ids 215-232 as free of Linux's ephemeral ports; the node tests use
-# 100-199 (test/ros/node_harness.py), so a concurrent node test is never in this domain.
-DOMAIN_ID = str(random.SystemRandom().randrange(215, 233))
+DOMAIN_ID = str(ros_domains.claim('colcon build'))
 
-pytestmark = pytest.mark.colcon
+pytestmark = [pytest.mark.colcon, pytest.mark.ci]
 
 
 def _ignore(directory, names):

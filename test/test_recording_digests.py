@@ -46,6 +46,7 @@ def _counts(topics):
     return {topic: value.split(':')[0] for topic, value in topics.items()}
 
 
+@pytest.mark.ci
 @pytest.mark.parametrize('case', sorted(STORED['cases']))
 def test_a_recording_of_a_shipped_configuration_keeps_its_digests(case):
     got = make_recording_digests.compute([case])[case]

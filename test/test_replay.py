@@ -30,7 +30,6 @@ deadlines, a stall of the host costs lateness once and is caught up, nothing acc
 import json
 import os
 import pathlib
-import random
 import re
 import signal
 import subprocess
@@ -50,12 +49,12 @@ from ring_gyro_sim.recording.reader import decode, read_messages, read_topics
 from ring_gyro_sim.recording.schemas import message_class
 from ring_gyro_sim.recording.writer import BagWriter
 from ring_gyro_sim.replay import MAX_GAP_S
+import ros_domains
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray
 
 REPO_ROOT = pathlib.Path(__file__).resolve().parents[1]
-# Not the node tests' domains (100-199) nor the colcon test's (215-232).
-DOMAIN_ID = random.SystemRandom().randrange(200, 215)
+DOMAIN_ID = ros_domains.claim('replay tests')
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 NS = '/ring_gyro'
 BLOCK_TOPICS = [f'{NS}/modal_displacement', f'{NS}/radial_gap', f'{NS}/sense_electrodes']

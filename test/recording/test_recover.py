@@ -256,6 +256,7 @@ def block_values(path, topic):
                 for _, _, message, msg in reader.iter_decoded_messages(topics=[topic])]
 
 
+@pytest.mark.ci
 def test_a_sigkilled_run_recovers_and_resimulates_bit_for_bit(tmp_path):
     scenario = tmp_path / 'scenario.yaml'
     # Driven from rest with a shock at 5 ms, as fast as possible for far longer than the test

@@ -15,9 +15,9 @@
 """
 Harness of the node tests: the node in its own process, a probe node in this one.
 
-Every test session gets its own ROS domain (random 100-199) with discovery limited to this
-machine, set here before rclpy is initialised and passed to every node process, so parallel
-sessions and other machines do not see each other.
+Every test process gets its own ROS domain (``ros_domains.claim``) with discovery limited to
+this machine, set here before rclpy is initialised and passed to every node process, so
+parallel sessions, their workers and other machines do not see each other.
 """
 
 # Google import order, as ament_flake8 checks it; ruff's default isort order differs.
@@ -43,17 +43,23 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from ring_gyro_sim.core.params import PAPER_RESONATOR
 from ring_gyro_sim.ros import conversions
+import ros_domains
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 # isort: on
 
 REPO_ROOT = pathlib.Path(__file__).resolve().parents[2]
-DOMAIN_ID = str(random.SystemRandom().randrange(100, 200))
+DOMAIN_ID = str(ros_domains.claim('node tests'))
 os.environ['ROS_DOMAIN_ID'] = DOMAIN_ID
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-MATCH_TIMEOUT_S = 20.0
-"""Start-up (imports, compiled kernels, start state) plus discovery, generously."""
+MATCH_TIMEOUT_S = 120.0
+"""
+How long a node may take to come up: imports, compiled kernels, the start state, the factory's
+rate table when the cache is empty (the longest part), discovery, on a machine whose other
+cores run other tests. A bound on liveness (a node that never comes up fails), not on speed:
+a test that waits ends as soon as the node is there.
+"""
 
 
 def node_command(params_file, *ros_args):

@@ -25,6 +25,7 @@ import importlib.util
 import pathlib
 
 import pytest
+import ros_domains
 
 BENCH = pathlib.Path(__file__).resolve().parents[2] / 'benchmarks' / 'bench_memory.py'
 _spec = importlib.util.spec_from_file_location('bench_memory', BENCH)
@@ -50,9 +51,11 @@ def test_the_slope_is_the_least_squares_one():
     assert bench_memory.least_squares_slope([5], [1]) == 0.0
 
 
+@pytest.mark.ci
 def test_rss_slope_over_a_minute_stays_below_the_bound():
     result = bench_memory.measure(minutes=1.0, warmup_s=30.0, interval_s=2.0,
-                                  output_rate=OUTPUT_RATE_HZ, verbose=False)
+                                  output_rate=OUTPUT_RATE_HZ, verbose=False,
+                                  domain_id=ros_domains.claim('node memory'))
     print(result.verdict())
     assert result.node_exit == 0
     assert result.slope_kb_s < SHORT_BOUND_KB_S
@@ -61,7 +64,8 @@ def test_rss_slope_over_a_minute_stays_below_the_bound():
 @pytest.mark.slow
 def test_rss_flat_within_5_mb_over_10_minutes():
     result = bench_memory.measure(minutes=10.0, warmup_s=60.0, interval_s=5.0,
-                                  output_rate=OUTPUT_RATE_HZ, verbose=False)
+                                  output_rate=OUTPUT_RATE_HZ, verbose=False,
+                                  domain_id=ros_domains.claim('node memory'))
     print(result.verdict())
     assert result.node_exit == 0
     assert result.flat, result.verdict()

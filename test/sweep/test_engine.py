@@ -150,6 +150,7 @@ def test_a_failing_point_is_reported_and_the_rest_complete(tmp_path):
     assert 'bokeh is not installed' in result.stderr or 'dashboard' in result.stderr
 
 
+@pytest.mark.ci
 def test_a_separate_scheduler_and_workers_give_identical_results(reference, tmp_path):
     spec, _, ref = reference
     cluster = DaskCluster(tmp_path, workers=2)
@@ -163,6 +164,7 @@ def test_a_separate_scheduler_and_workers_give_identical_results(reference, tmp_
     assert_same_results(open_results(tmp_path / 'out' / 'results.nc'), ref.dataset)
 
 
+@pytest.mark.ci
 def test_kill_9_of_a_worker_mid_sweep_still_gives_identical_results(reference, tmp_path):
     spec, _, ref = reference
     out = tmp_path / 'out'

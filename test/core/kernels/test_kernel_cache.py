@@ -62,6 +62,7 @@ def run_read_only(package_parent: Path, cache_home: Path):
     return result
 
 
+@pytest.mark.ci
 def test_second_start_loads_the_kernels_from_disk_when_installed_read_only(tmp_path):
     parent = tmp_path / 'install'
     shutil.copytree(Path(ring_gyro_sim.__file__).parent, parent / 'ring_gyro_sim',

@@ -62,6 +62,7 @@ class Mode:
     drive_order : int
         n of the n-theta pair that is driven and sensed: the drive is its cos member q_n,
         the sense its sin companion q_ns.
+
     """
 
     name: str
