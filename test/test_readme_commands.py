@@ -142,3 +142,26 @@ def test_the_readme_commands_run_as_written(tmp_path):
     assert (tmp_path / 'out' / 'backbone.png').is_file()
     print(f'{len(ran)} README commands run')
     assert len(ran) >= 10
+
+
+@pytest.mark.ci
+def test_the_readme_example_output_is_what_the_demo_simulates():
+    # The simulated part of the example (after the wall time and the core's share, which
+    # depend on the machine) is the demo's summary as printed, to its last digit: the demo's
+    # parameters run offline, unpaced and unrecorded, give the same numbers as the node.
+    from ring_gyro_sim.core.params import build_config, to_flat
+    from ring_gyro_sim.paramfile import load_yaml
+    from ring_gyro_sim.run import Run
+    text = (REPO / 'README.md').read_text(encoding='utf-8')
+    block = re.search(r'```\n(\[INFO\].*?)```', text, flags=re.S).group(1)
+    line = ' '.join(block.split())
+    example = re.search(r'duration reached: .*? of a core; (.*); recorded to out/demo\.mcap',
+                        line).group(1)
+    flat = to_flat(load_yaml(str(REPO / 'config' / 'demo.yaml')))
+    config = build_config({**flat, 'record.path': '', 'real_time_factor': 0.0})
+    run = Run(config)
+    block_samples = int(round(config.run.block_duration * config.run.output_rate))
+    total = int(round(config.run.duration * config.run.output_rate))
+    while run.sample_index < total and run.running:
+        run.advance(min(block_samples, total - run.sample_index))
+    assert example == run.summary_text()
