@@ -123,7 +123,7 @@ __all__ = ['AmbientTemperature', 'AngularRate', 'BaseAcceleration', 'Block', 'Di
            'MAX_SHOCKS_PER_BLOCK', 'NullSink',
            'PARAMETER_REFUSAL_KINDS',
            'Pacing', 'ParameterChange', 'Reset', 'Run', 'RunStats', 'RunSummary', 'Shock',
-           'Sink', 'channel_names', 'format_number']
+           'Sink', 'channel_names', 'format_number', 'load_kernels']
 
 MAX_PENDING_SHOCKS = 1000
 """Shocks accepted and not over yet; beyond this a shock is refused."""
@@ -361,6 +361,31 @@ class Sink:
 
 class NullSink(Sink):
     """A sink that keeps nothing (no recorder, no publisher)."""
+
+
+def load_kernels(config: SimConfig) -> None:
+    """
+    Run the models ``config`` may use for a moment, so that their kernels are compiled.
+
+    For a paced run (the node), before its clock starts: numba compiles a kernel at its first
+    call (or loads it from its disk cache), and a kernel first called inside the paced run
+    would stall it for as long (tens of seconds of CPU on a first run). The full model runs a
+    sample; when the averaged model may take over (``integrator.fidelity`` not ``full`` and
+    the configuration not refused by ``core.engine.handoff``) the run goes on until it has,
+    at most ``4 handoff.CHECK_S``, and one block further. A throwaway run without a sink:
+    nothing is published or recorded, and the run that follows is not changed.
+    """
+    run = Run(config)
+    block = max(1, int(round(config.run.block_duration * config.run.output_rate)))
+    run.advance(block)
+    if run.fidelity_reason is not None:
+        return
+    # whole blocks from 0, as the node advances: the averaged model runs whole loop periods
+    limit = int(round(4.0 * handoff.CHECK_S * config.run.output_rate))
+    while run.running and run.model != 'averaged' and run.sample_index < limit:
+        run.advance(block)
+    if run.running and run.model == 'averaged':
+        run.advance(block)
 
 
 def format_number(value: float, unit_scale: float = 1.0, digits: int = 4) -> str:

@@ -20,6 +20,9 @@ the hand-offs an input causes; a recording's hand-offs repeated by ``--from`` bi
 """
 
 import math
+import subprocess
+import sys
+import textwrap
 
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
@@ -231,3 +234,26 @@ def decoded(path, topics):
         for _, channel, message, msg in reader.iter_decoded_messages(topics=topics):
             out.setdefault(channel.topic, []).append((message.log_time, msg))
     return out
+
+
+LOADED = textwrap.dedent("""
+    import sys
+    from ring_gyro_sim.core.kernels import envelope
+    from ring_gyro_sim.core.params import build_config
+    from ring_gyro_sim.run import load_kernels
+    config = build_config({'gyro.calibration.source': 'ideal',
+                           'integrator.fidelity': sys.argv[1]})
+    before = len(envelope.run_periods.signatures)
+    load_kernels(config)
+    print(before, len(envelope.run_periods.signatures))
+""")
+
+
+@pytest.mark.parametrize('fidelity, after', [('auto', 1), ('full', 0)])
+def test_the_kernels_of_every_model_a_run_may_use_are_loaded_before_it(fidelity, after):
+    # A fresh process: the averaged model's kernel has no signature until it first runs.
+    # load_kernels (what the node calls before its clock starts) runs it when the run may
+    # hand over to the averaged model, and not when the run stays on the full one.
+    out = subprocess.run([sys.executable, '-c', LOADED, fidelity], capture_output=True,
+                         text=True, timeout=600, check=True).stdout.split()
+    assert out == ['0', str(after)]

@@ -151,6 +151,7 @@ from rclpy.signals import SignalHandlerOptions
 from ring_gyro_sim import run as run_mod
 from ring_gyro_sim.core.errors import InputError, ParameterError, RingGyroError
 from ring_gyro_sim.core.gyro import modes
+from ring_gyro_sim.core.kernels import cache
 from ring_gyro_sim.paramfile import check_node_arguments
 from ring_gyro_sim.recording.errors import RecordingError
 from ring_gyro_sim.ros import conversions, EARLY_SIGNALS, parameters, qos
@@ -266,7 +267,11 @@ class RingGyroNode(parameters.CountedParameterRefusals, Node):
         self.run = run_mod.Run(config, sink=self.sink,
                                late_tolerance_ns=block_samples * config.run.output_period_ns,
                                log=log.info)
-        run_mod.Run(config).advance(1)  # load the compiled kernels before pacing
+        if cache.cold_kernels():
+            log.info(f'compiling the kernels before the clock starts (the first run of this '
+                     f'version on this machine: ~{cache.COMPILE_CPU_S:.0f} s of CPU; the next '
+                     f'runs load them)')
+        run_mod.load_kernels(config)  # every model the run may use, before pacing
         self._refuse_a_namesake()
         self.block_samples = block_samples
         self.total_samples = (int(round(config.run.duration * config.run.output_rate))
