@@ -427,8 +427,8 @@ class Simulator(Engine):
             turn=np.empty((self._b.size, config.modes.count, 4)), turn_key=np.full(2, np.nan))
         self.coordinates = coordinate_names(config)
         self._y_index = config.modes.count if config.modes.companions else -1
-        self._drive_index = 1 if config.modes.count >= 2 else -1
-        self._sense_index = config.modes.count + 1 if config.modes.companions else -1
+        # the mode's drive and sense coordinates (q2 and q2s; -1 where the ring has none)
+        self._drive_index, self._sense_index = modes.of(config).axes(config)
         self._build_rotation(config)
         self._build_outputs(config)
 

@@ -239,7 +239,11 @@ class DriveLoop:
         self.omega_range = 2.0 * math.pi * c.pll_range
         self.lock_threshold = float(c.lock_threshold)
         self.drive_limit = float(c.drive_limit)
-        self.rebalance = bool(modes.of(c).rebalance)
+        mode = modes.of(c)
+        self.rebalance = bool(mode.rebalance)
+        # the coordinates the loops drive and null, and their pair (q2, q2s: the 2theta pair)
+        self.drive_index, self.sense_index = mode.axes(config)
+        self.drive_order = mode.drive_order
         self.sense_phase_error = float(config.gyro.phase_error)  # the sense reference's (E3b)
         kp = 2.0 * math.pi * c.pll_bandwidth
         self.pll_gains = (kp, kp * kp / 4.0)
@@ -319,8 +323,8 @@ class DriveLoop:
 
     def linear_amplitude(self) -> float:
         """Return the drive mode's linear response to ``drive.amplitude`` at resonance, m."""
-        f2 = 2.0 * math.pi * self.config.modes.coordinate_frequencies()[1]
-        q2 = self.config.modes.coordinate_quality_factors()[1]
+        f2 = 2.0 * math.pi * self.config.modes.coordinate_frequencies()[self.drive_index]
+        q2 = self.config.modes.coordinate_quality_factors()[self.drive_index]
         return abs(self.config.drive.amplitude) * q2 / (f2 * f2)
 
     def start(self, q: np.ndarray, v: np.ndarray, rate: float,
@@ -343,7 +347,8 @@ class DriveLoop:
                                     self.omega_range)
             self.omega = self.omega_c + self.pll_integral
         w = self.omega_c  # the start state is the drive orbit at drive.frequency
-        c = complex(float(q[1]), -float(v[1]) / w)
+        d = self.drive_index
+        c = complex(float(q[d]), -float(v[d]) / w)
         phase = 0.0
         force = float(abs(self.config.drive.amplitude))
         if abs(c) > 0.0:
@@ -356,26 +361,26 @@ class DriveLoop:
         self.amplitude = self.setpoint_m
         if self.rebalance:
             self.rb_integral[:] = (2.0 * KAPPA_2 * rate * w * self.setpoint_m, 0.0)
-            if 2 in self.config.modes.coupled_pairs():
+            if self.drive_order in self.config.modes.coupled_pairs():
                 # An imperfect pair forces the sense mode with -K_sc q2 - C_sc q2' too
                 # (structure.pair_matrices): q2 = X sin(phi) needs S_s = K_sc X, and
                 # C_sc w X more of S_c.
-                stiffness, damping = self.config.modes.pair_matrices(2)
+                stiffness, damping = self.config.modes.pair_matrices(self.drive_order)
                 self.rb_integral[0] += damping[1, 0] * w * self.setpoint_m
                 self.rb_integral[1] += stiffness[1, 0] * self.setpoint_m
             if self.config.gyro.sense_misalignment:
                 # The loop holds the sense mode at tan(2 delta) q2 (E1b): q2s = mu X sin(phi)
                 # needs S_c = mu C_ss w X more and S_s = mu (K_ss - w^2) X more
                 mu = math.tan(2.0 * math.radians(self.config.gyro.sense_misalignment))
-                m = self.config.modes.count
-                w_s = 2.0 * math.pi * self.config.modes.coordinate_frequencies()[m + 1]
-                c_ss = w_s / self.config.modes.coordinate_quality_factors()[m + 1]
+                s = self.sense_index
+                w_s = 2.0 * math.pi * self.config.modes.coordinate_frequencies()[s]
+                c_ss = w_s / self.config.modes.coordinate_quality_factors()[s]
                 self.rb_integral[0] += mu * c_ss * w * self.setpoint_m
                 self.rb_integral[1] += mu * (w_s * w_s - w * w) * self.setpoint_m
             self.rebalance_force[:] = self.rb_integral
             self.rebalance_rate = float(rate)
             scale = 2.0 * KAPPA_2 * w * self.setpoint_m
-            imperfect = (2 in self.config.modes.coupled_pairs()
+            imperfect = (self.drive_order in self.config.modes.coupled_pairs()
                          or bool(self.config.gyro.sense_misalignment))
             if imperfect and scale > 0.0:
                 self.rebalance_rate = float(self.rb_integral[0] / scale)

@@ -598,11 +598,9 @@ class PickOff:
 
     def __init__(self, config: SimConfig, sim, noisy: bool = True) -> None:
         g = config.gyro
-        n_modes = config.modes.count
         self.noise_seed = int(g.noise_seed)
         self.sample_rate_hz = float(config.run.output_rate)
-        self.drive_index = 1
-        self.sense_index = n_modes + 1 if config.modes.companions else -1
+        self.drive_index, self.sense_index = modes.of(config).axes(config)
         n_coord = sim.model.n_coordinates
         k = config.electrodes.count
         self.n_electrodes = k
