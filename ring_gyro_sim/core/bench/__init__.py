@@ -15,7 +15,9 @@
 """
 The bench above the instrument: what is measured on a running model before a run starts.
 
-``factory``: the factory calibration on a simulated rate table (K2, K3); ``start``: the
-operating point's shooting (the start state on the drive's branch). Both run the full model
-(``core.engine.full``), which is why they sit above it: the model never calls them.
+``factory``: the factory calibration on a simulated rate table (K2, K3). It runs the full
+model (``core.engine.full``), which is why it sits above it: the model never calls it. The
+operating point's shooting (the start state on the drive's branch) belongs here too and is
+still ``core.gyro.operating_point``: the averaged model shoots its own start state when it
+is given none, so moving it here waits for that to become the caller's job.
 """
