@@ -23,6 +23,7 @@ a lost factor in Box-Muller) moves the statistic by far more.
 
 import math
 import multiprocessing
+import signal
 import threading
 
 from hypothesis import given, settings, strategies as st
@@ -171,12 +172,25 @@ def test_a_forked_child_draws_ahead_with_its_own_worker():
     noise._AHEAD.worker.submit(gate.wait, 30.0)  # ... and is busy until the fork is done
     noise.block_normals(3, noise.STREAM_BROWNIAN, 0, 2000, 12)  # the next one is pending
     assert not noise._AHEAD.memo[(3, noise.STREAM_BROWNIAN, 2000, 2000, 12)].done()
+    pool = multiprocessing.get_context('fork').Pool(1, initializer=_default_sigterm)
     try:
-        with multiprocessing.get_context('fork').Pool(1) as pool:
-            child = pool.apply_async(_draw_two_blocks, ()).get(timeout=20)
+        child = pool.apply_async(_draw_two_blocks, ()).get(timeout=20)
+        pool.close()  # the worker ends its loop by itself: no signal needed
+    except BaseException:
+        pool.terminate()
+        raise
     finally:
         gate.set()
+    pool.join()
     assert np.array_equal(child, noise.normals(3, noise.STREAM_BROWNIAN, 0, 4000, 12))
+
+
+def _default_sigterm():
+    # Pool.terminate ends its worker with SIGTERM. Forked from a test process whose earlier
+    # tests installed a handler, ignored or blocked the signal (a pytest-xdist worker runs
+    # many modules), the worker would live on and the join wait for it for ever.
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM})
 
 
 def _draw_two_blocks():
